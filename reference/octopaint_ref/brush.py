@@ -1,0 +1,261 @@
+"""Brush geometry, coverage and the five blend modes (spec section 8).
+
+Every function takes `xp` (numpy or jax.numpy). The host calls the numpy
+versions for topology decisions (reach, target depth), which must be exact
+f64 and identical to the painter's (painter/tree/src/brush.rs); the stroke
+code calls the jitted JAX versions (`jax_*` below) for coverage and blending,
+which are pure functions of brush parameters, sample positions and cell
+values, and so differentiable with respect to colour, opacity, radius and
+sample positions.
+
+Shapes of arrays: n cells, k primitives (capsules or stamps).
+"""
+
+from __future__ import annotations
+
+import os
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from . import noise
+
+jax.config.update("jax_enable_x64", True)
+# Compiled kernels are cached on disk so that every replay after the first
+# skips XLA compilation (a few seconds); OCTOPAINT_JAX_CACHE=off disables it.
+_cache = os.environ.get("OCTOPAINT_JAX_CACHE", os.path.expanduser("~/.cache/octopaint_ref/jax"))
+if _cache != "off":
+    jax.config.update("jax_compilation_cache_dir", _cache)
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
+
+HALF_DIAG = 0.8660254037844386  # sqrt(3)/2 as f64: a cell's half-diagonal per unit edge
+CELLS_PER_RADIUS = 10.0
+RADIUS_PRESSURE_FLOOR = 0.25  # r = radius * (0.25 + 0.75 * pressure)
+OPACITY_CLAMP = 0.999
+STAMP_SHAPES = ("cylinder", "box", "cone", "noise")
+
+
+# ---------------------------------------------------------------- geometry
+def capsule_geometry(xp, x, p0, p1, r0, r1):
+    """Tapered capsule between (p0, r0) and (p1, r1) (spec 8.3).
+
+    x [n, 3]; p0, p1 [k, 3]; r0, r1 [k]. Returns (dist [n, k], u [n, k],
+    r [n, k]): distance from x to the axis point at the clamped projection
+    parameter u, and the radius lerp(r0, r1, u) there. The brush's signed
+    distance is dist - r.
+    """
+    d = p1 - p0
+    dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
+    w = x[:, None, :] - p0[None, :, :]
+    wd = w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
+    safe_dd = xp.where(dd > 0, dd, 1.0)
+    u = xp.where(dd[None, :] > 0, xp.clip(wd / safe_dd[None, :], 0.0, 1.0), 0.0)
+    c = p0[None, :, :] + u[..., None] * d[None, :, :]
+    e = x[:, None, :] - c
+    s = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
+    dist = xp.where(s > 0, xp.sqrt(xp.where(s > 0, s, 1.0)), 0.0)
+    r = r0[None, :] + (r1 - r0)[None, :] * u
+    return dist, u, r
+
+
+def local_coords(xp, x, c, rot):
+    """x [n, 3] in the frames of k stamps (centre c [k, 3], rotation rot
+    [k, 3, 3], local-to-canvas): l_i = sum_j rot[j][i] * (x - c)_j, summed
+    left to right. Returns [n, k, 3]."""
+    d = x[:, None, :] - c[None, :, :]
+    cols = []
+    for i in range(3):
+        cols.append(rot[None, :, 0, i] * d[..., 0] + rot[None, :, 1, i] * d[..., 1] + rot[None, :, 2, i] * d[..., 2])
+    return xp.stack(cols, axis=-1)
+
+
+def stamp_reach(xp, shape: str, x, c, r, rot, aspect, h):
+    """Whether a cell of centre x [n, 3] and half-diagonal h [n] is within
+    reach of each of k stamps [n, k] (spec 8.7): its bounding ball may touch
+    the stamp. Exact f64 on the host; conservative for every shape."""
+    if shape == "noise":
+        dist, _, rr = capsule_geometry(xp, x, c, c, r, r)
+        return dist - rr <= h[:, None]
+    ax, ay, az = (float(v) for v in aspect)
+    lc = local_coords(xp, x, c, rot)
+    hh = h[:, None]
+    rk = r[None, :]
+    if shape == "box":
+        return (
+            (xp.abs(lc[..., 0]) <= ax * rk + hh)
+            & (xp.abs(lc[..., 1]) <= ay * rk + hh)
+            & (xp.abs(lc[..., 2]) <= az * rk + hh)
+        )
+    ex = lc[..., 0] / (ax * rk + hh)
+    ey = lc[..., 1] / (ay * rk + hh)
+    inside = (ex * ex + ey * ey <= 1.0) & (xp.abs(lc[..., 2]) <= az * rk + hh)
+    if shape == "cylinder":
+        return inside
+    if shape == "cone":
+        m = min(ax, ay)
+        lip = float(np.sqrt(4.0 / (m * m) + 1.0 / (az * az)))
+        nx = lc[..., 0] / (ax * rk)
+        ny = lc[..., 1] / (ay * rk)
+        nz = lc[..., 2] / (az * rk)
+        radial = _safe_sqrt(xp, nx * nx + ny * ny)
+        return inside & (2.0 * radial + nz <= 1.0 + hh * lip / rk)
+    raise ValueError(f"unknown stamp shape {shape}")
+
+
+def _safe_sqrt(xp, s):
+    return xp.where(s > 0, xp.sqrt(xp.where(s > 0, s, 1.0)), 0.0)
+
+
+def stamp_gauge(xp, shape: str, x, c, r, rot, aspect):
+    """Normalised gauge rho [n, k] of an oriented stamp: rho <= 1 inside,
+    homogeneous of degree 1 about the stamp centre (spec 8.2)."""
+    if shape == "noise":
+        d = x[:, None, :] - c[None, :, :]
+        s = d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2]
+        return _safe_sqrt(xp, s) / r[None, :]
+    lc = local_coords(xp, x, c, rot)
+    nx = lc[..., 0] / (aspect[0] * r[None, :])
+    ny = lc[..., 1] / (aspect[1] * r[None, :])
+    nz = lc[..., 2] / (aspect[2] * r[None, :])
+    if shape == "box":
+        return xp.maximum(xp.maximum(xp.abs(nx), xp.abs(ny)), xp.abs(nz))
+    radial = _safe_sqrt(xp, nx * nx + ny * ny)
+    if shape == "cylinder":
+        return xp.maximum(radial, xp.abs(nz))
+    if shape == "cone":  # base (radius 1) at z = -1, apex at z = +1
+        return xp.maximum(xp.abs(nz), 2.0 * radial + nz)
+    raise ValueError(f"unknown stamp shape {shape}")
+
+
+# ---------------------------------------------------------------- coverage
+def coverage_profile(xp, rho, hardness):
+    """1 for rho <= hardness, smoothstep down to 0 at rho = 1, 0 beyond."""
+    span = 1.0 - hardness
+    safe = xp.where(span > 0, span, 1.0)
+    t = xp.clip((1.0 - rho) / safe, 0.0, 1.0)
+    smooth = t * t * (3.0 - 2.0 * t)
+    return xp.where(rho >= 1.0, 0.0, xp.where(rho <= hardness, 1.0, smooth))
+
+
+def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness):
+    """coverage * flow [n, k] of k tapered capsules at points x [n, 3]."""
+    dist, u, r = capsule_geometry(xp, x, p0, p1, r0, r1)
+    flow = f0[None, :] + (f1 - f0)[None, :] * u
+    return coverage_profile(xp, dist / r, hardness) * flow
+
+
+def noise_factor(xp, x, perm, scale, octaves: int, gain):
+    """clamp(0.5 + fbm(x), 0, 1) [n] at canvas points x [n, 3]."""
+    return xp.clip(0.5 + noise.fbm(xp, perm, x, scale, octaves, gain), 0.0, 1.0)
+
+
+def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain):
+    """coverage * flow [n, k] of k stamps at points x [n, 3]."""
+    rho = stamp_gauge(xp, shape, x, c, r, rot, aspect)
+    cov = coverage_profile(xp, rho, hardness) * f[None, :]
+    if shape == "noise":
+        cov = cov * noise_factor(xp, x, perm, noise_scale, octaves, gain)[:, None]
+    return cov
+
+
+def max_and_argmax(xp, cov):
+    """The stroke maximum a [n] and the first primitive attaining it."""
+    return xp.max(cov, axis=1), xp.argmax(cov, axis=1)
+
+
+# ------------------------------------------------------------------- blend
+def sigma_brush(xp, opacity, radius):
+    """Extinction that makes a brush radius of paint have opacity alpha."""
+    alpha = xp.minimum(opacity, OPACITY_CLAMP)
+    return -xp.log1p(-alpha) / radius
+
+
+def blend(xp, mode: str, before_rgb, before_sigma, colour, sigma_b, alpha, a, mix_ratio):
+    """The value of a cell after a stroke (spec 8.5): before_rgb [n, 3] in
+    [0, 1], before_sigma [n], colour [n, 3] (the brush colour of the
+    primitive that gave a), a [n]. Returns (rgb [n, 3] in [0, 1] unrounded,
+    sigma [n]). a = 0 leaves the cell as it was."""
+    bs = before_sigma
+    if mode in ("paint", "pickup"):
+        # An empty cell has no colour to keep: it takes the brush colour.
+        base = xp.where((bs == 0)[:, None], colour, before_rgb)
+        rgb = base + (colour - base) * a[:, None]
+        sigma = bs + (sigma_b - bs) * a
+    elif mode == "erase":
+        rgb = before_rgb
+        sigma = bs * (1.0 - a * alpha)
+    elif mode == "recolor":
+        t = (a * alpha)[:, None]
+        rgb = xp.where((bs > 0)[:, None], before_rgb + (colour - before_rgb) * t, before_rgb)
+        sigma = bs
+    elif mode == "mix":
+        wb = mix_ratio * a * sigma_b
+        den = bs + wb
+        safe = xp.where(den > 0, den, 1.0)
+        mixed = (bs[:, None] * before_rgb + wb[:, None] * colour) / safe[:, None]
+        rgb = xp.where((den > 0)[:, None], mixed, before_rgb)
+        sigma = bs + a * sigma_b
+    else:
+        raise ValueError(f"unknown mode {mode}")
+    keep = a == 0
+    return xp.where(keep[:, None], before_rgb, rgb), xp.where(keep, bs, sigma)
+
+
+def quantize_rgb(v: np.ndarray) -> np.ndarray:
+    """Store a colour in [0, 1] as u8: floor(v * 255 + 0.5), clamped."""
+    return np.clip(np.floor(np.asarray(v, np.float64) * 255.0 + 0.5), 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------- jitted versions
+jax_capsule_coverage = jax.jit(partial(capsule_coverage, jnp))
+jax_stamp_coverage = jax.jit(partial(stamp_coverage, jnp), static_argnums=(0, 10))
+jax_blend = jax.jit(partial(blend, jnp), static_argnums=(0,))
+jax_max_and_argmax = jax.jit(partial(max_and_argmax, jnp))
+
+
+# ----------------------------------------------------------- host helpers
+def quat_to_matrix(q) -> np.ndarray:
+    """Rotation matrix (local to canvas) of quaternion [x, y, z, w],
+    normalised first; the exact expression order of spec 8.2."""
+    x, y, z, w = (float(v) for v in q)
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array(
+        [
+            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+            [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+            [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+        ]
+    )
+
+
+def nlerp(q0, q1, u: float):
+    """Normalised linear interpolation of unit quaternions along the short arc."""
+    q0 = np.asarray(q0, np.float64)
+    q1 = np.asarray(q1, np.float64)
+    q0 = q0 / np.sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3])
+    q1 = q1 / np.sqrt(q1[0] * q1[0] + q1[1] * q1[1] + q1[2] * q1[2] + q1[3] * q1[3])
+    if q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0:
+        q1 = -q1
+    q = q0 + (q1 - q0) * u
+    return q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+def target_depth(r, root_size: float, max_depth: int) -> np.ndarray:
+    """Smallest d in [0, D] with root_size * 2^-d <= r / N (else D), exact f64."""
+    t = np.asarray(r, np.float64) / CELLS_PER_RADIUS
+    sizes = root_size * np.exp2(-np.arange(max_depth + 1, dtype=np.float64))
+    return np.minimum((sizes[None, :] > t.reshape(-1, 1)).sum(axis=1), max_depth).reshape(np.shape(t))
+
+
+def stamp_extent(shape: str, aspect) -> float:
+    """Radius, in brush radii, of a ball around the stamp centre holding the
+    whole stamp (for bounding boxes)."""
+    ax, ay, az = aspect
+    if shape == "noise":
+        return 1.0
+    if shape == "box":
+        return float(np.sqrt(ax * ax + ay * ay + az * az))
+    return float(np.sqrt(max(ax, ay) ** 2 + az * az))

@@ -1,0 +1,103 @@
+"""Tree dumps (.npz, spec 11): the arrays both implementations write at a
+trace's `snapshot` events and the conformance driver compares.
+
+The file is a zip of .npy entries (format 1.0, little-endian, C order), stored
+without compression, entries in the order of DUMP_ARRAYS, every timestamp
+1980-01-01 00:00:00: the same tree always gives the same bytes. numpy.load
+reads it. Painter twin: painter/tree/src/dump.rs.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import zipfile
+
+import numpy as np
+
+from .g3 import g3_from_links
+
+DUMP_ARRAYS = (
+    ("parent", "<u4"),
+    ("first_child", "<u4"),
+    ("depth", "|u1"),
+    ("rgb", "|u1"),
+    ("sigma", "<f4"),
+    ("g3", "<u4"),
+    ("origin", "<u4"),
+    ("roots", "<u4"),
+    ("max_depth", "<u4"),
+    ("root_size", "<f8"),
+)
+
+
+def tree_arrays(tree) -> dict:
+    n = tree.n_used
+    parent = tree.parent[:n].copy()
+    first_child = tree.first_child[:n].copy()
+    depth = tree.depth[:n].copy()
+    return {
+        "parent": parent,
+        "first_child": first_child,
+        "depth": depth,
+        "rgb": tree.rgb[:n].copy(),
+        "sigma": tree.sigma[:n].copy(),
+        "g3": g3_from_links(parent, first_child, depth, tree.roots),
+        "origin": tree.origin[:n].copy(),
+        "roots": np.array(tree.roots, np.uint32),
+        "max_depth": np.array(tree.max_depth, np.uint32),
+        "root_size": np.array(tree.root_size, np.float64),
+    }
+
+
+def npy_bytes(a: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.lib.format.write_array(buf, np.require(a, requirements="C"), version=(1, 0), allow_pickle=False)
+    return buf.getvalue()
+
+
+def dump_bytes(arrays: dict) -> bytes:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as z:
+        for name, dtype in DUMP_ARRAYS:
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_STORED
+            info.external_attr = 0o644 << 16
+            z.writestr(info, npy_bytes(np.asarray(arrays[name]).astype(dtype, copy=False)))
+    return buf.getvalue()
+
+
+def write_atomic(path: str, data: bytes) -> None:
+    """Write, fsync, rename: a reader never sees a half-written file."""
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=os.path.basename(path))
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+class DumpError(ValueError):
+    pass
+
+
+def load_dump(path) -> dict:
+    """Read a dump, checking names and dtypes. Raises DumpError."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+        raise DumpError(f"{path}: not a readable .npz dump: {e}") from None
+    for name, dtype in DUMP_ARRAYS:
+        if name not in arrays:
+            raise DumpError(f"{path}: array {name!r} is missing")
+        if arrays[name].dtype != np.dtype(dtype):
+            raise DumpError(f"{path}: array {name!r} has dtype {arrays[name].dtype}, expected {np.dtype(dtype)}")
+    return arrays

@@ -1,0 +1,363 @@
+"""Painting on the tree: per-segment processing, per-stroke maximum blending,
+topology cleaning and undo (spec sections 8-10).
+
+Topology decisions (which leaves are in reach, which refine) are exact f64
+numpy on the host; coverage and blending are the jitted JAX functions of
+brush.py. Painter twin: painter/tree/src/paint.rs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import brush as B
+from .history import History
+from .noise import permutation
+from .stroke import Prims, StrokePath
+from .trace import Brush, Sample
+from .tree import FACES, NONE, UNIT, CapacityError, Tree
+
+CHUNK_ENTRIES = 1 << 20  # n * k entries per vectorised evaluation
+
+
+def _bucket(n: int) -> int:
+    return max(64, 1 << max(0, n - 1).bit_length())
+
+
+def _pad_rows(a: np.ndarray, n: int, fill) -> np.ndarray:
+    if len(a) == n:
+        return a
+    out = np.empty((n,) + a.shape[1:], a.dtype)
+    out[: len(a)] = a
+    out[len(a) :] = fill
+    return out
+
+
+class Stroke:
+    """The state of the stroke in progress (spec 8.8)."""
+
+    def __init__(self, brush: Brush, line: int):
+        self.brush = brush
+        self.line = line
+        self.path = StrokePath(brush)
+        self.colour = np.array(brush.color, np.float64)
+        self.sigma_b = float(B.sigma_brush(np, brush.opacity, brush.radius))
+        self.alpha = float(brush.opacity)
+        self.segments: list[Prims] = []
+        self._all: Prims | None = None
+        self.capacity_warned = False
+        # Per touched cell (a slot): the value before the stroke, the stroke
+        # maximum a, and the colour of the primitive that gave it.
+        self.n = 0
+        self.slot_of = np.full(0, -1, np.int64)  # pool-sized: cell -> slot
+        self.cell = np.zeros(0, np.int64)
+        self.before_rgb = np.zeros((0, 3), np.uint8)
+        self.before_sigma = np.zeros(0, np.float32)
+        self.a = np.zeros(0, np.float64)
+        self.best_colour = np.zeros((0, 3), np.float64)
+
+    def slots(self, cells: np.ndarray) -> np.ndarray:
+        """Slot of each cell, -1 for cells the stroke has not touched."""
+        out = np.full(len(cells), -1, np.int64)
+        inside = cells < len(self.slot_of)
+        out[inside] = self.slot_of[cells[inside]]
+        return out
+
+    def record(self, cells, before_rgb, before_sigma) -> np.ndarray:
+        """Touch `cells` (not yet touched) with their before-values; a = 0."""
+        n = len(cells)
+        need = self.n + n
+        if need > len(self.a):
+            cap = max(1024, 2 * need)
+            for name in ("cell", "before_rgb", "before_sigma", "a", "best_colour"):
+                old = getattr(self, name)
+                new = np.zeros((cap,) + old.shape[1:], old.dtype)
+                new[: self.n] = old[: self.n]
+                setattr(self, name, new)
+        top = int(cells.max()) + 1 if n else 0
+        if top > len(self.slot_of):
+            grown = np.full(max(top, 2 * len(self.slot_of)), -1, np.int64)
+            grown[: len(self.slot_of)] = self.slot_of
+            self.slot_of = grown
+        sl = slice(self.n, need)
+        slots = np.arange(self.n, need)
+        self.slot_of[cells] = slots
+        self.cell[sl] = cells
+        self.before_rgb[sl] = before_rgb
+        self.before_sigma[sl] = before_sigma
+        self.a[sl] = 0.0
+        self.best_colour[sl] = 0.0
+        self.n = need
+        return slots
+
+    def history(self) -> Prims:
+        if self._all is None or len(self._all) != sum(len(s) for s in self.segments):
+            parts = [s for s in self.segments if len(s)]
+            self._all = Prims.concat(parts) if parts else None
+        return self._all
+
+
+class Painting:
+    """A tree plus the strokes painted on it."""
+
+    def __init__(self, canvas, warn=None):
+        self.tree = Tree(canvas.roots, canvas.max_depth, canvas.root_size, canvas.capacity)
+        self.stroke: Stroke | None = None
+        self.history = History(self.tree)
+        self.warn = warn or (lambda msg: None)
+        self.after_segment = None  # test hook: called with the Painting
+        self.capacity_refusals = 0
+
+    # ------------------------------------------------------------ strokes
+    def begin_stroke(self, brush: Brush, line: int = 0) -> None:
+        assert self.stroke is None, "stroke already open"
+        self.history.begin()
+        self.stroke = Stroke(brush, line)
+        if brush.shape == "noise":
+            self._perm = permutation(brush.noise.seed)
+
+    def add_sample(self, sample: Sample, line: int = 0) -> None:
+        st = self.stroke
+        assert st is not None, "sample outside a stroke"
+        if st.brush.mode == "pickup":
+            c = self.tree.leaf_at(sample.p)
+            if c is not None and self.tree.sigma[c] > 0:
+                canvas_rgb = self.tree.rgb[c].astype(np.float64) / 255.0
+                st.colour = st.colour + (canvas_rgb - st.colour) * st.brush.pickup_rate
+        seg = st.path.segment(sample, st.colour.copy())
+        st.segments.append(seg)
+        if len(seg):
+            self._process_segment(st, seg, line)
+        if self.after_segment is not None:
+            self.after_segment(self)
+
+    def end_stroke(self) -> None:
+        st = self.stroke
+        assert st is not None, "no stroke open"
+        touched = st.cell[: st.n].copy()
+        self.stroke = None
+        from .clean import clean
+
+        clean(self.tree, touched)
+        self.history.commit()
+
+    def undo(self) -> None:
+        self.history.undo()
+
+    def redo(self) -> None:
+        self.history.redo()
+
+    # ------------------------------------------------------- one segment
+    def _process_segment(self, st: Stroke, seg: Prims, line: int) -> None:
+        tree = self.tree
+        leaves = self._leaves_in_reach(seg)
+        a, best = self._evaluate(st, seg, leaves)
+        hit = a > 0
+        self._apply(st, leaves[hit], a[hit], seg.colour[best[hit]])
+        candidates = leaves[self._needs_refinement(st, seg, leaves)]
+        while len(candidates):
+            created: list[int] = []
+            refused = False
+            for c in np.sort(candidates):
+                c = int(c)
+                if tree.first_child[c] != NONE:
+                    continue  # refined as a balance side effect this round
+                try:
+                    tree.refine(c, created)
+                except CapacityError as e:
+                    refused = True
+                    self.capacity_refusals += 1
+                    if not st.capacity_warned:
+                        st.capacity_warned = True
+                        self.warn(f"line {line}: {e}: refinement refused, painting goes on at the resolution reached")
+                    break
+            if not created:
+                break
+            new = (np.array(created, np.int64)[:, None] + np.arange(UNIT)[None, :]).ravel()
+            self._paint_new_cells(st, new)
+            if refused:
+                break
+            candidates = new[self._needs_refinement(st, seg, new)]
+
+    def _paint_new_cells(self, st: Stroke, cells: np.ndarray) -> None:
+        """New children take their parent's before-value and their own
+        stroke maximum over every segment so far (spec 8.8)."""
+        tree = self.tree
+        parents = tree.parent[cells].astype(np.int64)
+        slots = st.slots(parents)
+        before_rgb = tree.rgb[parents].copy()
+        before_sigma = tree.sigma[parents].copy()
+        had = slots >= 0
+        before_rgb[had] = st.before_rgb[slots[had]]
+        before_sigma[had] = st.before_sigma[slots[had]]
+        a = np.zeros(len(cells))
+        colour = np.zeros((len(cells), 3))
+        hist = st.history()
+        if hist is not None:
+            centres = tree.centres(cells)
+            lo, hi = centres.min(axis=0), centres.max(axis=0)
+            near = np.nonzero(np.all(hist.hi >= lo, axis=1) & np.all(hist.lo <= hi, axis=1))[0]
+            if len(near):
+                sub = hist.take(near)
+                a, best = self._evaluate(st, sub, cells)
+                colour = sub.colour[best]
+        st.record(cells, before_rgb, before_sigma)
+        # Every new cell is written: one outside the brush goes back to its
+        # before-value, not its parent's painted value.
+        self._apply(st, cells, a, colour, force=True)
+
+    def _apply(self, st: Stroke, cells: np.ndarray, a: np.ndarray, colour: np.ndarray, force=False) -> None:
+        """Raise the stroke maximum of `cells` to `a` where larger and write
+        blend(before, brush, a) for the cells that changed (all if force)."""
+        if len(cells) == 0:
+            return
+        tree = self.tree
+        slots = st.slots(cells)
+        fresh = slots < 0
+        if fresh.any():
+            fc = cells[fresh]
+            slots[fresh] = st.record(fc, tree.rgb[fc].copy(), tree.sigma[fc].copy())
+        up = a > st.a[slots]
+        write = up | force
+        slots_up = slots[up]
+        st.a[slots_up] = a[up]
+        st.best_colour[slots_up] = colour[up]
+        if not write.any():
+            return
+        w = slots[write]
+        n = len(w)
+        m = _bucket(n)
+        rgb, sigma = B.jax_blend(
+            st.brush.mode,
+            _pad_rows(st.before_rgb[w].astype(np.float64) / 255.0, m, 0.0),
+            _pad_rows(st.before_sigma[w].astype(np.float64), m, 0.0),
+            _pad_rows(st.best_colour[w], m, 0.0),
+            st.sigma_b,
+            st.alpha,
+            _pad_rows(st.a[w], m, 0.0),
+            st.brush.mix_ratio,
+        )
+        cw = cells[write]
+        tree.rgb[cw] = B.quantize_rgb(np.asarray(rgb)[:n])
+        tree.sigma[cw] = np.asarray(sigma)[:n].astype(np.float32)
+
+    # ----------------------------------------------------- evaluation
+    def _evaluate(self, st: Stroke, prims: Prims, cells: np.ndarray):
+        """Stroke maximum of coverage * flow over `prims` at the centres of
+        `cells`, and the index of the first primitive attaining it (JAX)."""
+        n, k = len(cells), len(prims)
+        a = np.zeros(n)
+        best = np.zeros(n, np.int64)
+        if n == 0 or k == 0:
+            return a, best
+        x_all = self.tree.centres(cells)
+        b = st.brush
+        k_chunk = min(_bucket(k), CHUNK_ENTRIES // 64)
+        for k0 in range(0, k, k_chunk):
+            sub = prims.take(slice(k0, k0 + k_chunk))
+            kk = _bucket(len(sub))
+            arr = {name: _pad_rows(v, kk, 0.0) for name, v in sub.arrays.items()}
+            if b.shape == "sphere":
+                arr["r0"][len(sub) :] = 1.0
+                arr["r1"][len(sub) :] = 1.0
+            else:
+                arr["r"][len(sub) :] = 1.0
+                arr["rot"][len(sub) :] = np.eye(3)
+            n_chunk = max(64, min(_bucket(n), CHUNK_ENTRIES // kk))
+            for n0 in range(0, n, n_chunk):
+                x = x_all[n0 : n0 + n_chunk]
+                nn = len(x)
+                xm = _pad_rows(x, _bucket(nn) if nn < n_chunk else n_chunk, 0.0)
+                if b.shape == "sphere":
+                    cov = B.jax_capsule_coverage(
+                        xm, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness
+                    )
+                else:
+                    cov = B.jax_stamp_coverage(
+                        b.shape,
+                        xm,
+                        arr["c"],
+                        arr["r"],
+                        arr["f"],
+                        arr["rot"],
+                        np.array(b.aspect),
+                        b.hardness,
+                        self._perm if b.shape == "noise" else np.zeros(512, np.int64),
+                        b.noise.frequency / b.radius,
+                        b.noise.octaves,
+                        b.noise.gain,
+                    )
+                ca, cb = B.jax_max_and_argmax(cov)
+                ca = np.asarray(ca)[:nn]
+                cb = np.asarray(cb)[:nn] + k0
+                sl = slice(n0, n0 + nn)
+                better = ca > a[sl]
+                a[sl] = np.where(better, ca, a[sl])
+                best[sl] = np.where(better, cb, best[sl])
+        return a, best
+
+    def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs: bool):
+        """Exact host decisions for `cells`: within reach of any primitive,
+        and (if want_needs) needing refinement for any primitive (spec 8.7)."""
+        tree = self.tree
+        n, k = len(cells), len(prims)
+        reach = np.zeros(n, bool)
+        needs = np.zeros(n, bool)
+        if n == 0 or k == 0:
+            return reach, needs
+        x_all = tree.centres(cells)
+        h_all = B.HALF_DIAG * tree.sizes(cells)
+        d_all = tree.depth[cells].astype(np.int64)
+        b = st.brush
+        arr = prims.arrays
+        step = max(1, CHUNK_ENTRIES // max(k, 1))
+        for n0 in range(0, n, step):
+            sl = slice(n0, n0 + step)
+            x, h, d = x_all[sl], h_all[sl], d_all[sl]
+            if b.shape == "sphere":
+                dist, _, r = B.capsule_geometry(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"])
+                rk = dist - r <= h[:, None]
+                radius = r
+            else:
+                rk = B.stamp_reach(np, b.shape, x, arr["c"], arr["r"], arr["rot"], b.aspect, h)
+                radius = np.broadcast_to(arr["r"][None, :], rk.shape)
+            reach[sl] = rk.any(axis=1)
+            if want_needs:
+                td = B.target_depth(radius, tree.root_size, tree.max_depth)
+                needs[sl] = (rk & (d[:, None] < td)).any(axis=1)
+        if want_needs and b.mode in ("erase", "recolor"):
+            needs &= tree.sigma[cells] > 0  # nothing there to change
+        return reach, needs
+
+    def _needs_refinement(self, st: Stroke, seg: Prims, cells: np.ndarray) -> np.ndarray:
+        """bool mask: the leaves among `cells` this segment must refine."""
+        leaf = self.tree.first_child[cells] == NONE
+        return leaf & self._reach(st, seg, cells, True)[1]
+
+    def _leaves_in_reach(self, seg: Prims) -> np.ndarray:
+        """Every leaf within reach of the segment: a top-down traversal from
+        the roots whose boxes touch the segment's bounds."""
+        tree = self.tree
+        st = self.stroke
+        rs = tree.root_size
+        lo = np.floor((seg.lo.min(axis=0) - rs) / rs).astype(np.int64)
+        hi = np.floor((seg.hi.max(axis=0) + rs) / rs).astype(np.int64)
+        lo = np.maximum(lo, 0)
+        hi = np.minimum(hi, np.array(tree.roots) - 1)
+        if np.any(hi < lo):
+            return np.zeros(0, np.int64)
+        gx, gy, gz = np.meshgrid(*(np.arange(lo[a], hi[a] + 1) for a in range(3)), indexing="ij")
+        frontier = (gx + tree.roots[0] * (gy + tree.roots[1] * gz)).ravel().astype(np.int64)
+        out = []
+        while len(frontier):
+            reach, _ = self._reach(st, seg, frontier, False)
+            frontier = frontier[reach]
+            fc = tree.first_child[frontier]
+            leaf = fc == NONE
+            out.append(frontier[leaf])
+            inner = fc[~leaf].astype(np.int64)
+            frontier = (inner[:, None] + np.arange(UNIT)[None, :]).ravel()
+        return np.sort(np.concatenate(out)) if out else np.zeros(0, np.int64)
+
+
+__all__ = ["Painting", "FACES"]

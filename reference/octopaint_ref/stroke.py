@@ -1,0 +1,113 @@
+"""From trace samples to brush primitives (spec 8.3-8.4).
+
+A sphere stroke is a chain of tapered capsules, one per segment between
+consecutive samples (the first sample alone is a sphere). Every other shape
+is stamped along the path every `spacing * r` of arc length. Each `sample`
+event produces one segment: a `Prims` batch of one capsule or of zero or more
+stamps. Painter twin: painter/tree/src/stroke.rs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .brush import RADIUS_PRESSURE_FLOOR, nlerp, quat_to_matrix, stamp_extent
+from .trace import Brush, Sample
+
+
+@dataclass
+class Prims:
+    """k primitives of one shape. For capsules (shape "sphere"): p0, p1
+    [k, 3], r0, r1, f0, f1 [k]. For stamps: c [k, 3], r, f [k], rot [k, 3, 3].
+    colour [k, 3] is the brush colour each primitive paints with; lo, hi
+    [k, 3] bound the primitive (coverage is zero outside)."""
+
+    shape: str
+    arrays: dict
+    colour: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.colour)
+
+    def take(self, idx) -> "Prims":
+        return Prims(self.shape, {k: v[idx] for k, v in self.arrays.items()}, self.colour[idx], self.lo[idx], self.hi[idx])
+
+    @staticmethod
+    def concat(parts: list["Prims"]) -> "Prims":
+        p0 = parts[0]
+        return Prims(
+            p0.shape,
+            {k: np.concatenate([p.arrays[k] for p in parts]) for k in p0.arrays},
+            np.concatenate([p.colour for p in parts]),
+            np.concatenate([p.lo for p in parts]),
+            np.concatenate([p.hi for p in parts]),
+        )
+
+
+def pressure_radius(brush: Brush, pressure: float) -> float:
+    return brush.radius * (RADIUS_PRESSURE_FLOOR + (1.0 - RADIUS_PRESSURE_FLOOR) * pressure)
+
+
+class StrokePath:
+    """Turns the samples of one stroke into segments."""
+
+    def __init__(self, brush: Brush):
+        self.brush = brush
+        self.prev = None  # (p, r, f, q) of the previous sample
+        self.carry = 0.0  # arc length from the previous sample to the next stamp
+        self.extent = stamp_extent(brush.shape, brush.aspect)
+
+    def segment(self, sample: Sample, colour: np.ndarray) -> Prims:
+        b = self.brush
+        p = np.array(sample.p, np.float64)
+        r = pressure_radius(b, sample.pressure)
+        f = float(sample.pressure)
+        q = np.array(sample.q, np.float64)
+        prev = self.prev
+        self.prev = (p, r, f, q)
+        if b.shape == "sphere":
+            p0, r0, f0 = (p, r, f) if prev is None else prev[:3]
+            lo = np.minimum(p0, p) - max(r0, r)
+            hi = np.maximum(p0, p) + max(r0, r)
+            arrays = {
+                "p0": p0[None, :],
+                "p1": p[None, :],
+                "r0": np.array([r0]),
+                "r1": np.array([r]),
+                "f0": np.array([f0]),
+                "f1": np.array([f]),
+            }
+            return Prims("sphere", arrays, colour[None, :], lo[None, :], hi[None, :])
+        stamps = []  # (c, r, f, q)
+        if prev is None:
+            stamps.append((p, r, f, q))
+            self.carry = b.spacing * r
+        else:
+            pa, ra, fa, qa = prev
+            d = p - pa
+            length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+            if length > 0:
+                s = self.carry
+                while s <= length:
+                    u = s / length
+                    ru = ra + (r - ra) * u
+                    stamps.append((pa + d * u, ru, fa + (f - fa) * u, nlerp(qa, q, u)))
+                    s = s + b.spacing * ru
+                self.carry = s - length
+        k = len(stamps)
+        c = np.array([s[0] for s in stamps], np.float64).reshape(k, 3)
+        rr = np.array([s[1] for s in stamps], np.float64)
+        ff = np.array([s[2] for s in stamps], np.float64)
+        rot = np.array([quat_to_matrix(s[3]) for s in stamps], np.float64).reshape(k, 3, 3)
+        ext = (rr * self.extent)[:, None]
+        return Prims(
+            b.shape,
+            {"c": c, "r": rr, "f": ff, "rot": rot},
+            np.repeat(colour[None, :], k, axis=0),
+            c - ext,
+            c + ext,
+        )

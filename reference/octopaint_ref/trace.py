@@ -1,0 +1,398 @@
+"""Trace reader: parses and validates a whole `.jsonl` trace before anything runs.
+
+The format is docs/spec.md section 12 (and ../shared/TRACE-FORMAT.md). Every
+error names the line and the field; a bad trace raises `TraceError` and the
+caller writes nothing. The painter's reader (painter/tree/src/trace.rs) must
+accept and reject exactly the same traces with the same messages.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+
+NAME_RE = re.compile(r"^[A-Za-z0-9._-]+$")
+SHAPES = ("sphere", "cylinder", "box", "cone", "noise")
+MODES = ("paint", "erase", "recolor", "mix", "pickup")
+MAX_DEPTH_LIMIT = 28
+MAX_CAPACITY = 0xFFFF_FFF8  # largest multiple of 8 below NONE
+MAX_IMAGE_SIZE = 16384
+MAX_ROOTS = 1 << 24
+MAX_STAMPS_PER_SEGMENT = 65536
+SPACING_RANGE = (0.01, 100.0)
+ASPECT_RANGE = (1e-3, 1e3)
+NOISE_OCTAVES_RANGE = (1, 8)
+NOISE_FREQUENCY_MAX = 1e6
+HALF_PI = math.pi / 2
+
+
+class TraceError(ValueError):
+    """A trace that must not be replayed. The message names line and field."""
+
+
+@dataclass(frozen=True)
+class Canvas:
+    roots: tuple[int, int, int]
+    max_depth: int
+    root_size: float
+    capacity: int
+
+
+@dataclass(frozen=True)
+class Noise:
+    frequency: float = 1.0
+    octaves: int = 4
+    seed: int = 0
+    gain: float = 0.5
+
+
+@dataclass(frozen=True)
+class Brush:
+    shape: str
+    mode: str
+    radius: float
+    color: tuple[float, float, float]
+    opacity: float
+    hardness: float
+    spacing: float = 0.25
+    mix_ratio: float = 1.0
+    pickup_rate: float = 0.25
+    aspect: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    noise: Noise = field(default_factory=Noise)
+
+
+@dataclass(frozen=True)
+class Sample:
+    p: tuple[float, float, float]
+    pressure: float = 1.0
+    q: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class Camera:
+    eye: tuple[float, float, float]
+    q: tuple[float, float, float, float]
+    fov: tuple[float, float, float, float]
+    size: tuple[int, int]
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Event:
+    """One event. `kind` is the `ev` string; `value` is a Brush, Sample,
+    Camera, a name (render/snapshot) or None."""
+
+    line: int
+    t: float
+    kind: str
+    value: object = None
+
+
+@dataclass(frozen=True)
+class Trace:
+    canvas: Canvas
+    meta: dict
+    events: tuple[Event, ...]
+    warnings: tuple[str, ...]
+
+
+def _fail(line: int, fld: str, msg: str) -> TraceError:
+    return TraceError(f"line {line}: {fld}: {msg}")
+
+
+def _finite(line: int, fld: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _fail(line, fld, f"expected a number, got {json.dumps(v)}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise _fail(line, fld, "not a finite number")
+    return x
+
+
+def _int(line: int, fld: str, v, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _fail(line, fld, f"expected an integer, got {json.dumps(v)}")
+    if isinstance(v, float) and (not math.isfinite(v) or v != math.floor(v)):
+        raise _fail(line, fld, f"expected an integer, got {v!r}")
+    i = int(v)
+    if not lo <= i <= hi:
+        raise _fail(line, fld, f"{i} is outside [{lo}, {hi}]")
+    return i
+
+
+def _ranged(line: int, fld: str, v, lo: float, hi: float) -> float:
+    x = _finite(line, fld, v)
+    if not lo <= x <= hi:
+        raise _fail(line, fld, f"{x!r} is outside [{lo!r}, {hi!r}]")
+    return x
+
+
+def _vec(line: int, fld: str, v, n: int) -> list:
+    if not isinstance(v, list) or len(v) != n:
+        raise _fail(line, fld, f"expected an array of {n} numbers")
+    return v
+
+
+def _vec_finite(line: int, fld: str, v, n: int) -> tuple:
+    return tuple(_finite(line, f"{fld}[{i}]", x) for i, x in enumerate(_vec(line, fld, v, n)))
+
+
+def _vec_unit(line: int, fld: str, v, n: int) -> tuple:
+    return tuple(_ranged(line, f"{fld}[{i}]", x, 0.0, 1.0) for i, x in enumerate(_vec(line, fld, v, n)))
+
+
+def _quat(line: int, fld: str, v) -> tuple:
+    q = _vec_finite(line, fld, v, 4)
+    n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]
+    if not math.isfinite(n2) or math.sqrt(n2) < 1e-12:
+        raise _fail(line, fld, "zero or non-finite quaternion")
+    return q
+
+
+def _require(line: int, obj: dict, key: str):
+    if key not in obj:
+        raise _fail(line, key, "missing")
+    return obj[key]
+
+
+def _name(line: int, v) -> str:
+    if not isinstance(v, str) or not NAME_RE.match(v) or v in (".", ".."):
+        raise _fail(line, "name", f"{json.dumps(v)} is not a name of [A-Za-z0-9._-]+ (no paths)")
+    return v
+
+
+def parse_canvas(line: int, obj) -> Canvas:
+    if not isinstance(obj, dict):
+        raise _fail(line, "canvas", "expected an object")
+    roots = tuple(
+        _int(line, f"canvas.roots[{i}]", x, 1, 1 << 16)
+        for i, x in enumerate(_vec(line, "canvas.roots", _require(line, obj, "roots"), 3))
+    )
+    max_depth = _int(line, "canvas.max_depth", _require(line, obj, "max_depth"), 0, MAX_DEPTH_LIMIT)
+    for i, r in enumerate(roots):
+        if r << max_depth > 1 << 32:
+            raise _fail(line, f"canvas.roots[{i}]", f"{r} roots of depth {max_depth} exceed the u32 lattice")
+    root_size = _finite(line, "canvas.root_size", _require(line, obj, "root_size"))
+    if not 1e-9 <= root_size <= 1e12:
+        raise _fail(line, "canvas.root_size", f"{root_size!r} is outside [1e-09, 1e+12]")
+    n_roots = roots[0] * roots[1] * roots[2]
+    if n_roots > MAX_ROOTS:
+        raise _fail(line, "canvas.roots", f"{n_roots} roots are more than the {MAX_ROOTS} allowed")
+    padded = (n_roots + 7) // 8 * 8
+    capacity = _int(line, "canvas.capacity", _require(line, obj, "capacity"), 8, MAX_CAPACITY)
+    if capacity < padded:
+        raise _fail(line, "canvas.capacity", f"{capacity} is below the {padded} cells the roots need")
+    return Canvas(roots, max_depth, root_size, capacity)
+
+
+def parse_brush(line: int, obj: dict) -> Brush:
+    shape = _require(line, obj, "shape")
+    if shape not in SHAPES:
+        raise _fail(line, "shape", f"{json.dumps(shape)} is not one of {', '.join(SHAPES)}")
+    mode = _require(line, obj, "mode")
+    if mode not in MODES:
+        raise _fail(line, "mode", f"{json.dumps(mode)} is not one of {', '.join(MODES)}")
+    radius = _finite(line, "radius", _require(line, obj, "radius"))
+    if radius <= 0:
+        raise _fail(line, "radius", f"{radius!r} must be > 0")
+    color = _vec_unit(line, "color", _require(line, obj, "color"), 3)
+    opacity = _ranged(line, "opacity", _require(line, obj, "opacity"), 0.0, 1.0)
+    hardness = _ranged(line, "hardness", _require(line, obj, "hardness"), 0.0, 1.0)
+    kw = {}
+    if "spacing" in obj:
+        kw["spacing"] = _ranged(line, "spacing", obj["spacing"], *SPACING_RANGE)
+    if "mix_ratio" in obj:
+        kw["mix_ratio"] = _ranged(line, "mix_ratio", obj["mix_ratio"], 0.0, 1.0)
+    if "pickup_rate" in obj:
+        kw["pickup_rate"] = _ranged(line, "pickup_rate", obj["pickup_rate"], 0.0, 1.0)
+    if "aspect" in obj:
+        kw["aspect"] = tuple(
+            _ranged(line, f"aspect[{i}]", x, *ASPECT_RANGE)
+            for i, x in enumerate(_vec(line, "aspect", obj["aspect"], 3))
+        )
+    if "noise" in obj:
+        n = obj["noise"]
+        if not isinstance(n, dict):
+            raise _fail(line, "noise", "expected an object")
+        nkw = {}
+        if "frequency" in n:
+            nkw["frequency"] = _finite(line, "noise.frequency", n["frequency"])
+            if not 0 < nkw["frequency"] <= NOISE_FREQUENCY_MAX:
+                raise _fail(line, "noise.frequency", f"{nkw['frequency']!r} is outside (0, {NOISE_FREQUENCY_MAX:g}]")
+        if "octaves" in n:
+            nkw["octaves"] = _int(line, "noise.octaves", n["octaves"], *NOISE_OCTAVES_RANGE)
+        if "seed" in n:
+            nkw["seed"] = _int(line, "noise.seed", n["seed"], 0, 0xFFFF_FFFF)
+        if "gain" in n:
+            nkw["gain"] = _ranged(line, "noise.gain", n["gain"], 0.0, 1.0)
+        kw["noise"] = Noise(**nkw)
+    return Brush(shape, mode, radius, color, opacity, hardness, **kw)
+
+
+def parse_sample(line: int, obj: dict) -> Sample:
+    p = _vec_finite(line, "p", _require(line, obj, "p"), 3)
+    kw = {}
+    if "pressure" in obj:
+        kw["pressure"] = _ranged(line, "pressure", obj["pressure"], 0.0, 1.0)
+    if "q" in obj:
+        kw["q"] = _quat(line, "q", obj["q"])
+    return Sample(p, **kw)
+
+
+def parse_camera(line: int, obj: dict) -> Camera:
+    eye = _vec_finite(line, "eye", _require(line, obj, "eye"), 3)
+    q = _quat(line, "q", _require(line, obj, "q"))
+    fov = tuple(
+        _finite(line, f"fov[{i}]", x) for i, x in enumerate(_vec(line, "fov", _require(line, obj, "fov"), 4))
+    )
+    for i, a in enumerate(fov):
+        if not -HALF_PI < a < HALF_PI:
+            raise _fail(line, f"fov[{i}]", f"{a!r} is outside (-pi/2, pi/2)")
+    left, right, up, down = fov
+    if not left < right:
+        raise _fail(line, "fov", "angles not ordered: left must be < right")
+    if not down < up:
+        raise _fail(line, "fov", "angles not ordered: down must be < up")
+    size = tuple(
+        _int(line, f"size[{i}]", x, 1, MAX_IMAGE_SIZE)
+        for i, x in enumerate(_vec(line, "size", _require(line, obj, "size"), 2))
+    )
+    kw = {}
+    if "background" in obj:
+        kw["background"] = _vec_unit(line, "background", obj["background"], 3)
+    return Camera(eye, q, fov, size, **kw)
+
+
+def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> int:
+    """An upper bound on the stamps one segment places (spec 8.4), used to
+    refuse absurd traces before anything runs."""
+    if brush.shape == "sphere":
+        return 1
+    d = [b.p[i] - a.p[i] for i in range(3)]
+    length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    r_min = brush.radius * (0.25 + 0.75 * min(a.pressure, b.pressure))
+    return int(length / (brush.spacing * r_min)) + 1
+
+
+def parse_trace(text: str) -> Trace:
+    """Parse and validate a whole trace. Raises TraceError naming the line."""
+    lines = text.split("\n")
+    header = None
+    events: list[Event] = []
+    warnings: list[str] = []
+    brush: Brush | None = None
+    in_stroke = False
+    stroke_begin_line = 0
+    last_sample: Sample | None = None
+    last_t = 0.0
+    done: list[int] = []  # undo stack depth model: strokes that can be undone
+    undone = 0
+    names = {"render": set(), "snapshot": set()}
+    for lineno, raw in enumerate(lines, start=1):
+        if raw.strip() == "":
+            continue
+        try:
+            obj = json.loads(raw)
+        except json.JSONDecodeError as e:
+            raise TraceError(f"line {lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
+        if not isinstance(obj, dict):
+            raise TraceError(f"line {lineno}: expected a JSON object")
+        if header is None:
+            if obj.get("format") != "ddo-trace":
+                raise _fail(lineno, "format", 'the first line must be a header with "format": "ddo-trace"')
+            if "version" not in obj:
+                raise _fail(lineno, "version", "missing")
+            version = obj["version"]
+            if isinstance(version, bool) or version != 1:
+                raise _fail(lineno, "version", f"{json.dumps(version)} is not supported (this reader knows version 1)")
+            canvas = parse_canvas(lineno, _require(lineno, obj, "canvas"))
+            meta = obj.get("meta", {})
+            if not isinstance(meta, dict):
+                raise _fail(lineno, "meta", "expected an object")
+            header = (canvas, meta)
+            continue
+        ev = _require(lineno, obj, "ev")
+        if not isinstance(ev, str):
+            raise _fail(lineno, "ev", f"expected a string, got {json.dumps(ev)}")
+        t = _finite(lineno, "t", _require(lineno, obj, "t"))
+        if t < 0:
+            raise _fail(lineno, "t", f"{t!r} must be >= 0")
+        if t < last_t:
+            raise _fail(lineno, "t", f"{t!r} is earlier than the previous event's {last_t!r}")
+        last_t = t
+        value = None
+        if ev == "brush":
+            if in_stroke:
+                raise _fail(lineno, "ev", "brush inside a stroke (brushes change between strokes)")
+            brush = value = parse_brush(lineno, obj)
+        elif ev == "stroke_begin":
+            if in_stroke:
+                raise _fail(lineno, "ev", f"stroke_begin inside the stroke begun on line {stroke_begin_line}")
+            if brush is None:
+                raise _fail(lineno, "ev", "stroke_begin before any brush event")
+            in_stroke, stroke_begin_line, last_sample = True, lineno, None
+        elif ev == "sample":
+            if not in_stroke:
+                raise _fail(lineno, "ev", "sample outside a stroke")
+            value = parse_sample(lineno, obj)
+            if last_sample is not None and stamp_count_bound(brush, last_sample, value) > MAX_STAMPS_PER_SEGMENT:
+                raise _fail(
+                    lineno,
+                    "p",
+                    f"this segment would place more than {MAX_STAMPS_PER_SEGMENT} stamps "
+                    "(samples too far apart for the brush radius and spacing)",
+                )
+            last_sample = value
+        elif ev == "stroke_end":
+            if not in_stroke:
+                raise _fail(lineno, "ev", "stroke_end outside a stroke")
+            in_stroke = False
+            done.append(lineno)
+            undone = 0
+        elif ev == "camera":
+            value = parse_camera(lineno, obj)
+        elif ev in ("render", "snapshot"):
+            value = _name(lineno, _require(lineno, obj, "name"))
+            if value in names[ev]:
+                raise _fail(lineno, "name", f"{json.dumps(value)} is already used by an earlier {ev}")
+            names[ev].add(value)
+            if ev == "render" and not any(e.kind == "camera" for e in events):
+                raise _fail(lineno, "ev", "render before any camera event")
+        elif ev in ("undo", "redo"):
+            if in_stroke:
+                raise _fail(lineno, "ev", f"{ev} inside a stroke")
+            if ev == "undo":
+                if not done:
+                    raise _fail(lineno, "ev", "undo with no stroke to undo")
+                done.pop()
+                undone += 1
+            else:
+                if undone == 0:
+                    raise _fail(lineno, "ev", "redo with nothing undone")
+                undone -= 1
+                done.append(lineno)
+        else:
+            raise _fail(lineno, "ev", f"unknown event {json.dumps(ev)}")
+        events.append(Event(lineno, t, ev, value))
+    if header is None:
+        raise TraceError("line 1: format: empty trace (a header line is required)")
+    if in_stroke:
+        warnings.append(f"line {stroke_begin_line}: the trace ends inside this stroke; it is ended here")
+        events.append(Event(len(lines), last_t, "stroke_end", None))
+    return Trace(header[0], header[1], tuple(events), tuple(warnings))
+
+
+def read_trace(path) -> Trace:
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        raise TraceError(f"cannot read {path}: {e.strerror}") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data[: e.start].count(b"\n") + 1
+        raise TraceError(f"line {line}: not valid UTF-8") from None
+    return parse_trace(text)

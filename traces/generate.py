@@ -1,0 +1,403 @@
+#!/usr/bin/env python3
+"""Generates every trace in traces/ (and traces/malformed/ with the error each
+must produce). Never edit a trace by hand: change this script and run
+
+    python3 traces/generate.py            # rewrite traces/
+    python3 traces/generate.py --out DIR  # write elsewhere (the staleness test)
+
+Pseudo-random values come from hashing an index (lowbias32), never from a
+language's RNG, so any implementation can rebuild them. Only the standard
+library is used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def hash32(x: int) -> int:
+    x &= 0xFFFFFFFF
+    x ^= x >> 16
+    x = (x * 0x7FEB352D) & 0xFFFFFFFF
+    x ^= x >> 15
+    x = (x * 0x846CA68B) & 0xFFFFFFFF
+    x ^= x >> 16
+    return x
+
+
+def rnd(stream: int, i: int) -> float:
+    """Uniform in [0, 1) from (stream, index)."""
+    return hash32(hash32(stream) ^ (i * 0x9E3779B9 & 0xFFFFFFFF)) / 4294967296.0
+
+
+def r6(x: float) -> float:
+    """Round to 6 significant-ish decimals so traces stay readable."""
+    return float(f"{x:.9g}")
+
+
+class Writer:
+    def __init__(self, canvas: dict, title: str):
+        self.lines = [
+            json.dumps(
+                {
+                    "format": "ddo-trace",
+                    "version": 1,
+                    "canvas": canvas,
+                    "meta": {"title": title, "recorded_by": "traces/generate.py", "created": "2026-11-23T00:00:00Z"},
+                }
+            )
+        ]
+        self.t = 0.0
+
+    def ev(self, ev: str, dt: float = 0.0, **kw) -> None:
+        self.t = r6(self.t + dt)
+        self.lines.append(json.dumps({"ev": ev, "t": self.t, **kw}))
+
+    def brush(self, shape, mode, radius, color, opacity=1.0, hardness=0.5, **kw):
+        self.ev("brush", 0.5, shape=shape, mode=mode, radius=r6(radius), color=[r6(c) for c in color],
+                opacity=r6(opacity), hardness=r6(hardness), **kw)
+
+    def stroke(self, points, pressures=None, quats=None, dt=1 / 90):
+        self.ev("stroke_begin", 0.2)
+        for i, p in enumerate(points):
+            kw = {"p": [r6(v) for v in p]}
+            if pressures is not None:
+                kw["pressure"] = r6(pressures[i])
+            if quats is not None:
+                kw["q"] = [r6(v) for v in quats[i]]
+            self.ev("sample", dt if i else 0.0, **kw)
+        self.ev("stroke_end", dt)
+
+    def camera(self, eye, look_at, size=(320, 240), fov_deg=40.0, background=(0.05, 0.05, 0.08)):
+        self.ev("camera", 0.1, eye=[r6(v) for v in eye], q=[r6(v) for v in look_quat(eye, look_at)],
+                fov=[r6(-math.radians(fov_deg) / 2 * size[0] / size[1]), r6(math.radians(fov_deg) / 2 * size[0] / size[1]),
+                     r6(math.radians(fov_deg) / 2), r6(-math.radians(fov_deg) / 2)],
+                size=list(size), background=[r6(v) for v in background])
+
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+
+def look_quat(eye, target):
+    """Quaternion [x, y, z, w] turning -z towards target with +y up (world +z up is not assumed)."""
+    f = [target[i] - eye[i] for i in range(3)]
+    n = math.sqrt(sum(v * v for v in f))
+    f = [v / n for v in f]
+    up = [0.0, 1.0, 0.0] if abs(f[1]) < 0.99 else [1.0, 0.0, 0.0]
+    z = [-v for v in f]
+    x = [up[1] * z[2] - up[2] * z[1], up[2] * z[0] - up[0] * z[2], up[0] * z[1] - up[1] * z[0]]
+    nx = math.sqrt(sum(v * v for v in x))
+    x = [v / nx for v in x]
+    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
+    m = [[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]]
+    tr = m[0][0] + m[1][1] + m[2][2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        return [(m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s, 0.25 * s]
+    i = max(range(3), key=lambda k: m[k][k])
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = math.sqrt(1.0 + m[i][i] - m[j][j] - m[k][k]) * 2
+    q = [0.0, 0.0, 0.0, 0.0]
+    q[i] = 0.25 * s
+    q[j] = (m[j][i] + m[i][j]) / s
+    q[k] = (m[k][i] + m[i][k]) / s
+    q[3] = (m[k][j] - m[j][k]) / s
+    return q
+
+
+def axis_quat(axis, angle):
+    s = math.sin(angle / 2)
+    n = math.sqrt(sum(a * a for a in axis))
+    return [axis[0] / n * s, axis[1] / n * s, axis[2] / n * s, math.cos(angle / 2)]
+
+
+def line(p0, p1, n):
+    return [[p0[k] + (p1[k] - p0[k]) * i / (n - 1) for k in range(3)] for i in range(n)]
+
+
+# ------------------------------------------------------------------ traces
+def single_stamp() -> str:
+    w = Writer({"roots": [1, 1, 1], "max_depth": 8, "root_size": 1.0, "capacity": 65536}, "One sphere stamp")
+    w.brush("sphere", "paint", 0.1, [0.9, 0.3, 0.1], opacity=0.9, hardness=0.6)
+    w.stroke([[0.5, 0.5, 0.5]])
+    w.camera([0.5, 0.5, 2.0], [0.5, 0.5, 0.5])
+    w.ev("render", 0.1, name="single_stamp")
+    w.ev("snapshot", 0.0, name="single_stamp")
+    return w.text()
+
+
+SHAPES = ("sphere", "cylinder", "box", "cone", "noise")
+MODES = ("paint", "erase", "recolor", "mix", "pickup")
+
+
+def shapes_modes() -> str:
+    """Each shape x mode stroke crosses a painted two-colour base bar, so
+    erase, recolor, mix and pickup have something to act on."""
+    w = Writer({"roots": [2, 2, 1], "max_depth": 10, "root_size": 1.0, "capacity": 4194304}, "Every shape in every mode")
+    for si, shape in enumerate(SHAPES):
+        y = 0.2 + 0.4 * si
+        # Base: a two-colour bar along x under this row.
+        w.brush("sphere", "paint", 0.05, [0.2, 0.4, 0.9], opacity=0.9, hardness=0.7)
+        w.stroke(line([0.1, y, 0.5], [1.0, y, 0.5], 10))
+        w.brush("sphere", "paint", 0.05, [0.95, 0.85, 0.2], opacity=0.9, hardness=0.7)
+        w.stroke(line([1.0, y, 0.5], [1.9, y, 0.5], 10))
+        for mi, mode in enumerate(MODES):
+            x = 0.2 + 0.38 * mi
+            extra = {}
+            if shape in ("cylinder", "box", "cone"):
+                extra["aspect"] = [1.0, 0.6, 1.4] if shape != "box" else [1.0, 0.5, 0.8]
+            if shape == "noise":
+                extra["noise"] = {"frequency": 2.0, "octaves": 3, "seed": 7 + mi, "gain": 0.5}
+            if mode == "mix":
+                extra["mix_ratio"] = 0.7
+            if mode == "pickup":
+                extra["pickup_rate"] = 0.3
+            color = [0.1 + 0.2 * mi, 0.8 - 0.15 * mi, 0.3 + 0.1 * si]
+            w.brush(shape, mode, 0.045, color, opacity=0.4 + 0.12 * mi, hardness=0.2 + 0.15 * si,
+                    spacing=0.3, **extra)
+            pts = line([x - 0.12, y - 0.12, 0.5], [x + 0.12, y + 0.12, 0.52], 7)
+            pres = [0.4 + 0.6 * math.sin(math.pi * i / 6) for i in range(7)]
+            quats = [axis_quat([0.3, 1.0, 0.2], 0.4 * i) for i in range(7)]
+            w.stroke(pts, pres, quats)
+        if si == 1:
+            w.ev("snapshot", 0.1, name="shapes_modes_half")
+    w.camera([1.0, 1.0, 3.0], [1.0, 1.0, 0.5], size=(320, 320))
+    w.ev("render", 0.1, name="shapes_modes")
+    w.ev("snapshot", 0.0, name="shapes_modes")
+    return w.text()
+
+
+def undo_redo() -> str:
+    w = Writer({"roots": [2, 1, 1], "max_depth": 9, "root_size": 1.0, "capacity": 1048576}, "Undo and redo")
+    w.brush("sphere", "paint", 0.08, [0.8, 0.2, 0.2], opacity=0.7, hardness=0.4)
+    w.stroke(line([0.3, 0.5, 0.5], [1.2, 0.5, 0.5], 6))
+    w.ev("snapshot", 0.1, name="undo_redo_a")
+    w.brush("box", "paint", 0.05, [0.2, 0.8, 0.2], opacity=0.8, hardness=0.8)
+    w.stroke(line([0.5, 0.3, 0.5], [0.9, 0.7, 0.5], 5), quats=[axis_quat([0, 0, 1], 0.3 * i) for i in range(5)])
+    w.ev("snapshot", 0.1, name="undo_redo_b")
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="undo_redo_undone")  # must equal undo_redo_a
+    w.ev("redo", 0.1)
+    w.ev("snapshot", 0.1, name="undo_redo_redone")  # must equal undo_redo_b
+    w.ev("undo", 0.1)
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="undo_redo_empty")  # the bare root array
+    w.ev("redo", 0.1)
+    w.brush("sphere", "erase", 0.06, [0, 0, 0], opacity=1.0, hardness=0.9)
+    w.stroke(line([0.6, 0.5, 0.4], [0.9, 0.5, 0.6], 4))
+    w.ev("snapshot", 0.1, name="undo_redo_branch")  # redo history dropped
+    return w.text()
+
+
+def capacity_limit() -> str:
+    w = Writer({"roots": [1, 1, 1], "max_depth": 12, "root_size": 1.0, "capacity": 4096}, "Cell budget exhausted")
+    w.brush("sphere", "paint", 0.01, [0.3, 0.6, 0.9], opacity=0.9, hardness=0.5)
+    w.stroke(line([0.2, 0.5, 0.5], [0.8, 0.5, 0.5], 30))
+    w.ev("snapshot", 0.1, name="capacity_limit")
+    return w.text()
+
+
+def edges() -> str:
+    """Samples outside the canvas, strokes across root faces, a stroke the
+    trace leaves open (ended with a warning)."""
+    w = Writer({"roots": [2, 2, 2], "max_depth": 9, "root_size": 0.5, "capacity": 2097152}, "Canvas edges")
+    w.brush("sphere", "paint", 0.06, [0.7, 0.7, 0.2], opacity=0.8, hardness=0.5)
+    w.stroke(line([-0.1, 0.5, 0.5], [0.2, 0.5, 0.5], 6))  # starts outside
+    w.brush("cylinder", "mix", 0.05, [0.1, 0.2, 0.9], opacity=0.6, hardness=0.3, aspect=[1.0, 1.0, 2.0])
+    w.stroke(line([0.4, 0.4, 0.4], [0.6, 0.6, 0.6], 8), quats=[axis_quat([1, 1, 0], 0.2 * i) for i in range(8)])
+    w.brush("sphere", "paint", 0.05, [0.2, 0.9, 0.4], opacity=0.5, hardness=0.2)
+    w.stroke(line([0.9, 0.95, 0.5], [1.05, 1.05, 0.5], 5))  # leaves through a corner
+    w.ev("snapshot", 0.1, name="edges")
+    w.brush("cone", "paint", 0.04, [0.9, 0.1, 0.5], opacity=0.9, hardness=0.6)
+    w.ev("stroke_begin", 0.1)
+    w.ev("sample", 0.0, p=[0.25, 0.75, 0.5])
+    w.ev("sample", 0.01, p=[0.3, 0.75, 0.5])
+    w.ev("snapshot", 0.01, name="edges_open")
+    return w.text()
+
+
+def scene() -> str:
+    """A 40 km canvas with 0.3 mm cells: sky-sized translucent haze, hills,
+    and brush work at depth 20-25 by a hand moving at ~0.35 m/s at 90 Hz."""
+    w = Writer({"roots": [4, 4, 4], "max_depth": 25, "root_size": 10000.0, "capacity": 16777216}, "Island at dusk")
+    c = (20000.0, 20000.0, 20000.0)  # where eight roots meet
+    # Sky: a kilometre-wide translucent haze.
+    w.brush("sphere", "paint", 1200.0, [0.55, 0.7, 0.95], opacity=0.08, hardness=0.2)
+    w.stroke([[c[0] - 3000 + 1000 * i, c[1] + 1500 + 200 * math.sin(i), c[2] - 500] for i in range(7)],
+             [0.6 + 0.05 * i for i in range(7)], dt=0.05)
+    # Hills: cone stamps on the ground plane.
+    w.brush("cone", "paint", 250.0, [0.25, 0.45, 0.2], opacity=0.9, hardness=0.7, aspect=[1.0, 1.0, 1.0], spacing=0.5)
+    up = axis_quat([1, 0, 0], -math.pi / 2)  # cone axis (local +z) along canvas +y
+    w.stroke([[c[0] - 1500 + 60 * i, c[1] - 200, c[2] - 300 + 400 * math.sin(i / 5)] for i in range(50)],
+             quats=[up] * 50, dt=0.02)
+    # Brush work near the centre: four strokes at depth 21, one at depth 25.
+    base = (c[0] + 0.31, c[1] + 0.23, c[2] - 0.17)
+    n_detail = 0
+    for s, (radius, color, shape, mode, n) in enumerate([
+        (0.05, [0.95, 0.55, 0.2], "sphere", "paint", 900),
+        (0.04, [0.3, 0.2, 0.8], "sphere", "mix", 900),
+        (0.05, [0.95, 0.95, 0.9], "sphere", "pickup", 700),
+        (0.03, [0.1, 0.1, 0.1], "box", "recolor", 600),
+        (0.003, [1.0, 0.1, 0.1], "sphere", "paint", 120),
+    ]):
+        kw = {"pickup_rate": 0.15} if mode == "pickup" else {}
+        w.brush(shape, mode, radius, color, opacity=0.85, hardness=0.55, **kw)
+        step = 0.0039 if radius > 0.01 else 0.0003
+        pts, pres, quats = [], [], []
+        for i in range(n):
+            a = step * i
+            ph = 1.7 * s
+            pts.append([base[0] + 0.4 * math.cos(a * 2.2 + ph) - 0.4 * math.cos(ph),
+                        base[1] + 0.3 * math.sin(a * 3.1 + ph) + 0.05 * s,
+                        base[2] + 0.5 * a / (step * n) - 0.25 + 0.02 * rnd(s, i)])
+            pres.append(0.35 + 0.65 * math.sin(math.pi * (i + 0.5) / n))
+            quats.append(axis_quat([0.2, 1.0, 0.4], 0.01 * i))
+        if radius < 0.01:  # the finest stroke: tiny and slow, ends at max depth
+            pts = [[base[0] + step * i, base[1] + 0.004 * math.sin(i / 9), base[2]] for i in range(n)]
+        w.stroke(pts, pres, quats if shape == "box" else None)
+        n_detail += n
+    w.ev("snapshot", 0.1, name="scene_detail")
+    # Mist: a translucent stroke across everything painted so far.
+    w.brush("sphere", "paint", 400.0, [0.85, 0.85, 0.9], opacity=0.15, hardness=0.0)
+    w.stroke([[c[0] - 800 + 400 * i, c[1] + 100, c[2]] for i in range(5)], dt=0.05)
+    # And an eraser through the detail.
+    w.brush("sphere", "erase", 0.06, [0, 0, 0], opacity=1.0, hardness=0.8)
+    w.stroke(line([base[0] - 0.2, base[1], base[2]], [base[0] + 0.3, base[1] + 0.1, base[2]], 120))
+    w.camera([c[0], c[1], c[2] + 3.0], base, size=(320, 240))
+    w.ev("render", 0.1, name="scene_close")
+    w.camera([c[0], c[1] + 500, c[2] + 6000], c, size=(320, 240))
+    w.ev("render", 0.1, name="scene_far")
+    w.ev("snapshot", 0.0, name="scene")
+    return w.text()
+
+
+TRACES = {
+    "single_stamp.jsonl": single_stamp,
+    "shapes_modes.jsonl": shapes_modes,
+    "undo_redo.jsonl": undo_redo,
+    "capacity_limit.jsonl": capacity_limit,
+    "edges.jsonl": edges,
+    "scene.jsonl": scene,
+}
+
+# --------------------------------------------------------------- malformed
+H = '{"format": "ddo-trace", "version": 1, "canvas": {"roots": [1, 1, 1], "max_depth": 6, "root_size": 1.0, "capacity": 4096}}'
+BR = '{"ev": "brush", "t": 0, "shape": "sphere", "mode": "paint", "radius": 0.1, "color": [1, 0, 0], "opacity": 1, "hardness": 0.5}'
+SB = '{"ev": "stroke_begin", "t": 0}'
+SE = '{"ev": "stroke_end", "t": 0}'
+SA = '{"ev": "sample", "t": 0, "p": [0.5, 0.5, 0.5]}'
+CAM = '{"ev": "camera", "t": 0, "eye": [0.5, 0.5, 2], "q": [0, 0, 0, 1], "fov": [-0.5, 0.5, 0.4, -0.4], "size": [64, 48]}'
+
+
+def _brush(**over):
+    b = json.loads(BR)
+    b.update(over)
+    return json.dumps(b)
+
+
+def _cam(**over):
+    c = json.loads(CAM)
+    c.update(over)
+    return json.dumps(c)
+
+
+def _hdr(**canvas):
+    h = json.loads(H)
+    h["canvas"].update(canvas)
+    return json.dumps(h)
+
+
+# name: (lines, the exact error message)
+MALFORMED = {
+    "empty": ([], "line 1: format: empty trace (a header line is required)"),
+    "not_json": ([H, '{"ev": "brush", "t": 0,'], "line 2: not valid JSON: Expecting property name enclosed in double quotes (column 24)"),
+    "not_object": ([H, "[1, 2, 3]"], "line 2: expected a JSON object"),
+    "no_header": ([BR], 'line 1: format: the first line must be a header with "format": "ddo-trace"'),
+    "wrong_version": ([H.replace('"version": 1', '"version": 2')], "line 1: version: 2 is not supported (this reader knows version 1)"),
+    "max_depth_too_deep": ([_hdr(max_depth=29)], "line 1: canvas.max_depth: 29 is outside [0, 28]"),
+    "lattice_overflow": ([_hdr(roots=[32, 1, 1], max_depth=28)], "line 1: canvas.roots[0]: 32 roots of depth 28 exceed the u32 lattice"),
+    "capacity_below_roots": ([_hdr(roots=[4, 4, 4], capacity=32)], "line 1: canvas.capacity: 32 is below the 64 cells the roots need"),
+    "too_many_roots": ([_hdr(roots=[1024, 1024, 32], max_depth=6, capacity=40000000)], "line 1: canvas.roots: 33554432 roots are more than the 16777216 allowed"),
+    "unknown_event": ([H, '{"ev": "paint", "t": 0}'], 'line 2: ev: unknown event "paint"'),
+    "missing_t": ([H, '{"ev": "undo"}'], "line 2: t: missing"),
+    "time_backwards": ([H, BR.replace('"t": 0', '"t": 2'), SB.replace('"t": 0', '"t": 1')], "line 3: t: 1.0 is earlier than the previous event's 2.0"),
+    "unknown_shape": ([H, _brush(shape="star")], 'line 2: shape: "star" is not one of sphere, cylinder, box, cone, noise'),
+    "unknown_mode": ([H, _brush(mode="smudge")], 'line 2: mode: "smudge" is not one of paint, erase, recolor, mix, pickup'),
+    "radius_zero": ([H, _brush(radius=0)], "line 2: radius: 0.0 must be > 0"),
+    "radius_string": ([H, _brush(radius="big")], 'line 2: radius: expected a number, got "big"'),
+    "color_out_of_range": ([H, _brush(color=[1.5, 0, 0])], "line 2: color[0]: 1.5 is outside [0.0, 1.0]"),
+    "color_short": ([H, _brush(color=[1, 0])], "line 2: color: expected an array of 3 numbers"),
+    "opacity_out_of_range": ([H, _brush(opacity=-0.1)], "line 2: opacity: -0.1 is outside [0.0, 1.0]"),
+    "spacing_absurd": ([H, _brush(spacing=1e-9)], "line 2: spacing: 1e-09 is outside [0.01, 100.0]"),
+    "noise_octaves": ([H, _brush(shape="noise", noise={"octaves": 40})], "line 2: noise.octaves: 40 is outside [1, 8]"),
+    "nan_sample": ([H, BR, SB, '{"ev": "sample", "t": 0, "p": [NaN, 0, 0]}'], "line 4: p[0]: not a finite number"),
+    "infinite_sample": ([H, BR, SB, '{"ev": "sample", "t": 0, "p": [0, 1e999, 0]}'], "line 4: p[1]: not a finite number"),
+    "zero_quaternion": ([H, BR, SB, '{"ev": "sample", "t": 0, "p": [0, 0, 0], "q": [0, 0, 0, 0]}'], "line 4: q: zero or non-finite quaternion"),
+    "pressure_out_of_range": ([H, BR, SB, '{"ev": "sample", "t": 0, "p": [0, 0, 0], "pressure": 2}'], "line 4: pressure: 2.0 is outside [0.0, 1.0]"),
+    "sample_missing_p": ([H, BR, SB, '{"ev": "sample", "t": 0}'], "line 4: p: missing"),
+    "sample_outside_stroke": ([H, BR, SA], "line 3: ev: sample outside a stroke"),
+    "stroke_in_stroke": ([H, BR, SB, SA, SB], "line 5: ev: stroke_begin inside the stroke begun on line 3"),
+    "stroke_without_brush": ([H, SB], "line 2: ev: stroke_begin before any brush event"),
+    "brush_in_stroke": ([H, BR, SB, BR], "line 4: ev: brush inside a stroke (brushes change between strokes)"),
+    "end_outside_stroke": ([H, SE], "line 2: ev: stroke_end outside a stroke"),
+    "absurd_segment": ([H, _brush(shape="box", radius=1e-6), SB, SA, '{"ev": "sample", "t": 0, "p": [0.9, 0.5, 0.5]}'],
+                       "line 5: p: this segment would place more than 65536 stamps (samples too far apart for the brush radius and spacing)"),
+    "undo_nothing": ([H, '{"ev": "undo", "t": 0}'], "line 2: ev: undo with no stroke to undo"),
+    "redo_nothing": ([H, BR, SB, SA, SE, '{"ev": "redo", "t": 0}'], "line 6: ev: redo with nothing undone"),
+    "undo_in_stroke": ([H, BR, SB, '{"ev": "undo", "t": 0}'], "line 4: ev: undo inside a stroke"),
+    "fov_unordered": ([H, _cam(fov=[0.5, -0.5, 0.4, -0.4])], "line 2: fov: angles not ordered: left must be < right"),
+    "fov_too_wide": ([H, _cam(fov=[-2.0, 0.5, 0.4, -0.4])], "line 2: fov[0]: -2.0 is outside (-pi/2, pi/2)"),
+    "size_zero": ([H, _cam(size=[0, 48])], "line 2: size[0]: 0 is outside [1, 16384]"),
+    "size_huge": ([H, _cam(size=[64, 100000])], "line 2: size[1]: 100000 is outside [1, 16384]"),
+    "render_before_camera": ([H, '{"ev": "render", "t": 0, "name": "x"}'], "line 2: ev: render before any camera event"),
+    "name_traversal": ([H, '{"ev": "snapshot", "t": 0, "name": "../../etc/passwd"}'],
+                       'line 2: name: "../../etc/passwd" is not a name of [A-Za-z0-9._-]+ (no paths)'),
+    "name_dotdot": ([H, '{"ev": "snapshot", "t": 0, "name": ".."}'], 'line 2: name: ".." is not a name of [A-Za-z0-9._-]+ (no paths)'),
+    "name_duplicate": ([H, '{"ev": "snapshot", "t": 0, "name": "a"}', '{"ev": "snapshot", "t": 0, "name": "a"}'],
+                       'line 3: name: "a" is already used by an earlier snapshot'),
+}
+
+
+def write_all(out: str) -> list[str]:
+    os.makedirs(os.path.join(out, "malformed"), exist_ok=True)
+    written = []
+    for name, fn in TRACES.items():
+        path = os.path.join(out, name)
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(fn())
+        written.append(path)
+    expected = {}
+    for name, (lines, msg) in MALFORMED.items():
+        path = os.path.join(out, "malformed", name + ".jsonl")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write("".join(line + "\n" for line in lines))
+        expected[name + ".jsonl"] = msg
+        written.append(path)
+    bad_utf8 = os.path.join(out, "malformed", "bad_utf8.jsonl")
+    with open(bad_utf8, "wb") as f:
+        f.write(H.encode() + b'\n{"ev": "undo", "t": 0, "x": "\xff"}\n')
+    expected["bad_utf8.jsonl"] = "line 2: not valid UTF-8"
+    written.append(bad_utf8)
+    path = os.path.join(out, "malformed", "expected.json")
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(expected, f, indent=1, sort_keys=True)
+        f.write("\n")
+    written.append(path)
+    return written
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=HERE, help="output folder (default: traces/)")
+    args = ap.parse_args()
+    for p in write_all(args.out):
+        print(p)
+
+
+if __name__ == "__main__":
+    main()
