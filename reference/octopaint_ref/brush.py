@@ -34,6 +34,10 @@ HALF_DIAG = 0.8660254037844386  # sqrt(3)/2 as f64: a cell's half-diagonal per u
 CELLS_PER_RADIUS = 10.0
 RADIUS_PRESSURE_FLOOR = 0.25  # r = radius * (0.25 + 0.75 * pressure)
 OPACITY_CLAMP = 0.999
+# Smallest normal f64. XLA on CPU flushes subnormal results to zero and numpy
+# and Rust do not, so the rules flush at the points where a subnormal could
+# change a result: the stroke maximum a and the mix weight (spec 8.9).
+TINY = 2.2250738585072014e-308
 STAMP_SHAPES = ("cylinder", "box", "cone", "noise")
 
 
@@ -50,8 +54,10 @@ def capsule_geometry(xp, x, p0, p1, r0, r1):
     dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
     w = x[:, None, :] - p0[None, :, :]
     wd = w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
-    safe_dd = xp.where(dd > 0, dd, 1.0)
-    u = xp.where(dd[None, :] > 0, xp.clip(wd / safe_dd[None, :], 0.0, 1.0), 0.0)
+    # A segment shorter than sqrt(TINY) is a sphere at p0 (spec 8.3).
+    long = dd >= TINY
+    safe_dd = xp.where(long, dd, 1.0)
+    u = xp.where(long[None, :], xp.clip(wd / safe_dd[None, :], 0.0, 1.0), 0.0)
     c = p0[None, :, :] + u[..., None] * d[None, :, :]
     e = x[:, None, :] - c
     s = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
@@ -161,8 +167,10 @@ def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_sca
 
 
 def max_and_argmax(xp, cov):
-    """The stroke maximum a [n] and the first primitive attaining it."""
-    return xp.max(cov, axis=1), xp.argmax(cov, axis=1)
+    """The stroke maximum a [n] (below TINY: 0) and the first primitive
+    attaining it."""
+    a = xp.max(cov, axis=1)
+    return xp.where(a < TINY, 0.0, a), xp.argmax(cov, axis=1)
 
 
 # ------------------------------------------------------------------- blend
@@ -192,6 +200,7 @@ def blend(xp, mode: str, before_rgb, before_sigma, colour, sigma_b, alpha, a, mi
         sigma = bs
     elif mode == "mix":
         wb = mix_ratio * a * sigma_b
+        wb = xp.where(wb < TINY, 0.0, wb)
         den = bs + wb
         safe = xp.where(den > 0, den, 1.0)
         mixed = (bs[:, None] * before_rgb + wb[:, None] * colour) / safe[:, None]

@@ -9,12 +9,10 @@ the new ones. Painter twin: painter/tree/src/history.rs.
 
 from __future__ import annotations
 
-import heapq
-
 import numpy as np
 
 from .g3 import g3_from_links
-from .tree import FREE, NONE, UNIT, _key
+from .tree import FREE, NONE
 
 POOLS = ("parent", "first_child", "depth", "rgb", "sigma", "origin")
 FREE_VALUE = {"parent": NONE, "first_child": NONE, "depth": FREE, "rgb": 0, "sigma": 0, "origin": NONE}
@@ -88,28 +86,13 @@ class History:
         t = self.tree
         g3_before = g3_from_links(t.parent[: t.n_used], t.first_child[: t.n_used], t.depth[: t.n_used], t.roots)
         t._grow_to(int(idx.max()) + 1 if len(idx) else 0)
-        # Key dictionary: drop the keys of the cells about to change, then add
-        # the keys of their new state.
-        for i in idx:
-            i = int(i)
-            if t.depth[i] != FREE:
-                o = t.origin[i]
-                t.keys.pop(_key(int(t.depth[i]), int(o[0]), int(o[1]), int(o[2])), None)
         for k in POOLS:
             getattr(t, k)[idx] = vals[k]
-        for i in idx:
-            i = int(i)
-            if t.depth[i] != FREE:
-                o = t.origin[i]
-                t.keys[_key(int(t.depth[i]), int(o[0]), int(o[1]), int(o[2]))] = i
         t.n_used = n_used
-        free_units = np.nonzero(t.depth[t.n_padded : n_used : UNIT] == FREE)[0] * UNIT + t.n_padded
-        t._free_heap = [int(u) for u in free_units]
-        heapq.heapify(t._free_heap)
-        t._free_set = set(t._free_heap)
+        t.rebuild_free_units()
         # The cells whose g3 changed (exact, by comparison) plus the rewritten ones.
         g3_after = g3_from_links(t.parent[:n_used], t.first_child[:n_used], t.depth[:n_used], t.roots)
         m = min(len(g3_before), len(g3_after))
         diff = np.nonzero((g3_before[:m] != g3_after[:m]).any(axis=1))[0]
-        t.dirty.update(int(i) for i in diff)
-        t.dirty.update(int(i) for i in idx)
+        t.dirty.update(diff.tolist())
+        t.dirty.update(idx.tolist())

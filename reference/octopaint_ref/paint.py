@@ -13,15 +13,21 @@ import numpy as np
 from . import brush as B
 from .history import History
 from .noise import permutation
-from .stroke import Prims, StrokePath
+from .stroke import Prims, PrimsHistory, StrokePath
 from .trace import Brush, Sample
-from .tree import FACES, NONE, UNIT, CapacityError, Tree
+from .tree import NONE, UNIT, Tree
 
 CHUNK_ENTRIES = 1 << 20  # n * k entries per vectorised evaluation
 
 
-def _bucket(n: int) -> int:
-    return max(64, 1 << max(0, n - 1).bit_length())
+def _bucket(n: int, least: int = 256) -> int:
+    """Padded length for a jitted call: a power of four, so that a replay
+    traces and compiles each kernel for a handful of shapes only (tracing
+    costs tens of milliseconds per shape, the padding far less)."""
+    b = least
+    while b < n:
+        b *= 4
+    return b
 
 
 def _pad_rows(a: np.ndarray, n: int, fill) -> np.ndarray:
@@ -43,8 +49,7 @@ class Stroke:
         self.colour = np.array(brush.color, np.float64)
         self.sigma_b = float(B.sigma_brush(np, brush.opacity, brush.radius))
         self.alpha = float(brush.opacity)
-        self.segments: list[Prims] = []
-        self._all: Prims | None = None
+        self.prims = PrimsHistory()
         self.capacity_warned = False
         # Per touched cell (a slot): the value before the stroke, the stroke
         # maximum a, and the colour of the primitive that gave it.
@@ -90,11 +95,9 @@ class Stroke:
         self.n = need
         return slots
 
-    def history(self) -> Prims:
-        if self._all is None or len(self._all) != sum(len(s) for s in self.segments):
-            parts = [s for s in self.segments if len(s)]
-            self._all = Prims.concat(parts) if parts else None
-        return self._all
+    def history(self) -> Prims | None:
+        """Every primitive of the stroke so far (None before the first)."""
+        return self.prims.view()
 
 
 class Painting:
@@ -125,7 +128,7 @@ class Painting:
                 canvas_rgb = self.tree.rgb[c].astype(np.float64) / 255.0
                 st.colour = st.colour + (canvas_rgb - st.colour) * st.brush.pickup_rate
         seg = st.path.segment(sample, st.colour.copy())
-        st.segments.append(seg)
+        st.prims.append(seg)
         if len(seg):
             self._process_segment(st, seg, line)
         if self.after_segment is not None:
@@ -156,24 +159,18 @@ class Painting:
         self._apply(st, leaves[hit], a[hit], seg.colour[best[hit]])
         candidates = leaves[self._needs_refinement(st, seg, leaves)]
         while len(candidates):
-            created: list[int] = []
-            refused = False
-            for c in np.sort(candidates):
-                c = int(c)
-                if tree.first_child[c] != NONE:
-                    continue  # refined as a balance side effect this round
-                try:
-                    tree.refine(c, created)
-                except CapacityError as e:
-                    refused = True
-                    self.capacity_refusals += 1
-                    if not st.capacity_warned:
-                        st.capacity_warned = True
-                        self.warn(f"line {line}: {e}: refinement refused, painting goes on at the resolution reached")
-                    break
-            if not created:
+            units, refused = tree.refine_round(candidates)
+            if refused:
+                self.capacity_refusals += 1
+                if not st.capacity_warned:
+                    st.capacity_warned = True
+                    self.warn(
+                        f"line {line}: the cell budget of {tree.capacity} cells is exhausted: "
+                        "refinement refused, painting goes on at the resolution reached"
+                    )
+            if not len(units):
                 break
-            new = (np.array(created, np.int64)[:, None] + np.arange(UNIT)[None, :]).ravel()
+            new = (units[:, None] + np.arange(UNIT)[None, :]).ravel()
             self._paint_new_cells(st, new)
             if refused:
                 break
@@ -252,10 +249,10 @@ class Painting:
             return a, best
         x_all = self.tree.centres(cells)
         b = st.brush
-        k_chunk = min(_bucket(k), CHUNK_ENTRIES // 64)
+        k_chunk = min(_bucket(k, 1), CHUNK_ENTRIES // 64)
         for k0 in range(0, k, k_chunk):
             sub = prims.take(slice(k0, k0 + k_chunk))
-            kk = _bucket(len(sub))
+            kk = _bucket(len(sub), 1)
             arr = {name: _pad_rows(v, kk, 0.0) for name, v in sub.arrays.items()}
             if b.shape == "sphere":
                 arr["r0"][len(sub) :] = 1.0
@@ -359,5 +356,3 @@ class Painting:
             frontier = (inner[:, None] + np.arange(UNIT)[None, :]).ravel()
         return np.sort(np.concatenate(out)) if out else np.zeros(0, np.int64)
 
-
-__all__ = ["Painting", "FACES"]

@@ -36,16 +36,44 @@ class Prims:
     def take(self, idx) -> "Prims":
         return Prims(self.shape, {k: v[idx] for k, v in self.arrays.items()}, self.colour[idx], self.lo[idx], self.hi[idx])
 
-    @staticmethod
-    def concat(parts: list["Prims"]) -> "Prims":
-        p0 = parts[0]
-        return Prims(
-            p0.shape,
-            {k: np.concatenate([p.arrays[k] for p in parts]) for k in p0.arrays},
-            np.concatenate([p.colour for p in parts]),
-            np.concatenate([p.lo for p in parts]),
-            np.concatenate([p.hi for p in parts]),
-        )
+
+
+class PrimsHistory:
+    """Every primitive of the stroke so far, in growable arrays (appending a
+    segment is amortised O(segment), not O(stroke))."""
+
+    def __init__(self):
+        self.n = 0
+        self.store: Prims | None = None
+
+    def append(self, p: Prims) -> None:
+        k = len(p)
+        if k == 0:
+            return
+        if self.store is None:
+            cap = max(64, 2 * k)
+            grow = lambda a: np.zeros((cap,) + a.shape[1:], a.dtype)  # noqa: E731
+            self.store = Prims(p.shape, {n: grow(a) for n, a in p.arrays.items()}, grow(p.colour), grow(p.lo), grow(p.hi))
+        elif self.n + k > len(self.store.colour):
+            cap = 2 * (self.n + k)
+
+            def grown(a):
+                b = np.zeros((cap,) + a.shape[1:], a.dtype)
+                b[: self.n] = a[: self.n]
+                return b
+
+            s = self.store
+            self.store = Prims(s.shape, {n: grown(a) for n, a in s.arrays.items()}, grown(s.colour), grown(s.lo), grown(s.hi))
+        s, sl = self.store, slice(self.n, self.n + k)
+        for n, a in p.arrays.items():
+            s.arrays[n][sl] = a
+        s.colour[sl] = p.colour
+        s.lo[sl] = p.lo
+        s.hi[sl] = p.hi
+        self.n += k
+
+    def view(self) -> Prims | None:
+        return None if self.n == 0 else self.store.take(slice(0, self.n))
 
 
 def pressure_radius(brush: Brush, pressure: float) -> float:

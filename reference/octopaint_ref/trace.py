@@ -108,7 +108,9 @@ def _finite(line: int, fld: str, v) -> float:
     x = float(v)
     if not math.isfinite(x):
         raise _fail(line, fld, "not a finite number")
-    return x
+    # Subnormal numbers are read as 0: XLA flushes them, numpy and Rust do
+    # not, and no painting needs them (spec 12.2).
+    return 0.0 if abs(x) < 2.2250738585072014e-308 else x
 
 
 def _int(line: int, fld: str, v, lo: int, hi: int) -> int:

@@ -1,0 +1,167 @@
+"""Property-based tests over random stroke sequences (hypothesis).
+
+After every segment the tree is valid (links mutual, 2:1 balance, g3 equal to
+brute force, allocator consistent) and every cell whose g3 changed is in the
+dirty set; after every stroke nothing is left to collapse and every leaf holds
+blend(before, brush, max over the stroke's segments of coverage at its
+centre); undo restores byte-identical pools.
+"""
+
+import copy
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from octopaint_ref import brush as B
+from octopaint_ref.check import check_arrays
+from octopaint_ref.clean import collapsible_anywhere
+from octopaint_ref.dump import tree_arrays
+from octopaint_ref.g3 import NONE, g3_from_links
+from octopaint_ref.paint import Painting
+from octopaint_ref.trace import MODES, SHAPES, Brush, Canvas, Noise, Sample
+
+def flushed(x):
+    return 0.0 if abs(x) < 2.2250738585072014e-308 else x  # as the trace reader reads it
+
+
+unit = st.floats(0.0, 1.0).map(flushed)
+coord = st.tuples(*[st.floats(lo, hi).map(flushed) for lo, hi in ((-0.2, 2.2), (-0.2, 1.2), (-0.2, 1.2))])
+quat = st.tuples(*[st.floats(-1, 1).map(flushed)] * 4).filter(lambda q: sum(v * v for v in q) > 0.01)
+
+
+@st.composite
+def brushes(draw):
+    shape = draw(st.sampled_from(SHAPES))
+    return Brush(
+        shape=shape,
+        mode=draw(st.sampled_from(MODES)),
+        radius=draw(st.floats(0.05, 0.5)),
+        color=draw(st.tuples(unit, unit, unit)),
+        opacity=draw(unit),
+        hardness=draw(unit),
+        spacing=draw(st.floats(0.2, 1.0)),
+        mix_ratio=draw(unit),
+        pickup_rate=draw(unit),
+        aspect=draw(st.tuples(*[st.floats(0.4, 1.6)] * 3)),
+        noise=Noise(frequency=draw(st.floats(0.5, 4.0)), octaves=draw(st.integers(1, 3)), seed=draw(st.integers(0, 9))),
+    )
+
+
+@st.composite
+def strokes(draw):
+    b = draw(brushes())
+    samples = [
+        Sample(draw(coord), draw(unit), draw(quat)) for _ in range(draw(st.integers(1, 4)))
+    ]
+    return b, samples
+
+
+actions = st.lists(
+    st.one_of(strokes(), st.sampled_from(["undo", "redo"])), min_size=1, max_size=5
+)
+
+
+def g3_of(tree):
+    n = tree.n_used
+    return g3_from_links(tree.parent[:n], tree.first_child[:n], tree.depth[:n], tree.roots)
+
+
+def pools(tree):
+    n = tree.n_used
+    return {k: getattr(tree, k)[:n].copy() for k in ("parent", "first_child", "depth", "rgb", "sigma", "origin")}
+
+
+def same_pools(a, b):
+    return a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a)
+
+
+class Checker:
+    def __init__(self, painting):
+        self.p = painting
+        self.g3 = g3_of(painting.tree)
+        painting.tree.take_dirty()
+
+    def after_segment(self, painting):
+        t = painting.tree
+        problems = check_arrays(tree_arrays(t)) + t.check_allocator()
+        assert not problems, problems
+        new = g3_of(t)
+        k = max(len(new), len(self.g3))
+        pad = lambda g: np.vstack([g, np.full((k - len(g), 3), NONE, np.uint32)])  # noqa: E731
+        changed = set(np.nonzero(np.any(pad(new) != pad(self.g3), axis=1))[0].tolist())
+        dirty = set(t.take_dirty().tolist())
+        assert changed <= dirty, sorted(changed - dirty)[:10]
+        self.g3 = new
+
+
+def expected_leaf_values(before_tree, stroke, tree):
+    """blend(before, brush, max coverage over the stroke) at every leaf,
+    computed independently with the numpy brush functions."""
+    leaves = tree.leaves()
+    x = tree.centres(leaves)
+    hist = stroke.history()
+    b = stroke.brush
+    if hist is None:
+        return leaves, tree.rgb[leaves], tree.sigma[leaves]
+    arr = hist.arrays
+    if b.shape == "sphere":
+        cov = B.capsule_coverage(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness)
+    else:
+        from octopaint_ref.noise import permutation
+
+        cov = B.stamp_coverage(
+            np, b.shape, x, arr["c"], arr["r"], arr["f"], arr["rot"], np.array(b.aspect), b.hardness,
+            permutation(b.noise.seed), b.noise.frequency / b.radius, b.noise.octaves, b.noise.gain,
+        )
+    a, _ = B.max_and_argmax(np, cov)
+    colour = hist.colour[cov.argmax(axis=1)]
+    src = np.array([before_tree.leaf_at(c) for c in x])
+    rgb, sigma = B.blend(
+        np, b.mode, before_tree.rgb[src] / 255.0, before_tree.sigma[src].astype(np.float64), colour,
+        stroke.sigma_b, stroke.alpha, a, b.mix_ratio,
+    )
+    return leaves, B.quantize_rgb(rgb), sigma.astype(np.float32)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(actions, st.sampled_from([1 << 16, 96]))
+def test_random_stroke_sequences_keep_every_invariant(acts, capacity):
+    p = Painting(Canvas((2, 1, 1), 6, 1.0, capacity))
+    checker = Checker(p)
+    p.after_segment = checker.after_segment
+    done, undone = [], []  # (pools before, pools after) per stroke
+    for act in acts:
+        if act == "undo":
+            if done:
+                before, after = done.pop()
+                assert same_pools(pools(p.tree), after)
+                p.undo()
+                assert same_pools(pools(p.tree), before)
+                undone.append((before, after))
+                checker.after_segment(p)
+            continue
+        if act == "redo":
+            if undone:
+                before, after = undone.pop()
+                p.redo()
+                assert same_pools(pools(p.tree), after)
+                done.append((before, after))
+                checker.after_segment(p)
+            continue
+        brush, samples = act
+        before = pools(p.tree)
+        before_tree = copy.deepcopy(p.tree)
+        p.begin_stroke(brush)
+        for s in samples:
+            p.add_sample(s)
+        if p.capacity_refusals == 0:
+            stroke = p.stroke
+            leaves, rgb, sigma = expected_leaf_values(before_tree, stroke, p.tree)
+            assert np.all(np.abs(p.tree.rgb[leaves].astype(int) - rgb.astype(int)) <= 1)
+            np.testing.assert_allclose(p.tree.sigma[leaves], sigma, rtol=1e-6, atol=1e-30)
+        p.end_stroke()
+        checker.after_segment(p)
+        assert len(collapsible_anywhere(p.tree)) == 0
+        done.append((before, pools(p.tree)))
+        undone.clear()
