@@ -222,8 +222,11 @@ def edges() -> str:
 
 
 def scene() -> str:
-    """A 40 km canvas with 0.3 mm cells: sky-sized translucent haze, hills,
-    and brush work at depth 20-25 by a hand moving at ~0.35 m/s at 90 Hz."""
+    """A 40 km canvas with 0.3 mm cells (roots of 10 km, depth 25): a
+    kilometre-wide translucent haze, hills of cone stamps, ~4,800 samples of
+    brush work at depth 21 by a hand moving ~0.3 m/s at 90 Hz (paint, mix,
+    pickup, recolor with box stamps), a stroke down at depth 25, then a
+    translucent mist over all of it and an eraser through it."""
     w = Writer({"roots": [4, 4, 4], "max_depth": 25, "root_size": 10000.0, "capacity": 16777216}, "Island at dusk")
     c = (20000.0, 20000.0, 20000.0)  # where eight roots meet
     # Sky: a kilometre-wide translucent haze.
@@ -235,40 +238,39 @@ def scene() -> str:
     up = axis_quat([1, 0, 0], -math.pi / 2)  # cone axis (local +z) along canvas +y
     w.stroke([[c[0] - 1500 + 60 * i, c[1] - 200, c[2] - 300 + 400 * math.sin(i / 5)] for i in range(50)],
              quats=[up] * 50, dt=0.02)
-    # Brush work near the centre: four strokes at depth 21, one at depth 25.
-    base = (c[0] + 0.31, c[1] + 0.23, c[2] - 0.17)
-    n_detail = 0
+    # Brush work near the centre, crossing the faces between the 8 roots.
+    # radius 0.052 at pressure 0.9-1 (r = 0.048-0.052): r/10 just above a
+    # depth-21 cell (4.77 mm), so the brush keeps ~10 cells per radius.
+    base = (c[0] + 0.11, c[1] + 0.07, c[2] - 0.05)
     for s, (radius, color, shape, mode, n) in enumerate([
-        (0.05, [0.95, 0.55, 0.2], "sphere", "paint", 900),
-        (0.04, [0.3, 0.2, 0.8], "sphere", "mix", 900),
-        (0.05, [0.95, 0.95, 0.9], "sphere", "pickup", 700),
-        (0.03, [0.1, 0.1, 0.1], "box", "recolor", 600),
-        (0.003, [1.0, 0.1, 0.1], "sphere", "paint", 120),
+        (0.052, [0.95, 0.55, 0.2], "sphere", "paint", 1300),
+        (0.052, [0.3, 0.2, 0.8], "sphere", "mix", 1200),
+        (0.052, [0.95, 0.95, 0.9], "sphere", "pickup", 1200),
+        (0.04, [0.1, 0.1, 0.1], "box", "recolor", 1000),
+        (0.003, [1.0, 0.1, 0.1], "sphere", "paint", 150),
     ]):
         kw = {"pickup_rate": 0.15} if mode == "pickup" else {}
-        w.brush(shape, mode, radius, color, opacity=0.85, hardness=0.55, **kw)
-        step = 0.0039 if radius > 0.01 else 0.0003
+        w.brush(shape, mode, radius, color, opacity=0.85, hardness=0.55, spacing=0.5, **kw)
         pts, pres, quats = [], [], []
         for i in range(n):
-            a = step * i
-            ph = 1.7 * s
-            pts.append([base[0] + 0.4 * math.cos(a * 2.2 + ph) - 0.4 * math.cos(ph),
-                        base[1] + 0.3 * math.sin(a * 3.1 + ph) + 0.05 * s,
-                        base[2] + 0.5 * a / (step * n) - 0.25 + 0.02 * rnd(s, i)])
-            pres.append(0.35 + 0.65 * math.sin(math.pi * (i + 0.5) / n))
+            a = 0.0033 * i  # metres of path, about
+            ph = 1.3 * s
+            pts.append([base[0] + 0.15 * math.cos(a * 2.0 + ph) - 0.15 * math.cos(ph),
+                        base[1] + 0.12 * math.sin(a * 2.9 + ph) + 0.03 * s,
+                        base[2] + 0.2 * i / n - 0.1 + 0.002 * rnd(s, i)])
+            pres.append(0.9 + 0.1 * math.sin(math.pi * (i + 0.5) / n))
             quats.append(axis_quat([0.2, 1.0, 0.4], 0.01 * i))
-        if radius < 0.01:  # the finest stroke: tiny and slow, ends at max depth
-            pts = [[base[0] + step * i, base[1] + 0.004 * math.sin(i / 9), base[2]] for i in range(n)]
+        if radius < 0.01:  # the finest stroke: 3 mm radius, cells of 0.3 mm
+            pts = [[base[0] + 0.0003 * i, base[1] + 0.004 * math.sin(i / 9), base[2]] for i in range(n)]
         w.stroke(pts, pres, quats if shape == "box" else None)
-        n_detail += n
     w.ev("snapshot", 0.1, name="scene_detail")
     # Mist: a translucent stroke across everything painted so far.
     w.brush("sphere", "paint", 400.0, [0.85, 0.85, 0.9], opacity=0.15, hardness=0.0)
-    w.stroke([[c[0] - 800 + 400 * i, c[1] + 100, c[2]] for i in range(5)], dt=0.05)
+    w.stroke([[c[0] - 300 + 300 * i, c[1] + 100, c[2]] for i in range(3)], dt=0.05)
     # And an eraser through the detail.
     w.brush("sphere", "erase", 0.06, [0, 0, 0], opacity=1.0, hardness=0.8)
-    w.stroke(line([base[0] - 0.2, base[1], base[2]], [base[0] + 0.3, base[1] + 0.1, base[2]], 120))
-    w.camera([c[0], c[1], c[2] + 3.0], base, size=(320, 240))
+    w.stroke(line([base[0] - 0.2, base[1], base[2]], [base[0] + 0.3, base[1] + 0.1, base[2]], 100))
+    w.camera([c[0], c[1], c[2] + 1.5], base, size=(320, 240))
     w.ev("render", 0.1, name="scene_close")
     w.camera([c[0], c[1] + 500, c[2] + 6000], c, size=(320, 240))
     w.ev("render", 0.1, name="scene_far")

@@ -173,6 +173,17 @@ def max_and_argmax(xp, cov):
     return xp.where(a < TINY, 0.0, a), xp.argmax(cov, axis=1)
 
 
+def capsule_max(xp, x, p0, p1, r0, r1, f0, f1, hardness):
+    """max_and_argmax of capsule_coverage: the stroke maximum over k capsules."""
+    return max_and_argmax(xp, capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness))
+
+
+def stamp_max(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain):
+    """max_and_argmax of stamp_coverage: the stroke maximum over k stamps."""
+    cov = stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain)
+    return max_and_argmax(xp, cov)
+
+
 # ------------------------------------------------------------------- blend
 def sigma_brush(xp, opacity, radius):
     """Extinction that makes a brush radius of paint have opacity alpha."""
@@ -222,6 +233,8 @@ jax_capsule_coverage = jax.jit(partial(capsule_coverage, jnp))
 jax_stamp_coverage = jax.jit(partial(stamp_coverage, jnp), static_argnums=(0, 10))
 jax_blend = jax.jit(partial(blend, jnp), static_argnums=(0,))
 jax_max_and_argmax = jax.jit(partial(max_and_argmax, jnp))
+jax_capsule_max = jax.jit(partial(capsule_max, jnp))
+jax_stamp_max = jax.jit(partial(stamp_max, jnp), static_argnums=(0, 10))
 
 
 # ----------------------------------------------------------- host helpers
@@ -255,8 +268,9 @@ def nlerp(q0, q1, u: float):
 def target_depth(r, root_size: float, max_depth: int) -> np.ndarray:
     """Smallest d in [0, D] with root_size * 2^-d <= r / N (else D), exact f64."""
     t = np.asarray(r, np.float64) / CELLS_PER_RADIUS
-    sizes = root_size * np.exp2(-np.arange(max_depth + 1, dtype=np.float64))
-    return np.minimum((sizes[None, :] > t.reshape(-1, 1)).sum(axis=1), max_depth).reshape(np.shape(t))
+    ascending = root_size * np.exp2(-np.arange(max_depth, -1, -1, dtype=np.float64))
+    larger = max_depth + 1 - np.searchsorted(ascending, t, side="right")  # sizes > t
+    return np.minimum(larger, max_depth)
 
 
 def stamp_extent(shape: str, aspect) -> float:

@@ -153,11 +153,11 @@ class Painting:
     # ------------------------------------------------------- one segment
     def _process_segment(self, st: Stroke, seg: Prims, line: int) -> None:
         tree = self.tree
-        leaves = self._leaves_in_reach(seg)
+        leaves, needs = self._leaves_in_reach(seg)
         a, best = self._evaluate(st, seg, leaves)
         hit = a > 0
         self._apply(st, leaves[hit], a[hit], seg.colour[best[hit]])
-        candidates = leaves[self._needs_refinement(st, seg, leaves)]
+        candidates = leaves[needs]
         while len(candidates):
             units, refused = tree.refine_round(candidates)
             if refused:
@@ -266,11 +266,11 @@ class Painting:
                 nn = len(x)
                 xm = _pad_rows(x, _bucket(nn) if nn < n_chunk else n_chunk, 0.0)
                 if b.shape == "sphere":
-                    cov = B.jax_capsule_coverage(
+                    ca, cb = B.jax_capsule_max(
                         xm, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness
                     )
                 else:
-                    cov = B.jax_stamp_coverage(
+                    ca, cb = B.jax_stamp_max(
                         b.shape,
                         xm,
                         arr["c"],
@@ -284,7 +284,6 @@ class Painting:
                         b.noise.octaves,
                         b.noise.gain,
                     )
-                ca, cb = B.jax_max_and_argmax(cov)
                 ca = np.asarray(ca)[:nn]
                 cb = np.asarray(cb)[:nn] + k0
                 sl = slice(n0, n0 + nn)
@@ -293,9 +292,10 @@ class Painting:
                 best[sl] = np.where(better, cb, best[sl])
         return a, best
 
-    def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs: bool):
+    def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs):
         """Exact host decisions for `cells`: within reach of any primitive,
-        and (if want_needs) needing refinement for any primitive (spec 8.7)."""
+        and, for the cells selected by the bool mask `want_needs`, needing
+        refinement by any primitive (spec 8.7)."""
         tree = self.tree
         n, k = len(cells), len(prims)
         reach = np.zeros(n, bool)
@@ -303,8 +303,8 @@ class Painting:
         if n == 0 or k == 0:
             return reach, needs
         x_all = tree.centres(cells)
-        h_all = B.HALF_DIAG * tree.sizes(cells)
-        d_all = tree.depth[cells].astype(np.int64)
+        d_all = tree.depth[cells]
+        h_all = B.HALF_DIAG * tree.size_canvas[d_all]
         b = st.brush
         arr = prims.arrays
         step = max(1, CHUNK_ENTRIES // max(k, 1))
@@ -319,21 +319,60 @@ class Painting:
                 rk = B.stamp_reach(np, b.shape, x, arr["c"], arr["r"], arr["rot"], b.aspect, h)
                 radius = np.broadcast_to(arr["r"][None, :], rk.shape)
             reach[sl] = rk.any(axis=1)
-            if want_needs:
-                td = B.target_depth(radius, tree.root_size, tree.max_depth)
-                needs[sl] = (rk & (d[:, None] < td)).any(axis=1)
-        if want_needs and b.mode in ("erase", "recolor"):
+            sel = want_needs[sl] & reach[sl]
+            if sel.any():
+                td = B.target_depth(radius[sel], tree.root_size, tree.max_depth)
+                part = needs[sl]
+                part[sel] = (rk[sel] & (d[sel][:, None] < td)).any(axis=1)
+                needs[sl] = part
+        if b.mode in ("erase", "recolor"):
             needs &= tree.sigma[cells] > 0  # nothing there to change
+        return reach, needs
+
+    def _reach_one_capsule(self, seg: Prims, cells: np.ndarray, want_needs: np.ndarray):
+        """_reach for a segment of one capsule, written out on 1-D columns:
+        the same operations in the same order as capsule_geometry (the
+        traversal calls this once per depth level, so its overhead counts)."""
+        tree = self.tree
+        a = seg.arrays
+        p0, p1 = a["p0"][0], a["p1"][0]
+        r0, r1 = a["r0"][0], a["r1"][0]
+        d0, d1, d2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        depth = tree.depth[cells]
+        half = tree.half_lattice[depth]
+        o = tree.origin[cells]
+        unit = tree.lattice_unit
+        x0 = (o[:, 0] + half) * unit
+        x1 = (o[:, 1] + half) * unit
+        x2 = (o[:, 2] + half) * unit
+        if dd >= B.TINY:
+            u = ((x0 - p0[0]) * d0 + (x1 - p0[1]) * d1 + (x2 - p0[2]) * d2) / dd
+            np.clip(u, 0.0, 1.0, out=u)
+        else:
+            u = np.zeros(len(cells))
+        e0 = x0 - (p0[0] + u * d0)
+        e1 = x1 - (p0[1] + u * d1)
+        e2 = x2 - (p0[2] + u * d2)
+        r = r0 + (r1 - r0) * u
+        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= B.HALF_DIAG * tree.size_canvas[depth]
+        sel = want_needs & reach
+        if self.stroke.brush.mode in ("erase", "recolor"):
+            sel &= tree.sigma[cells] > 0  # nothing there to change
+        needs = np.zeros(len(cells), bool)
+        if sel.any():
+            needs[sel] = depth[sel] < B.target_depth(r[sel], tree.root_size, tree.max_depth)
         return reach, needs
 
     def _needs_refinement(self, st: Stroke, seg: Prims, cells: np.ndarray) -> np.ndarray:
         """bool mask: the leaves among `cells` this segment must refine."""
         leaf = self.tree.first_child[cells] == NONE
-        return leaf & self._reach(st, seg, cells, True)[1]
+        return self._reach(st, seg, cells, leaf)[1]
 
-    def _leaves_in_reach(self, seg: Prims) -> np.ndarray:
-        """Every leaf within reach of the segment: a top-down traversal from
-        the roots whose boxes touch the segment's bounds."""
+    def _leaves_in_reach(self, seg: Prims):
+        """Every leaf within reach of the segment, and which of them it must
+        refine: a top-down traversal from the roots whose boxes touch the
+        segment's bounds."""
         tree = self.tree
         st = self.stroke
         rs = tree.root_size
@@ -342,17 +381,21 @@ class Painting:
         lo = np.maximum(lo, 0)
         hi = np.minimum(hi, np.array(tree.roots) - 1)
         if np.any(hi < lo):
-            return np.zeros(0, np.int64)
+            return np.zeros(0, np.int64), np.zeros(0, bool)
         gx, gy, gz = np.meshgrid(*(np.arange(lo[a], hi[a] + 1) for a in range(3)), indexing="ij")
         frontier = (gx + tree.roots[0] * (gy + tree.roots[1] * gz)).ravel().astype(np.int64)
-        out = []
+        leaves, needs = [], []
+        single_capsule = st.brush.shape == "sphere" and len(seg) == 1
         while len(frontier):
-            reach, _ = self._reach(st, seg, frontier, False)
-            frontier = frontier[reach]
             fc = tree.first_child[frontier]
             leaf = fc == NONE
-            out.append(frontier[leaf])
-            inner = fc[~leaf].astype(np.int64)
+            if single_capsule:
+                reach, need = self._reach_one_capsule(seg, frontier, leaf)
+            else:
+                reach, need = self._reach(st, seg, frontier, leaf)
+            keep = reach & leaf
+            leaves.append(frontier[keep])
+            needs.append(need[keep])
+            inner = fc[reach & ~leaf].astype(np.int64)
             frontier = (inner[:, None] + np.arange(UNIT)[None, :]).ravel()
-        return np.sort(np.concatenate(out)) if out else np.zeros(0, np.int64)
-
+        return np.concatenate(leaves), np.concatenate(needs)

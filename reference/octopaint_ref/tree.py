@@ -55,6 +55,10 @@ class Tree:
         # Canvas units per lattice unit: exact (a power-of-two scaling).
         self.lattice_unit = self.root_size * 2.0**-self.max_depth
         self.extent = np.array(self.roots, np.int64) << self.max_depth  # lattice units per axis
+        # Per depth: half a cell in lattice units, and the edge in canvas units.
+        d = np.arange(self.max_depth + 1)
+        self.half_lattice = np.exp2(self.max_depth - d) * 0.5
+        self.size_canvas = np.exp2(self.max_depth - d) * self.lattice_unit
         self._alloc_arrays(max(self.n_padded, 64))
         self.n_used = self.n_padded
         r = np.arange(self.n_roots, dtype=np.int64)
@@ -146,21 +150,24 @@ class Tree:
     def centres(self, cells: np.ndarray) -> np.ndarray:
         """Cell centres in canvas units, f64 [n, 3]: (origin + size/2) times
         the lattice unit (spec 1.3)."""
-        cells = np.asarray(cells, np.int64)
-        half = self.cell_size_lattice(self.depth[cells]).astype(np.float64) * 0.5
-        return (self.origin[cells].astype(np.float64) + half[:, None]) * self.lattice_unit
+        half = self.half_lattice[self.depth[cells]]
+        return (self.origin[cells] + half[:, None]) * self.lattice_unit
 
     def sizes(self, cells: np.ndarray) -> np.ndarray:
         """Cell edge lengths in canvas units, f64 [n]."""
-        return self.cell_size_lattice(self.depth[np.asarray(cells, np.int64)]).astype(np.float64) * self.lattice_unit
+        return self.size_canvas[self.depth[cells]]
 
-    def cell_at(self, q: np.ndarray, max_d: np.ndarray) -> np.ndarray:
+    def cell_at(self, q: np.ndarray, max_d: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
         """The cell containing lattice points q [n, 3] (all inside the
-        canvas) of the greatest depth <= max_d [n]: a descent from the root."""
+        canvas) of the greatest depth <= max_d [n]: a descent from the root,
+        or from `start` [n], cells known to contain the points."""
         q = np.asarray(q, np.int64)
-        size0 = np.int64(1) << self.max_depth
-        r = q // size0
-        c = r[:, 0] + self.roots[0] * (r[:, 1] + self.roots[1] * r[:, 2])
+        if start is None:
+            size0 = np.int64(1) << self.max_depth
+            r = q // size0
+            c = r[:, 0] + self.roots[0] * (r[:, 1] + self.roots[1] * r[:, 2])
+        else:
+            c = np.array(start, np.int64)
         active = np.arange(len(q))
         qa = q
         md = np.asarray(max_d, np.int64)
