@@ -137,8 +137,9 @@ MODES = ("paint", "erase", "recolor", "mix", "pickup")
 
 def shapes_modes() -> str:
     """Each shape x mode stroke crosses a painted two-colour base bar, so
-    erase, recolor, mix and pickup have something to act on."""
-    w = Writer({"roots": [2, 2, 1], "max_depth": 10, "root_size": 1.0, "capacity": 4194304}, "Every shape in every mode")
+    erase, recolor, mix and pickup have something to act on. max_depth 7
+    clamps the target depth (the brushes ask for 8)."""
+    w = Writer({"roots": [2, 2, 1], "max_depth": 7, "root_size": 1.0, "capacity": 4194304}, "Every shape in every mode")
     for si, shape in enumerate(SHAPES):
         y = 0.2 + 0.4 * si
         # Base: a two-colour bar along x under this row.
