@@ -66,6 +66,18 @@ def capsule_geometry(xp, x, p0, p1, r0, r1):
     return dist, u, r
 
 
+def capsule_slack(p0, p1, r0, r1) -> float:
+    """Lipschitz constant K of the tapered capsule's distance dist - r(u):
+    1 + |r1 - r0| / |p1 - p0| (1 for a sphere). The reach test scales the
+    cell's half-diagonal by K, which makes it monotone under refinement even
+    for strongly tapered segments (spec 8.7)."""
+    d0, d1, d2 = p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]
+    dd = d0 * d0 + d1 * d1 + d2 * d2
+    if dd < TINY:
+        return 1.0
+    return 1.0 + abs(r1 - r0) / float(np.sqrt(dd))
+
+
 def local_coords(xp, x, c, rot):
     """x [n, 3] in the frames of k stamps (centre c [k, 3], rotation rot
     [k, 3, 3], local-to-canvas): l_i = sum_j rot[j][i] * (x - c)_j, summed
@@ -94,18 +106,20 @@ def stamp_reach(xp, shape: str, x, c, r, rot, aspect, h):
             & (xp.abs(lc[..., 1]) <= ay * rk + hh)
             & (xp.abs(lc[..., 2]) <= az * rk + hh)
         )
-    ex = lc[..., 0] / (ax * rk + hh)
-    ey = lc[..., 1] / (ay * rk + hh)
-    inside = (ex * ex + ey * ey <= 1.0) & (xp.abs(lc[..., 2]) <= az * rk + hh)
+    # The elliptic cross-section's gauge is Lipschitz with constant
+    # 1 / (min(ax, ay) * r): a ball of radius h that touches the shape has
+    # its centre at gauge <= 1 + h / (m * r). Each test is monotone under
+    # refinement (a child in reach has its parent in reach).
+    m = min(ax, ay)
+    nx = lc[..., 0] / (ax * rk)
+    ny = lc[..., 1] / (ay * rk)
+    radial = _safe_sqrt(xp, nx * nx + ny * ny)
+    inside = (radial <= 1.0 + hh / (m * rk)) & (xp.abs(lc[..., 2]) <= az * rk + hh)
     if shape == "cylinder":
         return inside
     if shape == "cone":
-        m = min(ax, ay)
         lip = float(np.sqrt(4.0 / (m * m) + 1.0 / (az * az)))
-        nx = lc[..., 0] / (ax * rk)
-        ny = lc[..., 1] / (ay * rk)
         nz = lc[..., 2] / (az * rk)
-        radial = _safe_sqrt(xp, nx * nx + ny * ny)
         return inside & (2.0 * radial + nz <= 1.0 + hh * lip / rk)
     raise ValueError(f"unknown stamp shape {shape}")
 
@@ -210,12 +224,14 @@ def blend(xp, mode: str, before_rgb, before_sigma, colour, sigma_b, alpha, a, mi
         rgb = xp.where((bs > 0)[:, None], before_rgb + (colour - before_rgb) * t, before_rgb)
         sigma = bs
     elif mode == "mix":
+        # As in paint, an empty cell has no colour of its own to mix.
+        base = xp.where((bs == 0)[:, None], colour, before_rgb)
         wb = mix_ratio * a * sigma_b
         wb = xp.where(wb < TINY, 0.0, wb)
         den = bs + wb
         safe = xp.where(den > 0, den, 1.0)
-        mixed = (bs[:, None] * before_rgb + wb[:, None] * colour) / safe[:, None]
-        rgb = xp.where((den > 0)[:, None], mixed, before_rgb)
+        mixed = (bs[:, None] * base + wb[:, None] * colour) / safe[:, None]
+        rgb = xp.where((den > 0)[:, None], mixed, base)
         sigma = bs + a * sigma_b
     else:
         raise ValueError(f"unknown mode {mode}")

@@ -63,6 +63,9 @@ def check_arrays(a: dict) -> list[str]:
     bad = free & ((parent != NONE) | (first_child != NONE) | np.any(origin != NONE, axis=1) | np.any(g3 != NONE, axis=1))
     if bad.any():
         problems.append(f"free cells whose parent, first_child, origin or g3 is not NONE: {_cells(bad)}")
+    bad = free & (np.any(a["rgb"] != 0, axis=1) | (a["sigma"] != 0))
+    if bad.any():
+        problems.append(f"free cells whose rgb or sigma is not 0: {_cells(bad)}")
     units = free[n_padded:].reshape(-1, 8) if n > n_padded else np.zeros((0, 8), bool)
     mixed = units.any(axis=1) & ~units.all(axis=1)
     if mixed.any():
@@ -74,7 +77,9 @@ def check_arrays(a: dict) -> list[str]:
     p = parent[nonroot]
     okp = (p >= 0) & (p < n)
     if not okp.all():
-        problems.append(f"parent out of range: cells {_cells(np.r_[nonroot][nonroot] & ~okp)}")
+        mask = np.zeros(n, bool)
+        mask[idx[nonroot][~okp]] = True
+        problems.append(f"parent out of range: cells {_cells(mask)}")
         return problems
     c_idx = idx[nonroot]
     bad = (first_child[p] != (c_idx & ~7)) | (depth[p] != depth[c_idx] - 1) | (depth[p] == FREE)

@@ -313,7 +313,10 @@ class Painting:
             x, h, d = x_all[sl], h_all[sl], d_all[sl]
             if b.shape == "sphere":
                 dist, _, r = B.capsule_geometry(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"])
-                rk = dist - r <= h[:, None]
+                slack = np.array(
+                    [B.capsule_slack(arr["p0"][j], arr["p1"][j], arr["r0"][j], arr["r1"][j]) for j in range(k)]
+                )
+                rk = dist - r <= h[:, None] * slack[None, :]
                 radius = r
             else:
                 rk = B.stamp_reach(np, b.shape, x, arr["c"], arr["r"], arr["rot"], b.aspect, h)
@@ -355,7 +358,8 @@ class Painting:
         e1 = x1 - (p0[1] + u * d1)
         e2 = x2 - (p0[2] + u * d2)
         r = r0 + (r1 - r0) * u
-        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= B.HALF_DIAG * tree.size_canvas[depth]
+        slack = B.capsule_slack(p0, p1, r0, r1)
+        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= (B.HALF_DIAG * tree.size_canvas[depth]) * slack
         sel = want_needs & reach
         if self.stroke.brush.mode in ("erase", "recolor"):
             sel &= tree.sigma[cells] > 0  # nothing there to change

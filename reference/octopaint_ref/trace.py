@@ -105,7 +105,10 @@ def _fail(line: int, fld: str, msg: str) -> TraceError:
 def _finite(line: int, fld: str, v) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise _fail(line, fld, f"expected a number, got {json.dumps(v)}")
-    x = float(v)
+    try:
+        x = float(v)
+    except OverflowError:  # an integer literal beyond f64
+        raise _fail(line, fld, "not a finite number") from None
     if not math.isfinite(x):
         raise _fail(line, fld, "not a finite number")
     # Subnormal numbers are read as 0: XLA flushes them, numpy and Rust do
@@ -153,9 +156,9 @@ def _quat(line: int, fld: str, v) -> tuple:
     return q
 
 
-def _require(line: int, obj: dict, key: str):
+def _require(line: int, obj: dict, key: str, prefix: str = ""):
     if key not in obj:
-        raise _fail(line, key, "missing")
+        raise _fail(line, prefix + key, "missing")
     return obj[key]
 
 
@@ -170,20 +173,20 @@ def parse_canvas(line: int, obj) -> Canvas:
         raise _fail(line, "canvas", "expected an object")
     roots = tuple(
         _int(line, f"canvas.roots[{i}]", x, 1, 1 << 16)
-        for i, x in enumerate(_vec(line, "canvas.roots", _require(line, obj, "roots"), 3))
+        for i, x in enumerate(_vec(line, "canvas.roots", _require(line, obj, "roots", "canvas."), 3))
     )
-    max_depth = _int(line, "canvas.max_depth", _require(line, obj, "max_depth"), 0, MAX_DEPTH_LIMIT)
+    max_depth = _int(line, "canvas.max_depth", _require(line, obj, "max_depth", "canvas."), 0, MAX_DEPTH_LIMIT)
     for i, r in enumerate(roots):
         if r << max_depth > 1 << 32:
             raise _fail(line, f"canvas.roots[{i}]", f"{r} roots of depth {max_depth} exceed the u32 lattice")
-    root_size = _finite(line, "canvas.root_size", _require(line, obj, "root_size"))
+    root_size = _finite(line, "canvas.root_size", _require(line, obj, "root_size", "canvas."))
     if not 1e-9 <= root_size <= 1e12:
         raise _fail(line, "canvas.root_size", f"{root_size!r} is outside [1e-09, 1e+12]")
     n_roots = roots[0] * roots[1] * roots[2]
     if n_roots > MAX_ROOTS:
         raise _fail(line, "canvas.roots", f"{n_roots} roots are more than the {MAX_ROOTS} allowed")
     padded = (n_roots + 7) // 8 * 8
-    capacity = _int(line, "canvas.capacity", _require(line, obj, "capacity"), 8, MAX_CAPACITY)
+    capacity = _int(line, "canvas.capacity", _require(line, obj, "capacity", "canvas."), 8, MAX_CAPACITY)
     if capacity < padded:
         raise _fail(line, "canvas.capacity", f"{capacity} is below the {padded} cells the roots need")
     return Canvas(roots, max_depth, root_size, capacity)

@@ -82,7 +82,7 @@ def test_reach_contains_every_covered_point(shape):
     # A ball of radius h around each reached-out point misses the shape:
     # sample the ball and check the gauge stays >= 1 there.
     out = x[~reach][:200]
-    for d in rng.normal(size=(50, 3)):
+    for d in rng.normal(size=(50, 3)):  # noqa: B007
         d = d / np.linalg.norm(d) * 0.05 * rng.uniform()
         assert np.all(B.stamp_gauge(np, shape, out + d, c, r, rot, aspect) >= 1 - 1e-12)
 
@@ -183,3 +183,43 @@ def test_perlin_properties_and_jax_agrees_with_numpy():
     np.testing.assert_allclose(vj, v, rtol=0, atol=1e-13)
     f = fbm(np, perm, pts, 0.3, 4, 0.5)
     assert np.all(np.abs(f) <= 1.04)
+
+
+def test_capsule_reach_is_monotone_for_tapered_segments():
+    """A cell in reach has its parent in reach (spec 8.7), however strongly the
+    capsule tapers: otherwise the top-down search misses covered leaves."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        p0 = rng.uniform(0, 1, 3)
+        p1 = p0 + rng.uniform(-0.01, 0.01, 3)
+        r0, r1 = rng.uniform(0.01, 0.1, 2)
+        k = B.capsule_slack(p0, p1, r0, r1)
+        size = 2.0 ** -rng.integers(4, 9)
+        parent = rng.uniform(-0.2, 1.2, (2000, 3))
+        octants = np.array([[(o >> a) & 1 for a in range(3)] for o in range(8)]) - 0.5
+        child = (parent[:, None, :] + octants[None] * (size / 2)).reshape(-1, 3)
+        def reach(x, s):
+            dist, _, r = B.capsule_geometry(np, x, p0[None], p1[None], np.array([r0]), np.array([r1]))
+            return (dist - r)[:, 0] <= B.HALF_DIAG * s * k
+        child_in = reach(child, size / 2).reshape(-1, 8).any(axis=1)
+        assert np.all(reach(parent, size)[child_in])
+
+
+@pytest.mark.parametrize("shape", ["box", "cylinder", "cone"])
+def test_stamp_reach_is_monotone(shape):
+    rng = np.random.default_rng(6)
+    rot = B.quat_to_matrix([0.1, -0.3, 0.5, 0.8])[None]
+    c, r, aspect = np.zeros((1, 3)), np.array([0.3]), (1.0, 0.05, 0.7)
+    size = 0.05
+    parent = rng.uniform(-0.6, 0.6, (5000, 3))
+    octants = np.array([[(o >> a) & 1 for a in range(3)] for o in range(8)]) - 0.5
+    child = (parent[:, None, :] + octants[None] * (size / 2)).reshape(-1, 3)
+    h = lambda n, s: np.full(n, B.HALF_DIAG * s)  # noqa: E731
+    child_in = B.stamp_reach(np, shape, child, c, r, rot, aspect, h(len(child), size / 2))[:, 0].reshape(-1, 8).any(axis=1)
+    assert np.all(B.stamp_reach(np, shape, parent, c, r, rot, aspect, h(len(parent), size))[:, 0][child_in])
+
+
+def test_mix_on_an_empty_cell_takes_the_brush_colour_even_with_zero_weight():
+    rgb, sigma, sb = _blend("mix", [0.0, 0.0, 0.0], 0.0, [0.9, 0.5, 0.1], 0.5, mix_ratio=0.0)
+    np.testing.assert_allclose(rgb, [0.9, 0.5, 0.1], atol=1e-15)
+    assert sigma == pytest.approx(0.5 * sb, abs=1e-15)

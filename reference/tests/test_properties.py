@@ -51,9 +51,18 @@ def brushes(draw):
 @st.composite
 def strokes(draw):
     b = draw(brushes())
-    samples = [
-        Sample(draw(coord), draw(unit), draw(quat)) for _ in range(draw(st.integers(1, 4)))
-    ]
+    n = draw(st.integers(1, 4))
+    if draw(st.booleans()):
+        samples = [Sample(draw(coord), draw(unit), draw(quat)) for _ in range(n)]
+    else:
+        # A short, strongly tapered stroke: samples a few millimetres apart
+        # while the pressure (and so the radius) swings.
+        p = draw(coord)
+        samples = []
+        for i in range(n):
+            step = draw(st.tuples(*[st.floats(-0.01, 0.01).map(flushed)] * 3))
+            p = tuple(p[k] + step[k] for k in range(3))
+            samples.append(Sample(p, draw(unit), draw(quat)))
     return b, samples
 
 
@@ -116,7 +125,8 @@ def expected_leaf_values(before_tree, stroke, tree):
         )
     a, _ = B.max_and_argmax(np, cov)
     colour = hist.colour[cov.argmax(axis=1)]
-    src = np.array([before_tree.leaf_at(c) for c in x])
+    q = np.floor(x / before_tree.lattice_unit).astype(np.int64)
+    src = before_tree.cell_at(q, np.full(len(q), before_tree.max_depth))
     rgb, sigma = B.blend(
         np, b.mode, before_tree.rgb[src] / 255.0, before_tree.sigma[src].astype(np.float64), colour,
         stroke.sigma_b, stroke.alpha, a, b.mix_ratio,
@@ -165,3 +175,24 @@ def test_random_stroke_sequences_keep_every_invariant(acts, capacity):
         assert len(collapsible_anywhere(p.tree)) == 0
         done.append((before, pools(p.tree)))
         undone.clear()
+
+
+def test_strongly_tapered_stroke_reaches_every_covered_leaf():
+    """Regression: with an unscaled reach test, a capsule whose radius grows
+    faster than it moves (0.025 -> 0.1 over 4 mm) skipped leaves it covers:
+    a child passed the test while its parent failed it."""
+    for d in ([1.0, 0.0, 0.0], [0.48, -0.6, 0.64], [-0.36, 0.48, -0.8]):
+        p = Painting(Canvas((1, 1, 1), 7, 1.0, 1 << 22))
+        b = Brush("sphere", "paint", 0.1, (1.0, 0.0, 0.0), 0.9, 0.5)
+        c0 = np.array([0.503, 0.497, 0.501])
+        p.begin_stroke(b)
+        p.add_sample(Sample(tuple(c0), 1.0))
+        p.end_stroke()
+        before_tree = copy.deepcopy(p.tree)
+        p.begin_stroke(b)
+        p.add_sample(Sample(tuple(c0), 0.0))
+        p.add_sample(Sample(tuple(c0 + 0.004 * np.array(d)), 1.0))
+        leaves, rgb, sigma = expected_leaf_values(before_tree, p.stroke, p.tree)
+        assert np.all(np.abs(p.tree.rgb[leaves].astype(int) - rgb.astype(int)) <= 1)
+        np.testing.assert_allclose(p.tree.sigma[leaves], sigma, rtol=1e-6, atol=1e-30)
+        p.end_stroke()
