@@ -245,10 +245,7 @@ def quantize_rgb(v: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------- jitted versions
-jax_capsule_coverage = jax.jit(partial(capsule_coverage, jnp))
-jax_stamp_coverage = jax.jit(partial(stamp_coverage, jnp), static_argnums=(0, 10))
 jax_blend = jax.jit(partial(blend, jnp), static_argnums=(0,))
-jax_max_and_argmax = jax.jit(partial(max_and_argmax, jnp))
 jax_capsule_max = jax.jit(partial(capsule_max, jnp))
 jax_stamp_max = jax.jit(partial(stamp_max, jnp), static_argnums=(0, 10))
 

@@ -57,21 +57,6 @@ class History:
         self.done.append(record)
         self.undone.clear()
 
-    def abort(self) -> None:
-        """Restore the tree of stroke begin (a stroke that must not land)."""
-        old_n, old = self._before
-        self._before = None
-        n = max(old_n, self.tree.n_used)
-        idx = np.arange(n)
-        vals = {}
-        for k in POOLS:
-            a = old[k]
-            pad = np.empty((n,) + a.shape[1:], a.dtype)
-            pad[: len(a)] = a
-            pad[len(a) :] = FREE_VALUE[k]
-            vals[k] = pad
-        self._write(old_n, idx, vals)
-
     def undo(self) -> None:
         rec = self.done.pop()
         self._write(rec[0], rec[2], rec[3])

@@ -204,12 +204,6 @@ class Tree:
         out[inside] = self.cell_at(q[inside], np.repeat(d, 6)[inside])
         return out.reshape(n, 6)
 
-    def root_at(self, x: int, y: int, z: int) -> int:
-        return x + self.roots[0] * (y + self.roots[1] * z)
-
-    def is_leaf(self, c: int) -> bool:
-        return self.first_child[c] == NONE
-
     # ------------------------------------------------------------- topology
     def coarser_neighbours(self, cells: np.ndarray) -> np.ndarray:
         """[n, 6] in face order: the coarser leaf across each face, or -1."""
