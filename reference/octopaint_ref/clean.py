@@ -29,9 +29,7 @@ def clean(tree: Tree, touched: np.ndarray) -> int:
     collapses = 0
     while len(work):
         work = work[(tree.depth[work] != FREE) & (tree.first_child[work] != NONE)]
-        m = tree.mergeable(work)
-        m[m] = tree.balance_allows_coarsen(work[m])
-        done = work[m]
+        done = work[tree.collapsible(work)]
         if not len(done):
             break
         tree.coarsen(done)
@@ -49,6 +47,4 @@ def collapsible_anywhere(tree: Tree) -> np.ndarray:
     """Every cell that could still collapse (tests: empty at a fixpoint)."""
     n = tree.n_used
     inner = np.nonzero((tree.depth[:n] != FREE) & (tree.first_child[:n] != NONE))[0]
-    m = tree.mergeable(inner)
-    m[m] = tree.balance_allows_coarsen(inner[m])
-    return inner[m]
+    return inner[tree.collapsible(inner)]

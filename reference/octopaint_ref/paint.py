@@ -293,9 +293,18 @@ class Painting:
         return a, best
 
     def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs):
-        """Exact host decisions for `cells`: within reach of any primitive,
-        and, for the cells selected by the bool mask `want_needs`, needing
-        refinement by any primitive (spec 8.7)."""
+        """Exact host decisions for `cells`: within reach of any primitive of
+        the segment, and, for the cells selected by the bool mask
+        `want_needs`, needing refinement by any primitive (spec 8.7)."""
+        if st.brush.shape == "sphere":
+            reach, needs = self._reach_one_capsule(prims, cells, want_needs)
+        else:
+            reach, needs = self._reach_stamps(st, prims, cells, want_needs)
+        if st.brush.mode in ("erase", "recolor"):
+            needs &= self.tree.sigma[cells] > 0  # nothing there to change
+        return reach, needs
+
+    def _reach_stamps(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs):
         tree = self.tree
         n, k = len(cells), len(prims)
         reach = np.zeros(n, bool)
@@ -307,35 +316,26 @@ class Painting:
         h_all = B.HALF_DIAG * tree.size_canvas[d_all]
         b = st.brush
         arr = prims.arrays
-        step = max(1, CHUNK_ENTRIES // max(k, 1))
+        step = max(1, CHUNK_ENTRIES // k)
         for n0 in range(0, n, step):
             sl = slice(n0, n0 + step)
             x, h, d = x_all[sl], h_all[sl], d_all[sl]
-            if b.shape == "sphere":
-                dist, _, r = B.capsule_geometry(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"])
-                slack = np.array(
-                    [B.capsule_slack(arr["p0"][j], arr["p1"][j], arr["r0"][j], arr["r1"][j]) for j in range(k)]
-                )
-                rk = dist - r <= h[:, None] * slack[None, :]
-                radius = r
-            else:
-                rk = B.stamp_reach(np, b.shape, x, arr["c"], arr["r"], arr["rot"], b.aspect, h)
-                radius = np.broadcast_to(arr["r"][None, :], rk.shape)
+            rk = B.stamp_reach(np, b.shape, x, arr["c"], arr["r"], arr["rot"], b.aspect, h)
             reach[sl] = rk.any(axis=1)
             sel = want_needs[sl] & reach[sl]
             if sel.any():
-                td = B.target_depth(radius[sel], tree.root_size, tree.max_depth)
+                td = B.target_depth(np.broadcast_to(arr["r"][None, :], rk.shape)[sel], tree.root_size, tree.max_depth)
                 part = needs[sl]
                 part[sel] = (rk[sel] & (d[sel][:, None] < td)).any(axis=1)
                 needs[sl] = part
-        if b.mode in ("erase", "recolor"):
-            needs &= tree.sigma[cells] > 0  # nothing there to change
         return reach, needs
 
     def _reach_one_capsule(self, seg: Prims, cells: np.ndarray, want_needs: np.ndarray):
-        """_reach for a segment of one capsule, written out on 1-D columns:
-        the same operations in the same order as capsule_geometry (the
-        traversal calls this once per depth level, so its overhead counts)."""
+        """_reach for a sphere segment (always one capsule), written out on
+        1-D columns: the same operations in the same order as
+        capsule_geometry (the traversal calls this once per depth level, so
+        its overhead counts)."""
+        assert len(seg) == 1
         tree = self.tree
         a = seg.arrays
         p0, p1 = a["p0"][0], a["p1"][0]
@@ -361,8 +361,6 @@ class Painting:
         slack = B.capsule_slack(p0, p1, r0, r1)
         reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= (B.HALF_DIAG * tree.size_canvas[depth]) * slack
         sel = want_needs & reach
-        if self.stroke.brush.mode in ("erase", "recolor"):
-            sel &= tree.sigma[cells] > 0  # nothing there to change
         needs = np.zeros(len(cells), bool)
         if sel.any():
             needs[sel] = depth[sel] < B.target_depth(r[sel], tree.root_size, tree.max_depth)
@@ -389,14 +387,10 @@ class Painting:
         gx, gy, gz = np.meshgrid(*(np.arange(lo[a], hi[a] + 1) for a in range(3)), indexing="ij")
         frontier = (gx + tree.roots[0] * (gy + tree.roots[1] * gz)).ravel().astype(np.int64)
         leaves, needs = [], []
-        single_capsule = st.brush.shape == "sphere" and len(seg) == 1
         while len(frontier):
             fc = tree.first_child[frontier]
             leaf = fc == NONE
-            if single_capsule:
-                reach, need = self._reach_one_capsule(seg, frontier, leaf)
-            else:
-                reach, need = self._reach(st, seg, frontier, leaf)
+            reach, need = self._reach(st, seg, frontier, leaf)
             keep = reach & leaf
             leaves.append(frontier[keep])
             needs.append(need[keep])

@@ -157,17 +157,13 @@ class Tree:
         """Cell edge lengths in canvas units, f64 [n]."""
         return self.size_canvas[self.depth[cells]]
 
-    def cell_at(self, q: np.ndarray, max_d: np.ndarray, start: np.ndarray | None = None) -> np.ndarray:
+    def cell_at(self, q: np.ndarray, max_d: np.ndarray) -> np.ndarray:
         """The cell containing lattice points q [n, 3] (all inside the
-        canvas) of the greatest depth <= max_d [n]: a descent from the root,
-        or from `start` [n], cells known to contain the points."""
+        canvas) of the greatest depth <= max_d [n]: a descent from the root."""
         q = np.asarray(q, np.int64)
-        if start is None:
-            size0 = np.int64(1) << self.max_depth
-            r = q // size0
-            c = r[:, 0] + self.roots[0] * (r[:, 1] + self.roots[1] * r[:, 2])
-        else:
-            c = np.array(start, np.int64)
+        size0 = np.int64(1) << self.max_depth
+        r = q // size0
+        c = r[:, 0] + self.roots[0] * (r[:, 1] + self.roots[1] * r[:, 2])
         active = np.arange(len(q))
         qa = q
         md = np.asarray(max_d, np.int64)
@@ -205,13 +201,17 @@ class Tree:
         return out.reshape(n, 6)
 
     # ------------------------------------------------------------- topology
-    def coarser_neighbours(self, cells: np.ndarray) -> np.ndarray:
-        """[n, 6] in face order: the coarser leaf across each face, or -1."""
+    def _across_where(self, cells: np.ndarray, keep) -> np.ndarray:
+        """across(cells), with -1 where keep(neighbour depth, cell depth) fails."""
         cells = np.asarray(cells, np.int64)
         nb = self.across(cells)
         ok = nb >= 0
-        ok[ok] = self.depth[nb[ok]] < np.repeat(self.depth[cells][:, None], 6, axis=1)[ok]
+        ok[ok] = keep(self.depth[nb[ok]], np.repeat(self.depth[cells][:, None], 6, axis=1)[ok])
         return np.where(ok, nb, -1)
+
+    def coarser_neighbours(self, cells: np.ndarray) -> np.ndarray:
+        """[n, 6] in face order: the coarser leaf across each face, or -1."""
+        return self._across_where(cells, np.less)
 
     def refine_round(self, candidates: np.ndarray) -> tuple[np.ndarray, bool]:
         """Refine the leaves `candidates` as if one at a time in ascending
@@ -335,11 +335,13 @@ class Tree:
 
     def same_depth_neighbours(self, cells: np.ndarray) -> np.ndarray:
         """[n, 6]: the same-depth face neighbours of each cell, -1 if none."""
-        cells = np.asarray(cells, np.int64)
-        nb = self.across(cells)
-        ok = nb >= 0
-        ok[ok] = self.depth[nb[ok]] == np.repeat(self.depth[cells][:, None], 6, axis=1)[ok]
-        return np.where(ok, nb, -1)
+        return self._across_where(cells, np.equal)
+
+    def collapsible(self, cells: np.ndarray) -> np.ndarray:
+        """bool [n]: mergeable and balance allows the collapse (spec 9)."""
+        m = self.mergeable(cells)
+        m[m] = self.balance_allows_coarsen(np.asarray(cells, np.int64)[m])
+        return m
 
     def take_dirty(self) -> np.ndarray:
         """The cells whose g3 must be recomputed since the last call, sorted
