@@ -22,12 +22,6 @@ def _cmd_replay(args) -> int:
         print(f"octopaint-ref: warning: {args.trace}: {msg}", file=sys.stderr)
 
     stats = replay(trace, args.out, warn=warn)
-    if stats.renders_skipped:
-        print(
-            f"octopaint-ref: {stats.renders_skipped} render event(s) not drawn: "
-            "the reference ray caster is not built yet",
-            file=sys.stderr,
-        )
     if not args.quiet:
         print_stats(stats)
         for p in stats.written:
@@ -59,7 +53,7 @@ def _cmd_check(args) -> int:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="octopaint-ref", description="Octopaint reference implementation")
     sub = ap.add_subparsers(dest="cmd", required=True)
-    rp = sub.add_parser("replay", help="replay a trace, writing <name>.npz at snapshot events")
+    rp = sub.add_parser("replay", help="replay a trace, writing <name>.npz at snapshots and <name>.png at renders")
     rp.add_argument("trace", help="a .jsonl trace")
     rp.add_argument("--out", required=True, help="output folder (created if missing)")
     rp.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors")

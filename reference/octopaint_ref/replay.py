@@ -1,5 +1,6 @@
-"""Replaying a trace: events in order, tree dumps at `snapshot` events
-(spec 12). The whole trace is validated before the first event runs."""
+"""Replaying a trace: events in order, tree dumps at `snapshot` events and
+images at `render` events (spec 12.3). The whole trace is validated before
+the first event runs."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ from dataclasses import dataclass, field
 
 from .dump import dump_bytes, tree_arrays, write_atomic
 from .paint import Painting
+from .png import png_bytes
+from .raycast import OVERFLOW, render
 from .trace import Trace
 
 
@@ -22,13 +25,18 @@ class ReplayStats:
     max_depth_reached: int = 0
     written: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
-    renders_skipped: int = 0
+    render_seconds: float = 0.0
 
 
-def replay(trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_snapshot=None) -> ReplayStats:
+def replay(
+    trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_snapshot=None, on_render=None, renders=True
+) -> ReplayStats:
     """Replay `trace`; write `<name>.npz` into out_dir at snapshot events
-    (nothing when out_dir is None). on_snapshot(name, painting) is called
-    at every snapshot (tests use it)."""
+    and `<name>.png` at render events (nothing when out_dir is None).
+    on_snapshot(name, painting) and on_render(name, Rendered) are called at
+    every snapshot and render (tests use them). Images are f64 local-frame
+    renders (raycast.py): the oracle for the GPU ray caster. renders=False
+    skips them (timing the painting alone)."""
     stats = ReplayStats()
 
     def _warn(msg):
@@ -41,6 +49,7 @@ def replay(trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_
     painting = Painting(trace.canvas, warn=_warn)
     painting.after_segment = after_segment
     brush = None
+    camera = None
     if out_dir is not None:
         os.makedirs(out_dir, exist_ok=True)
     t0 = time.perf_counter()
@@ -67,9 +76,22 @@ def replay(trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_
                 path = os.path.join(out_dir, ev.value + ".npz")
                 write_atomic(path, dump_bytes(tree_arrays(painting.tree)))
                 stats.written.append(path)
-        elif k == "render":
-            stats.renders_skipped += 1
-        # camera: only renders use it
+        elif k == "camera":
+            camera = ev.value
+        elif k == "render" and renders and (out_dir is not None or on_render):
+            # Every event before this one has been applied: the tree is the
+            # one all pending work leads to.
+            r0 = time.perf_counter()
+            image = render(tree_arrays(painting.tree), camera)
+            stats.render_seconds += time.perf_counter() - r0
+            if image.count(OVERFLOW):
+                _warn(f"line {ev.line}: {image.count(OVERFLOW)} ray(s) of render {ev.value!r} reached the step limit")
+            if on_render:
+                on_render(ev.value, image)
+            if out_dir is not None:
+                path = os.path.join(out_dir, ev.value + ".png")
+                write_atomic(path, png_bytes(image.image))
+                stats.written.append(path)
     stats.seconds = time.perf_counter() - t0
     t = painting.tree
     stats.cells = t.n_used
@@ -82,6 +104,7 @@ def replay(trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_
 def print_stats(stats: ReplayStats, file=sys.stderr) -> None:
     print(
         f"replayed {stats.strokes} strokes, {stats.samples} samples in {stats.seconds:.2f} s: "
-        f"{stats.cells} cells in use, deepest cell at depth {stats.max_depth_reached}",
+        f"{stats.cells} cells in use, deepest cell at depth {stats.max_depth_reached}"
+        + (f" (rendering: {stats.render_seconds:.2f} s)" if stats.render_seconds else ""),
         file=file,
     )

@@ -1,0 +1,97 @@
+"""f16/f32/f64 arithmetic of the ray caster against numpy, op by op.
+
+numpy rounds once per operation in every one of its float types (float16
+ops are computed in float32 and rounded once, which is exact by the same
+2p + 2 argument as arith.py's), so bit equality with numpy is bit equality
+with IEEE. The operands cover normal values, subnormal results, overflow and
+exact ties; the expressions are the ray caster's own fused shapes (a product
+feeding an add), evaluated inside jit and inside a vmapped while_loop where
+XLA fuses most aggressively.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax import lax
+
+from octopaint_ref.arith import FORMATS, Arith
+
+
+def _operands(dtype, n=20000):
+    """Pseudo-random operands of `dtype` from hashing an index: mixed
+    magnitudes, signs, subnormal-producing pairs and exact halfway cases."""
+    i = np.arange(n, dtype=np.uint64)
+    h = (i * np.uint64(0x9E3779B97F4A7C15)) ^ (i >> np.uint64(7))
+    h = h * np.uint64(0xBF58476D1CE4E5B9)
+    u = ((h >> np.uint64(11)).astype(np.float64)) / 2.0**53
+    v = (((h * np.uint64(0x94D049BB133111EB)) >> np.uint64(11)).astype(np.float64)) / 2.0**53
+    finfo = np.finfo(dtype)
+    lo, hi = np.log2(float(finfo.tiny)) - 4, np.log2(float(finfo.max)) / 2
+    if dtype == np.float64:
+        # XLA on CPU flushes f64 subnormals (inputs and results); the ray
+        # caster's f64 values stay far from 2^-1022, so test normal range only.
+        lo, hi = -400.0, 400.0
+    mag = np.exp2(lo + (hi - lo) * u)
+    x = np.where(v < 0.5, mag, -mag).astype(dtype)
+    x[::7] = (np.round(u[::7] * 2048) / 1024).astype(dtype)  # small dyadics: exact ties
+    x[1::11] = (np.where(v[1::11] < 0.5, 1, -1) * (0.5 - u[1::11] * 2.0**-10)).astype(dtype)
+    return x
+
+
+@pytest.mark.parametrize("name", ["f16", "f32", "f64"])
+def test_every_operation_rounds_like_numpy(name):
+    fmt = FORMATS[name]
+    dt = fmt.numpy_dtype
+    a = _operands(dt)
+    b = np.roll(_operands(dt), 3)[::-1].copy()
+    c = np.roll(a, 17)
+
+    def ops(a, b, c, guard):
+        m = Arith(fmt, guard)
+        return (
+            m.add(a, b),
+            m.sub(a, b),
+            m.mul(a, b),
+            m.div(a, b),
+            m.sqrt(jnp.abs(a)),
+            m.add(m.mul(a, b), c),  # the shape XLA would contract into an FMA
+            m.sub(c, m.mul(a, b)),
+            m.add(m.mul(m.div(m.sub(c, a), b), b), a),  # p + t*d with t = (c - p)/d
+        )
+
+    got = jax.jit(ops)(a.astype(np.float64), b.astype(np.float64), c.astype(np.float64), np.uint64(0))
+    with np.errstate(all="ignore"):
+        want = (a + b, a - b, a * b, a / b, np.sqrt(np.abs(a)), a * b + c, c - a * b, ((c - a) / b) * b + a)
+    for k, (g, w) in enumerate(zip(got, want)):
+        g = np.asarray(g)
+        w = w.astype(np.float64)
+        same = (g == w) | (np.isnan(g) & np.isnan(w))
+        assert same.all(), (name, k, a[~same][:3], b[~same][:3], g[~same][:3], w[~same][:3])
+
+
+@pytest.mark.parametrize("name", ["f16", "f32", "f64"])
+def test_rounding_holds_inside_a_vmapped_while_loop(name):
+    """The traversal's loop shape: p <- p + t*d iterated, vmapped over rays."""
+    fmt = FORMATS[name]
+    dt = fmt.numpy_dtype
+    p0 = (_operands(np.float64, 512) % 0.5).astype(dt)
+    d = (np.roll(_operands(np.float64, 512), 5) % 1.0 + 0.01).astype(dt)
+    t = np.full(512, 0.1171875, dt) * (np.arange(512) % 13 + 1).astype(dt)
+
+    def walk(p, d, t, guard):
+        m = Arith(fmt, guard)
+
+        def body(s):
+            i, p = s
+            return i + 1, m.sub(m.add(p, m.mul(t, d)), m.mul(m.mul(t, d), d))
+
+        return lax.while_loop(lambda s: s[0] < 20, body, (0, p))[1]
+
+    got = np.asarray(jax.jit(jax.vmap(walk, in_axes=(0, 0, 0, None)))(p0.astype(np.float64), d.astype(np.float64), t.astype(np.float64), np.uint64(0)))
+    p = p0.copy()
+    with np.errstate(all="ignore"):
+        for _ in range(20):
+            p = (p + t * d) - (t * d) * d
+    same = (got == p.astype(np.float64)) | (np.isnan(got) & np.isnan(p))
+    assert same.all()
