@@ -37,3 +37,20 @@ def split_eye(eye_canvas, lattice_unit: float):
     x = np.asarray(eye_canvas, np.float64) / lattice_unit
     e = np.floor(x)
     return e.astype(np.int64), x - e
+
+
+def look_at(eye, target) -> tuple:
+    """Quaternion [x, y, z, w] turning the camera's -z towards target with
+    +y as near up as possible (for experiments; traces carry their own q)."""
+    f = np.asarray(target, np.float64) - np.asarray(eye, np.float64)
+    z = -f / np.linalg.norm(f)
+    up = np.array([0.0, 1.0, 0.0]) if abs(z[1]) < 0.99 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(up, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.stack([x, y, z], axis=1)  # columns: camera axes in canvas space
+    w = math.sqrt(max(0.0, 1.0 + m[0, 0] + m[1, 1] + m[2, 2])) / 2
+    qx = math.copysign(math.sqrt(max(0.0, 1.0 + m[0, 0] - m[1, 1] - m[2, 2])) / 2, m[2, 1] - m[1, 2])
+    qy = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2, m[0, 2] - m[2, 0])
+    qz = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2, m[1, 0] - m[0, 1])
+    return (qx, qy, qz, w)

@@ -490,3 +490,20 @@ def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_S
     w, h = camera.size
     colour = s.colour.reshape(h, w, 3)
     return Rendered(to_pixels(colour), colour, s.steps.reshape(h, w), s.status.reshape(h, w), int(s.skipped.sum()))
+
+
+@partial(jax.jit, static_argnums=(1,))
+def _starts(tree: DeviceTree, setup: Setup, rays: Ray, guard):
+    def one(ray):
+        m = Arith(setup.fmt, guard)
+        return _start(tree, setup, ray, m, m.rnd(ray.dir_canvas))
+
+    return jax.vmap(one)(rays)
+
+
+def start_points(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local"):
+    """Where each ray starts: (hit, cell, depth, origin, p) as numpy [R, ...]
+    (the position the traversal begins with, for measuring e0)."""
+    setup = Setup(canvas, FORMATS[precision], frame, 1, 0)
+    out = _starts(tree, setup, Ray(*(np.asarray(a) for a in rays)), np.uint64(0))
+    return tuple(np.asarray(a) for a in out)

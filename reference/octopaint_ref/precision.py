@@ -1,0 +1,386 @@
+"""The precision study of docs/precision.md: the paper's section 6 analysis
+(Fig. 11, Fig. 12) on our own depth-24 scene, and its section 9 question,
+whether half precision suffices for local-coordinate ray casting.
+
+    python -m octopaint_ref.precision --out docs/precision
+
+regenerates every figure (PNG) and writes the tables (results.md, and
+results.json with the raw numbers) into --out. `--quick` runs a smaller
+version (a minute) for checking that the command works.
+
+Pseudo-random rays come from hashing an index (lowbias32, as
+traces/generate.py), so every language can rebuild them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from . import ray_error as RE
+from .arith import FORMATS
+from .camera import look_at, split_eye
+from .dump import tree_arrays
+from .oracle import exact_path
+from .paint import Painting
+from .raycast import LEFT, OVERFLOW, Ray, cast, device_tree, render, start_points
+from .trace import Brush, Camera, Canvas, Sample
+
+PRECISIONS = ("f16", "f32", "f64")
+FRAMES = ("local", "world")
+# The scene: the paper's canvas (4^3 roots, depth 24) with one root 1 unit wide.
+CANVAS = Canvas(roots=(4, 4, 4), max_depth=24, root_size=1.0, capacity=1 << 24)
+FOCUS = (1.6307371234567891, 2.2741693456789123, 1.9137571928374651)  # canvas units, not dyadic
+# Paper figures (section 6.3), for the side-by-side table.
+PAPER_MAX_ANGLE_DEG = 7.5e-9
+PAPER_POSITION_ERROR = 2.5e-7
+NEAR_CELLS = 64  # the depth sweep looks at the first cells of each ray,
+FAR_EDGES = 16.0  # from this many edges of the eye's leaf on
+
+
+# ------------------------------------------------------------- hashing
+def hash32(x: np.ndarray) -> np.ndarray:
+    """lowbias32 on uint32 arrays (traces/generate.py hash32)."""
+    x = np.asarray(x, np.uint64) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(16)
+    x = (x * np.uint64(0x7FEB352D)) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(15)
+    x = (x * np.uint64(0x846CA68B)) & np.uint64(0xFFFFFFFF)
+    x ^= x >> np.uint64(16)
+    return x
+
+
+def uniform(stream: int, i) -> np.ndarray:
+    """Uniform in [0, 1) from (stream, index), as traces/generate.py rnd."""
+    i = np.asarray(i, np.uint64)
+    return hash32(hash32(np.uint64(stream)) ^ ((i * np.uint64(0x9E3779B9)) & np.uint64(0xFFFFFFFF))).astype(np.float64) / 4294967296.0
+
+
+def sphere_directions(n: int, stream: int = 11) -> np.ndarray:
+    """n unit vectors, uniform on the sphere, f64 [n, 3]."""
+    i = np.arange(n)
+    z = 2.0 * uniform(stream, i) - 1.0
+    phi = 2.0 * math.pi * uniform(stream + 1, i)
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+# --------------------------------------------------------------- scene
+def refine_towards(tree, point, depth: int) -> None:
+    """Refine the leaf containing `point` until it has `depth` (2:1 balance
+    grades the tree around it)."""
+    while True:
+        c = tree.leaf_at(point)
+        if tree.depth[c] >= depth:
+            return
+        tree.refine_round(np.array([c], np.int64))
+
+
+def sphere_layout(k: int):
+    """Centre and radius of painted sphere k (k = 0 smallest): each 6 deg
+    in angular radius seen from FOCUS, on a ring 17 deg off the -z axis."""
+    r = 8e-7 * 10.0**k
+    ang = 2 * math.pi * k / 6 + 0.3
+    off = math.radians(17.0)
+    u = np.array([math.sin(off) * math.cos(ang), math.sin(off) * math.sin(ang), -math.cos(off)])
+    return np.asarray(FOCUS) + u * (r / math.sin(math.radians(6.0))), r
+
+
+def build_scene(paint: bool = True, depth: int = 24) -> dict:
+    """The test scene as dump arrays: six painted spheres whose radii span
+    five decades (target depths 24 down to about 8), seen from FOCUS, and
+    the tree refined to `depth` around FOCUS (the eye sits in a leaf of that
+    depth). paint=False gives the graded tree alone with hashed leaf values
+    (fast: the tests use it)."""
+    painting = Painting(CANVAS)
+    tree = painting.tree
+    if paint:
+        for k in range(6):
+            c, r = sphere_layout(k)
+            colour = (0.25 + 0.7 * uniform(21, 3 * k), 0.25 + 0.7 * uniform(21, 3 * k + 1), 0.25 + 0.7 * uniform(21, 3 * k + 2))
+            painting.begin_stroke(Brush("sphere", "paint", float(r), tuple(float(v) for v in colour), 0.95, 0.3))
+            painting.add_sample(Sample(tuple(float(v) for v in c)))
+            painting.end_stroke()
+    refine_towards(tree, FOCUS, depth)
+    arrays = tree_arrays(tree)
+    if not paint:
+        n = len(arrays["parent"])
+        i = np.arange(n)
+        arrays["rgb"] = (uniform(31, i)[:, None] * np.array([255, 200, 150])).astype(np.uint8)
+        arrays["sigma"] = np.where(uniform(32, i) < 0.5, 0.0, uniform(33, i) * 1e3).astype(np.float32)
+        arrays["sigma"][arrays["depth"] == 255] = 0
+    return arrays
+
+
+def eye_split():
+    return split_eye(FOCUS, CANVAS.root_size * 2.0**-CANVAS.max_depth)
+
+
+def rays_from(eye_lattice, frac, dirs) -> Ray:
+    n = len(dirs)
+    return Ray(np.broadcast_to(eye_lattice, (n, 3)).copy(), np.broadcast_to(frac, (n, 3)).copy(), np.asarray(dirs, np.float64))
+
+
+def near_camera(size=(256, 256), fov_deg=60.0) -> Camera:
+    """From FOCUS (a depth-24 leaf) towards the ring of spheres."""
+    h = math.radians(fov_deg) / 2
+    return Camera(FOCUS, (0.0, 0.0, 0.0, 1.0), (-h, h, h, -h), size, (0.05, 0.05, 0.08))
+
+
+def far_camera(size=(256, 256), fov_deg=8.0) -> Camera:
+    """From outside the canvas, 6 units away: long rays, clipped at entry."""
+    eye = np.asarray(FOCUS) + np.array([0.4, 0.3, 6.5])
+    target = sphere_layout(5)[0]
+    h = math.radians(fov_deg) / 2
+    return Camera(tuple(eye), look_at(eye, target), (-h, h, h, -h), size, (0.05, 0.05, 0.08))
+
+
+# --------------------------------------------------------- measurement
+def measure(arrays, rays: Ray, precision: str, frame: str, capacity=512, tile=512, device=None, opaque=True):
+    """Trace `rays` (eyes inside the canvas) and measure every exit point up
+    to where the ray ends: where it becomes opaque (T < 1/256) or leaves the
+    canvas; opaque=False ignores density (sigma 0: every ray runs to the
+    canvas boundary). `device` must match `opaque`. Returns a dict of numpy
+    arrays:
+    per ray `final_angle`, `length` (lattice units), `e0` (lattice units),
+    `e0_cells` (e0 in edges of the start cell), `steps`, `overflow`; per step
+    (flattened) `angle`, `step_length`, `step_index`, `ray`; and the
+    recorded cell sequences `cells` [R, K]."""
+    if device is None:
+        device = device_tree(arrays if opaque else {**arrays, "sigma": np.zeros_like(arrays["sigma"])})
+    tree, canvas = device
+    fmt = FORMATS[precision]
+    s, rec = cast(tree, canvas, rays, precision, frame, max_steps=capacity, record=capacity, tile=tile)
+    steps = s.steps
+    D = canvas.max_depth
+    lu = canvas.root_size * 2.0**-D
+    n, K = rec.cell.shape
+    valid = np.arange(K)[None, :] < steps[:, None]
+    ray_idx = np.broadcast_to(np.arange(n)[:, None], (n, K))[valid]
+    eye_l = rays.eye_lattice[ray_idx]
+    frac = rays.frac[ray_idx]
+    dirs = np.asarray(rays.dir_canvas)
+    d_fmt = dirs.astype(fmt.numpy_dtype).astype(np.float64)
+    if frame == "local":
+        w = RE.offsets_local(rec.origin[valid], rec.depth[valid], rec.p_exit[valid], eye_l, frac, D)
+    else:
+        w = RE.offsets_world(rec.p_exit[valid], eye_l, frac, lu)
+    ang, length = RE.angles(w, d_fmt[ray_idx])
+    # The final point of each ray is its last recorded exit.
+    last = np.cumsum(steps) - 1
+    hit, c0, d0, o0, p0 = start_points(tree, canvas, rays, precision, frame)
+    if frame == "local":
+        w0 = RE.offsets_local(o0, d0, p0, rays.eye_lattice, rays.frac, D)
+    else:
+        w0 = RE.offsets_world(p0, rays.eye_lattice, rays.frac, lu)
+    e0 = np.sqrt(((w0[0] + w0[1]) ** 2).sum(axis=1))
+    return {
+        "final_angle": ang[last],
+        "length": length[last],
+        "e0": e0,
+        "e0_cells": e0 / np.exp2(D - d0.astype(np.float64)),
+        "start_depth": d0,
+        "steps": steps,
+        "overflow": s.status == OVERFLOW,
+        "angle": ang,
+        "step_length": length,
+        "step_index": np.nonzero(valid)[1] + 1,
+        "ray": ray_idx,
+        "cells": np.where(valid, rec.cell.astype(np.int64), -1),
+        "eps": fmt.eps,
+    }
+
+
+def within_bound(m: dict) -> np.ndarray:
+    """Per ray: the final angle error is within asin(e0/L + 5 eps)."""
+    return m["final_angle"] <= RE.bound(m["e0"], m["length"], m["eps"])
+
+
+def sequence_mismatch(arrays, rays: Ray, m: dict, precision: str, which) -> tuple[int, int]:
+    """(rays whose computed cell sequence differs from the exact one, rays
+    compared) over the ray indices `which`. Exact paths run to the same
+    length cap as the measurement."""
+    fmt = FORMATS[precision]
+    bad = 0
+    for i in which:
+        d = np.asarray(rays.dir_canvas[i]).astype(fmt.numpy_dtype).astype(np.float64)
+        k = int(m["steps"][i])
+        ex = exact_path(arrays, rays.eye_lattice[i], rays.frac[i], d, max_steps=k)
+        got = [int(c) for c in m["cells"][i][:k]]
+        bad += got != ex.cells
+    return bad, len(which)
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    mse = np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)
+    return float("inf") if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
+
+
+def image_difference(img: np.ndarray, ref: np.ndarray) -> dict:
+    diff = np.abs(img.astype(np.int64) - ref.astype(np.int64)).max(axis=-1)
+    return {
+        "psnr_db": psnr(img, ref),
+        "pct_over_2_steps": 100.0 * float((diff > 2).mean()),
+        "pct_any": 100.0 * float((diff > 0).mean()),
+        "max_steps_off": int(diff.max()),
+    }
+
+
+# --------------------------------------------------------------- study
+def run_study(out: str, quick: bool = False) -> dict:
+    from . import precision_plots as P
+
+    t0 = time.perf_counter()
+    os.makedirs(out, exist_ok=True)
+    log = lambda *a: print(f"[{time.perf_counter() - t0:6.1f} s]", *a, file=sys.stderr, flush=True)  # noqa: E731
+    arrays = build_scene(paint=True)
+    log(f"scene: {int((arrays['depth'] != 255).sum())} cells, depth {int(arrays['depth'][arrays['depth'] != 255].max())}")
+    results: dict = {"cells": int((arrays["depth"] != 255).sum())}
+    E, phi = eye_split()
+
+    # Fig. 11/12: per-pixel angle error from a camera in a depth-24 leaf.
+    side = 64 if quick else 160
+    cam = near_camera((side, side))
+    from .camera import pixel_directions
+
+    dirs = pixel_directions(cam).reshape(-1, 3)
+    rays = rays_from(E, phi, dirs)
+    dev = device_tree(arrays)
+    per = {}
+    for frame in FRAMES:
+        for prec in PRECISIONS:
+            m = measure(arrays, rays, prec, frame, device=dev)
+            per[(prec, frame)] = m
+            ok = within_bound(m)
+            results[f"{prec}_{frame}"] = {
+                "max_angle_rad": float(m["final_angle"].max()),
+                "max_angle_deg": float(np.degrees(m["final_angle"].max())),
+                "median_angle_rad": float(np.median(m["final_angle"])),
+                "max_step_angle_rad": float(m["angle"].max()),
+                "max_e0_cells": float(m["e0_cells"].max()),
+                "rays_within_bound_pct": 100.0 * float(ok.mean()),
+                "max_cells_crossed": int(m["steps"].max()),
+                "rays_at_step_cap": int(m["overflow"].sum()),
+            }
+            log(prec, frame, results[f"{prec}_{frame}"])
+    P.angle_images(per, side, os.path.join(out, "fig11_angle_error_images.png"))
+    P.error_vs_length(per, os.path.join(out, "fig11_error_vs_length.png"))
+    P.error_vs_cells(per, os.path.join(out, "fig11_error_vs_cells.png"))
+
+    # Exact cell sequences (mpmath) for a subset of the rays.
+    n_exact = 40 if quick else 300
+    which = np.unique(np.linspace(0, len(dirs) - 1, n_exact).astype(np.int64))
+    for frame in FRAMES:
+        for prec in PRECISIONS:
+            bad, total = sequence_mismatch(arrays, rays, per[(prec, frame)], prec, which)
+            results[f"{prec}_{frame}"]["sequence_differs_pct"] = 100.0 * bad / total
+            results[f"{prec}_{frame}"]["sequence_rays_compared"] = total
+            log(prec, frame, "cell sequence differs on", bad, "of", total)
+
+    # Where the frames break: the eye in a leaf of each depth, random
+    # directions, the first NEAR_CELLS cells of every ray (where the paper's
+    # e0/L term lives and where world coordinates fail first).
+    depths = [4, 8, 12, 16, 20, 24] if not quick else [8, 16, 24]
+    n_dirs = 128 if quick else 512
+    sweep = {}
+    rnd_dirs = sphere_directions(n_dirs)
+    for depth in depths:
+        tree_d = build_scene(paint=False, depth=depth)
+        dev_d = device_tree({**tree_d, "sigma": np.zeros_like(tree_d["sigma"])})
+        rays_d = rays_from(E, phi, rnd_dirs)
+        ms = {(p, f): measure(tree_d, rays_d, p, f, device=dev_d, opaque=False) for f in FRAMES for p in PRECISIONS}
+        ref_cells = ms[("f64", "local")]["cells"][:, :NEAR_CELLS]
+        row = {}
+        edge = 2.0 ** (CANVAS.max_depth - depth)
+        for (prec, frame), m in ms.items():
+            # Past FAR_EDGES edges of the eye's leaf the e0/L term is small.
+            near = (m["step_index"] <= NEAR_CELLS) & (m["step_length"] >= FAR_EDGES * edge)
+            row[f"{prec}_{frame}"] = {
+                "max_angle_rad": float(m["angle"][near].max()),
+                "max_final_angle_rad": float(m["final_angle"].max()),
+                "sequence_differs_pct": 100.0 * float(np.any(m["cells"][:, :NEAR_CELLS] != ref_cells, axis=1).mean()),
+                "within_bound_pct": 100.0 * float(within_bound(m).mean()),
+            }
+        sweep[depth] = row
+        log("depth", depth, {k: f"{v['max_angle_rad']:.2e}" for k, v in row.items()})
+    results["depth_sweep"] = sweep
+    P.depth_sweep(sweep, os.path.join(out, "f16_depth_sweep.png"))
+
+    # Section 9: half precision images against f64, near and far cameras.
+    images = {}
+    sizes = [(128, 128)] if quick else [(256, 256), (512, 512), (1024, 1024)]
+    dev_img = device_tree(arrays)
+    for name, make in (("near", near_camera), ("far", far_camera)):
+        for size in sizes if name == "near" else sizes[:1]:
+            camera = make(size)
+            ref = render(arrays, camera, "f64", "local", device=dev_img)
+            row = {}
+            shots = {"f64_local": ref.image}
+            for prec, frame in (("f32", "local"), ("f16", "local"), ("f64", "world"), ("f32", "world"), ("f16", "world")):
+                r = render(arrays, camera, prec, frame, device=dev_img)
+                row[f"{prec}_{frame}"] = image_difference(r.image, ref.image)
+                shots[f"{prec}_{frame}"] = r.image
+            key = f"{name}_{size[0]}"
+            images[key] = row
+            log("image", key, {k: (round(v["psnr_db"], 1), round(v["pct_over_2_steps"], 3)) for k, v in row.items()})
+            if size == sizes[0]:
+                P.image_grid(shots, os.path.join(out, f"images_{name}.png"))
+    results["images"] = images
+    results["seconds"] = time.perf_counter() - t0
+    with open(os.path.join(out, "results.json"), "w") as f:
+        json.dump(results, f, indent=1, sort_keys=True)
+    with open(os.path.join(out, "results.md"), "w") as f:
+        f.write(tables(results))
+    log("done")
+    return results
+
+
+def tables(r: dict) -> str:
+    """The Markdown tables docs/precision.md quotes."""
+    lines = ["<!-- generated by python -m octopaint_ref.precision; do not edit -->", ""]
+    lines += [
+        "| frame | precision | eps | max angle error (rad) | max (deg) | median (rad) | max e0 (start-cell edges) | rays within bound | cell sequence differs |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for frame in FRAMES:
+        for prec in PRECISIONS:
+            v = r[f"{prec}_{frame}"]
+            lines.append(
+                f"| {frame} | {prec} | {FORMATS[prec].eps:.3g} | {v['max_angle_rad']:.3g} | {v['max_angle_deg']:.3g} | "
+                f"{v['median_angle_rad']:.3g} | {v['max_e0_cells']:.3g} | {v['rays_within_bound_pct']:.1f}% | "
+                f"{v['sequence_differs_pct']:.1f}% of {v['sequence_rays_compared']} |"
+            )
+    lines += ["", "Paper (f32, local, depth 24): max angle error 7.5e-9 deg, position error 2.5e-7. "
+              f"Ours (f32, local): max angle error {r['f32_local']['max_angle_deg']:.3g} deg, "
+              f"max start error {r['f32_local']['max_e0_cells']:.3g} cell edges.", ""]
+    sweep = r["depth_sweep"]
+    keys = [f"{p}_{f}" for f in FRAMES for p in PRECISIONS]
+    lines += [f"By the depth of the eye's leaf, random directions, first {NEAR_CELLS} cells of each ray: max angle error (rad) at exit points at least {FAR_EDGES:g} eye-leaf edges from the eye / % rays whose first {NEAR_CELLS} cells differ from f64 local:", ""]
+    lines += ["| eye depth | " + " | ".join(keys) + " |", "| --- |" + " --- |" * len(keys)]
+    for depth, row in sweep.items():
+        lines.append(f"| {depth} | " + " | ".join(f"{row[k]['max_angle_rad']:.2g} / {row[k]['sequence_differs_pct']:.0f}%" for k in keys) + " |")
+    lines += ["", "Images against the f64 local render (PSNR dB / % pixels off by more than 2 steps):", ""]
+    cols = ["f32_local", "f16_local", "f64_world", "f32_world", "f16_world"]
+    lines += ["| camera | " + " | ".join(cols) + " |", "| --- |" + " --- |" * len(cols)]
+    for key, row in r["images"].items():
+        lines.append(f"| {key} | " + " | ".join(f"{row[c]['psnr_db']:.1f} / {row[c]['pct_over_2_steps']:.3f}%" for c in cols) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m octopaint_ref.precision", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default="docs/precision", help="folder for the figures and tables")
+    ap.add_argument("--quick", action="store_true", help="a small run (about a minute)")
+    args = ap.parse_args(argv)
+    run_study(args.out, args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
