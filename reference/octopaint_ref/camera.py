@@ -54,3 +54,13 @@ def look_at(eye, target) -> tuple:
     qy = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] + m[1, 1] - m[2, 2])) / 2, m[0, 2] - m[2, 0])
     qz = math.copysign(math.sqrt(max(0.0, 1.0 - m[0, 0] - m[1, 1] + m[2, 2])) / 2, m[1, 0] - m[0, 1])
     return (qx, qy, qz, w)
+
+
+def orbit_camera(centre, distance: float, azimuth_deg: float, elevation_deg: float, size, fov_rad: float, background=(0.0, 0.0, 0.0)):
+    """A trace.Camera on a sphere around `centre`, looking at it (examples)."""
+    from .trace import Camera
+
+    az, el = math.radians(azimuth_deg), math.radians(elevation_deg)
+    offset = np.array([math.cos(el) * math.sin(az), math.sin(el), math.cos(el) * math.cos(az)]) * distance
+    eye = np.asarray(centre, np.float64) + offset
+    return Camera(tuple(float(v) for v in eye), look_at(eye, centre), (-fov_rad, fov_rad, fov_rad, -fov_rad), tuple(size), tuple(background))

@@ -63,7 +63,8 @@ def record_paths(tree: DeviceTree, canvas: Canvas, rays: Ray, capacity: int = 25
     assert np.all(s.status == LEFT)
     hit, cell, depth, origin, p = start_points(tree, canvas, rays, "f64", "local")
     steps = np.where(hit, s.steps, 0)
-    return Paths(steps, rec.cell.astype(np.int64), rec.depth, rec.axis, rec.visible, rec.scale, rec.shift, origin, depth, p)
+    k = max(int(steps.max()), 1)  # the scan runs over the longest path only
+    return Paths(steps, rec.cell[:, :k].astype(np.int64), rec.depth[:, :k], rec.axis[:, :k], rec.visible[:, :k], rec.scale[:, :k], rec.shift[:, :k], origin, depth, p)
 
 
 def start_from_eye(paths: Paths, eye_canvas, canvas: Canvas):
