@@ -120,3 +120,23 @@ def test_balance_violation_is_reported():
     t._make_children(np.array([9]), t.allocate_units(1))
     problems = check_arrays(tree_arrays(t))
     assert any("2:1 face balance violated" in p for p in problems), problems
+
+
+def test_every_render_writes_a_png(replayed):
+    """Each `render` event leaves <name>.png: 8-bit RGB of the camera's size."""
+    from octopaint_ref.png import read_png
+
+    out, stats = replayed
+    for name in TRACE_NAMES:
+        trace = read_trace(os.path.join(TRACES, name + ".jsonl"))
+        camera = None
+        for ev in trace.events:
+            if ev.kind == "camera":
+                camera = ev.value
+            elif ev.kind == "render":
+                path = os.path.join(out, ev.value + ".png")
+                assert path in stats[name].written
+                img = read_png(open(path, "rb").read())
+                w, h = camera.size
+                assert img.shape == (h, w, 3)
+                assert img.std() > 1.0, f"{path} is flat"
