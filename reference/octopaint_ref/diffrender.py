@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jax import lax
@@ -109,10 +108,3 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background):
     (p, colour, trans), _ = lax.scan(step, (p0, jnp.zeros((r, 3)), jnp.ones(r)), jnp.arange(K))
     return colour + trans[:, None] * jnp.asarray(background)[None, :]
 
-
-def cell_values(tree: DeviceTree):
-    """(rgb f64 [N, 3], sigma f64 [N]) of a device tree, the fit's variables."""
-    return tree.rgb, tree.sigma
-
-
-composite_jit = jax.jit(composite, static_argnums=(5,))

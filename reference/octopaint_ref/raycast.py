@@ -223,7 +223,7 @@ def _clip(setup: Setup, ray: Ray):
     fl = jnp.floor(q)
     e2 = e + fl.astype(jnp.int64)
     f2 = q - fl
-    on_axis = jnp.arange(3) == axis
+    on_axis = jnp.arange(3, dtype=jnp.int32) == axis
     e2 = jnp.where(on_axis, jnp.where(d[axis] > 0, 0, extent), e2)
     f2 = jnp.where(on_axis, 0.0, f2)
     return hit, jnp.where(inside, e, e2), jnp.where(inside, f, f2), jnp.where(inside, -1, axis)
@@ -247,7 +247,7 @@ def _start(tree: DeviceTree, setup: Setup, ray: Ray, m: Arith, d):
         lu = setup.lattice_unit
         p = m.rnd(e.astype(jnp.float64) * lu + f * lu)
         face = m.rnd(jnp.where(d > 0, 0.0, (extent.astype(jnp.float64)) * lu))
-    on_axis = jnp.arange(3) == entry_axis
+    on_axis = jnp.arange(3, dtype=jnp.int32) == entry_axis
     p = jnp.where(on_axis, face, p)
     if setup.frame == "local":
         p = jnp.clip(p, -0.5, 0.5)
@@ -261,7 +261,7 @@ def _consistent(tree: DeviceTree, setup: Setup, cell):
     return (cell < setup.n_roots) | ((par != NONE) & (tree.first_child[safe] == (cell & jnp.uint32(0xFFFF_FFF8))))
 
 
-def _exit(setup: Setup, m: Arith, p, d, lo, hi):
+def _exit(m: Arith, p, d, lo, hi):
     """Exit distances per axis, clamped at 0 (a coordinate rounded past its
     face exits at once), and the exit axis: the smallest, ties to the lowest."""
     bound = jnp.where(d > 0, hi, lo)
@@ -270,7 +270,7 @@ def _exit(setup: Setup, m: Arith, p, d, lo, hi):
     return t_axes[axis], axis, bound[axis]
 
 
-def _step(tree: DeviceTree, setup: Setup, m: Arith, d, bg_unused, s: State):
+def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State):
     """Composite the current cell over its exit distance, move to the exit
     point and into the next cell (spec 7 'Step' and 'Next cell')."""
     D = setup.canvas.max_depth
@@ -282,7 +282,7 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, bg_unused, s: State):
     else:
         lo = m.rnd(s.origin.astype(jnp.float64) * lu)
         hi = m.rnd((s.origin + size).astype(jnp.float64) * lu)
-    t, axis, face = _exit(setup, m, s.p, d, lo, hi)
+    t, axis, face = _exit(m, s.p, d, lo, hi)
 
     # Compositing (f64): len = t * edge in canvas units (world: t already is).
     length = t * (size.astype(jnp.float64) * lu) if local else t
@@ -291,7 +291,7 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, bg_unused, s: State):
     colour = s.colour + w * tree.rgb[s.cell]
     trans = jnp.where(s.visible, s.trans * e, s.trans)
 
-    on_axis = jnp.arange(3) == axis
+    on_axis = jnp.arange(3, dtype=jnp.int32) == axis
     p_exit = jnp.where(on_axis, face, m.add(s.p, m.mul(t, d)))
 
     # The next cell: a sibling across an inward face, g3 across an outward
@@ -299,7 +299,7 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, bg_unused, s: State):
     sgn = jnp.where(d[axis] > 0, 1, -1)
     cell = s.cell
     is_root = cell < setup.n_roots
-    octant = (cell >> jnp.uint32(0)) & jnp.uint32(7)
+    octant = cell & jnp.uint32(7)
     bits = jnp.stack([(octant >> jnp.uint32(a)) & jnp.uint32(1) for a in range(3)]).astype(jnp.int64)
     outward = (bits[axis] == 1) == (sgn > 0)
     sibling = cell ^ (jnp.uint32(1) << axis.astype(jnp.uint32))
@@ -370,8 +370,7 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, bg_unused, s: State):
         skipped=s.skipped + jnp.where(s.visible, 0, 1),
         status=status,
     )
-    rec = (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
-    return new, rec
+    return new, (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
 
 
 def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard):
@@ -408,14 +407,14 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard):
 
         def body(c):
             s, rec = c
-            new, r = _step(tree, setup, m, d, None, s)
+            new, r = _step(tree, setup, m, d, s)
             i = s.steps
             rec = Record(*(a.at[i].set(v) for a, v in zip(rec, r)))
             return new, rec
 
         s, rec = lax.while_loop(lambda c: c[0].status == RUNNING, body, (s0, rec0))
     else:
-        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, None, s)[0], s0)
+        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, s)[0], s0)
         rec = None
     s = s._replace(colour=s.colour + s.trans * background)
     return s, rec

@@ -51,7 +51,7 @@ def test_f64_local_matches_the_exact_ray(graded):
         assert np.allclose(s.colour[i], colour, rtol=0, atol=1e-12), (i, s.colour[i], colour)
 
 
-def _replay_step_numpy(dt, p, d, axis_rec, p_exit_rec, cell, depth_now, depth_next, n_roots):
+def _replay_step_numpy(dt, p, d, axis_rec, p_exit_rec, cell, depth_now, depth_next):
     """One step of spec 7 in numpy scalars of dtype dt (numpy rounds once
     per operation): the exit distances, the exit point, the frame change.
     Returns (p_exit, p_next)."""
@@ -91,7 +91,6 @@ def test_traversal_rounds_like_numpy_scalars(graded, name):
     rays = rays_from(e, f, sphere_directions(12, stream=7))
     s, rec = raycast.cast(tree, canvas, rays, name, "local", record=512)
     starts = raycast.start_points(tree, canvas, rays, name, "local")
-    n_roots = 64
     checked = 0
     for i in range(12):
         d = [dt(v) for v in rays.dir_canvas[i]]
@@ -104,7 +103,7 @@ def test_traversal_rounds_like_numpy_scalars(graded, name):
         n = int(s.steps[i])
         for k in range(n - 1):
             p_exit, p = _replay_step_numpy(
-                dt, p, d, int(rec.axis[i, k]), rec.p_exit[i, k], int(rec.cell[i, k]), int(rec.depth[i, k]), int(rec.depth[i, k + 1]), n_roots
+                dt, p, d, int(rec.axis[i, k]), rec.p_exit[i, k], int(rec.cell[i, k]), int(rec.depth[i, k]), int(rec.depth[i, k + 1])
             )
             checked += 1
     assert checked > 300
@@ -194,3 +193,17 @@ def test_frames_and_precisions_agree_on_a_shallow_tree():
     for prec, frame, steps in (("f64", "world", 1), ("f32", "local", 1), ("f32", "world", 1), ("f16", "local", 3)):
         img = raycast.render(arrays, cam, prec, frame).image
         assert np.abs(img.astype(int) - ref.image.astype(int)).max() <= steps, (prec, frame)
+
+
+@pytest.mark.parametrize("precision,frame", [("f16", "local"), ("f64", "world")])
+def test_traversal_traces_under_strict_dtype_promotion(precision, frame):
+    """No implicit dtype promotion anywhere in the traversal (JAX 'strict')."""
+    import jax
+
+    arrays = build_scene(paint=False, depth=10)
+    tree, canvas = raycast.device_tree(arrays)
+    e, f = eye_split()
+    rays = rays_from(e, f, sphere_directions(8))
+    with jax.numpy_dtype_promotion("strict"):
+        s, rec = raycast.cast(tree, canvas, rays, precision, frame, record=64)
+    assert np.all(s.status == raycast.LEFT) or np.all(s.steps > 0)
