@@ -366,6 +366,19 @@ MALFORMED = {
     "name_dotdot": ([H, '{"ev": "snapshot", "t": 0, "name": ".."}'], 'line 2: name: ".." is not a name of [A-Za-z0-9._-]+ (no paths)'),
     "name_duplicate": ([H, '{"ev": "snapshot", "t": 0, "name": "a"}', '{"ev": "snapshot", "t": 0, "name": "a"}'],
                        'line 3: name: "a" is already used by an earlier snapshot'),
+    "name_newline": ([H, '{"ev": "snapshot", "t": 0, "name": "a\\n"}'], 'line 2: name: "a\\n" is not a name of [A-Za-z0-9._-]+ (no paths)'),
+    "deep_nesting": ([H, '{"ev": "undo", "t": 0, "x": ' + "[" * 513 + "]" * 513 + "}"],
+                     "line 2: not valid JSON: brackets nested deeper than 512 levels"),
+    "long_integer": ([H, '{"ev": "undo", "t": ' + "1" * 4301 + "}"],
+                     "line 2: not valid JSON: an integer literal of 4301 digits (at most 4300 are read)"),
+    "overflowing_segment": ([H, _brush(shape="cone", radius=1e-300), SB, '{"ev": "sample", "t": 0, "p": [1e308, 0, 0]}',
+                             '{"ev": "sample", "t": 0, "p": [-1e308, 0, 0]}'],
+                            "line 5: p: this segment would place more than 65536 stamps (samples too far apart for the brush radius and spacing)"),
+    "integral_float_too_big": ([_hdr(max_depth=1e300)],
+                               "line 1: canvas.max_depth: " + str(int(1e300)) + " is outside [0, 28]"),
+    "version_string": ([H.replace('"version": 1', '"version": "1"')], 'line 1: version: "1" is not supported (this reader knows version 1)'),
+    "lone_surrogate_event": ([H, '{"ev": "\\ud800", "t": 0}'], 'line 2: ev: unknown event "\\ud800"'),
+    "bom": (["\ufeff" + H], "line 1: not valid JSON: Unexpected UTF-8 BOM (decode using utf-8-sig) (column 1)"),
 }
 
 

@@ -13,6 +13,7 @@ Shapes of arrays: n cells, k primitives (capsules or stamps).
 
 from __future__ import annotations
 
+import math
 import os
 from functools import partial
 
@@ -205,6 +206,12 @@ def sigma_brush(xp, opacity, radius):
     return -xp.log1p(-alpha) / radius
 
 
+def sigma_brush_host(opacity: float, radius: float) -> float:
+    """sigma_brush for replay, with the C library's log1p (math.log1p),
+    which the painter calls too: numpy may use its own SIMD logarithm."""
+    return -math.log1p(-min(float(opacity), OPACITY_CLAMP)) / float(radius)
+
+
 def blend(xp, mode: str, before_rgb, before_sigma, colour, sigma_b, alpha, a, mix_ratio):
     """The value of a cell after a stroke (spec 8.5): before_rgb [n, 3] in
     [0, 1], before_sigma [n], colour [n, 3] (the brush colour of the
@@ -244,6 +251,15 @@ def quantize_rgb(v: np.ndarray) -> np.ndarray:
     return np.clip(np.floor(np.asarray(v, np.float64) * 255.0 + 0.5), 0, 255).astype(np.uint8)
 
 
+F32_MAX = float(np.finfo(np.float32).max)
+
+
+def quantize_sigma(s: np.ndarray) -> np.ndarray:
+    """Store a density as f32: the nearest f32, at most the largest finite
+    one (a tiny brush radius can give an extinction beyond f32; spec 5)."""
+    return np.minimum(np.asarray(s, np.float64), F32_MAX).astype(np.float32)
+
+
 # --------------------------------------------------------- jitted versions
 jax_blend = jax.jit(partial(blend, jnp), static_argnums=(0,))
 jax_capsule_max = jax.jit(partial(capsule_max, jnp))
@@ -281,7 +297,7 @@ def nlerp(q0, q1, u: float):
 def target_depth(r, root_size: float, max_depth: int) -> np.ndarray:
     """Smallest d in [0, D] with root_size * 2^-d <= r / N (else D), exact f64."""
     t = np.asarray(r, np.float64) / CELLS_PER_RADIUS
-    ascending = root_size * np.exp2(-np.arange(max_depth, -1, -1, dtype=np.float64))
+    ascending = np.ldexp(root_size, -np.arange(max_depth, -1, -1))  # exact powers of two
     larger = max_depth + 1 - np.searchsorted(ascending, t, side="right")  # sizes > t
     return np.minimum(larger, max_depth)
 

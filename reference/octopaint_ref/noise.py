@@ -53,7 +53,10 @@ def _grad(xp, h, x, y, z):
 def perlin(xp, perm, p):
     """Improved Perlin noise at points p [..., 3] (f64), in about [-1, 1]."""
     fl = xp.floor(p)
-    i = fl.astype(xp.int64) & 255
+    # floor(p) mod 256, exact for every finite p (spec 8.6); a non-finite
+    # p (absurd scales) gives NaN, read as 0, where the noise is NaN anyway.
+    m = fl - 256.0 * xp.floor(fl / 256.0)
+    i = xp.where(m == m, m, 0.0).astype(xp.int64)
     f = p - fl
     X, Y, Z = i[..., 0], i[..., 1], i[..., 2]
     x, y, z = f[..., 0], f[..., 1], f[..., 2]

@@ -1,9 +1,15 @@
 """Painting on the tree: per-segment processing, per-stroke maximum blending,
 topology cleaning and undo (spec sections 8-10).
 
-Topology decisions (which leaves are in reach, which refine) are exact f64
-numpy on the host; coverage and blending are the jitted JAX functions of
-brush.py. Painter twin: painter/tree/src/paint.rs.
+Everything here is exact f64 numpy on the host, in the operation order of
+the spec: topology decisions (which leaves are in reach, which refine) and
+also coverage and blending, so that the stored values are the IEEE results
+the painter computes too, bit for bit (spec 13). XLA may fuse or vectorise
+the same expressions differently for different batch shapes (an ulp here
+and there), which once made colours differ by a step and, through the
+equality test of cleaning, topology too. The same brush.py functions run
+under JAX for differentiable painting (diffpaint.py). Painter twin:
+painter/tree/src/paint.rs.
 """
 
 from __future__ import annotations
@@ -20,25 +26,6 @@ from .tree import NONE, UNIT, Tree
 CHUNK_ENTRIES = 1 << 20  # n * k entries per vectorised evaluation
 
 
-def _bucket(n: int, least: int = 256) -> int:
-    """Padded length for a jitted call: a power of four, so that a replay
-    traces and compiles each kernel for a handful of shapes only (tracing
-    costs tens of milliseconds per shape, the padding far less)."""
-    b = least
-    while b < n:
-        b *= 4
-    return b
-
-
-def _pad_rows(a: np.ndarray, n: int, fill) -> np.ndarray:
-    if len(a) == n:
-        return a
-    out = np.empty((n,) + a.shape[1:], a.dtype)
-    out[: len(a)] = a
-    out[len(a) :] = fill
-    return out
-
-
 class Stroke:
     """The state of the stroke in progress (spec 8.8)."""
 
@@ -47,7 +34,7 @@ class Stroke:
         self.line = line
         self.path = StrokePath(brush)
         self.colour = np.array(brush.color, np.float64)
-        self.sigma_b = float(B.sigma_brush(np, brush.opacity, brush.radius))
+        self.sigma_b = B.sigma_brush_host(brush.opacity, brush.radius)
         self.alpha = float(brush.opacity)
         self.prims = PrimsHistory()
         self.capacity_warned = False
@@ -222,26 +209,29 @@ class Painting:
         if not write.any():
             return
         w = slots[write]
-        n = len(w)
-        m = _bucket(n)
-        rgb, sigma = B.jax_blend(
-            st.brush.mode,
-            _pad_rows(st.before_rgb[w].astype(np.float64) / 255.0, m, 0.0),
-            _pad_rows(st.before_sigma[w].astype(np.float64), m, 0.0),
-            _pad_rows(st.best_colour[w], m, 0.0),
-            st.sigma_b,
-            st.alpha,
-            _pad_rows(st.a[w], m, 0.0),
-            st.brush.mix_ratio,
-        )
+        with np.errstate(all="ignore"):
+            rgb, sigma = B.blend(
+                np,
+                st.brush.mode,
+                st.before_rgb[w].astype(np.float64) / 255.0,
+                st.before_sigma[w].astype(np.float64),
+                st.best_colour[w],
+                st.sigma_b,
+                st.alpha,
+                st.a[w],
+                st.brush.mix_ratio,
+            )
         cw = cells[write]
-        tree.rgb[cw] = B.quantize_rgb(np.asarray(rgb)[:n])
-        tree.sigma[cw] = np.asarray(sigma)[:n].astype(np.float32)
+        tree.rgb[cw] = B.quantize_rgb(rgb)
+        tree.sigma[cw] = B.quantize_sigma(sigma)
 
     # ----------------------------------------------------- evaluation
     def _evaluate(self, st: Stroke, prims: Prims, cells: np.ndarray):
         """Stroke maximum of coverage * flow over `prims` at the centres of
-        `cells`, and the index of the first primitive attaining it (JAX)."""
+        `cells`, and the index of the first primitive attaining it (exact
+        numpy, in chunks of at most CHUNK_ENTRIES cell-primitive pairs). A
+        NaN coverage (only from absurd inputs) makes the maximum NaN, which
+        never counts as a hit."""
         n, k = len(cells), len(prims)
         a = np.zeros(n)
         best = np.zeros(n, np.int64)
@@ -249,47 +239,31 @@ class Painting:
             return a, best
         x_all = self.tree.centres(cells)
         b = st.brush
-        k_chunk = min(_bucket(k, 1), CHUNK_ENTRIES // 64)
-        for k0 in range(0, k, k_chunk):
-            sub = prims.take(slice(k0, k0 + k_chunk))
-            kk = _bucket(len(sub), 1)
-            arr = {name: _pad_rows(v, kk, 0.0) for name, v in sub.arrays.items()}
-            if b.shape == "sphere":
-                arr["r0"][len(sub) :] = 1.0
-                arr["r1"][len(sub) :] = 1.0
-            else:
-                arr["r"][len(sub) :] = 1.0
-                arr["rot"][len(sub) :] = np.eye(3)
-            n_chunk = max(64, min(_bucket(n), CHUNK_ENTRIES // kk))
-            for n0 in range(0, n, n_chunk):
-                x = x_all[n0 : n0 + n_chunk]
-                nn = len(x)
-                xm = _pad_rows(x, _bucket(nn) if nn < n_chunk else n_chunk, 0.0)
+        arr = prims.arrays
+        step = max(1, CHUNK_ENTRIES // k)
+        with np.errstate(all="ignore"):
+            for n0 in range(0, n, step):
+                x = x_all[n0 : n0 + step]
                 if b.shape == "sphere":
-                    ca, cb = B.jax_capsule_max(
-                        xm, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness
-                    )
+                    ca, cb = B.capsule_max(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness)
                 else:
-                    ca, cb = B.jax_stamp_max(
+                    ca, cb = B.stamp_max(
+                        np,
                         b.shape,
-                        xm,
+                        x,
                         arr["c"],
                         arr["r"],
                         arr["f"],
                         arr["rot"],
                         np.array(b.aspect),
                         b.hardness,
-                        self._perm if b.shape == "noise" else np.zeros(512, np.int64),
+                        self._perm if b.shape == "noise" else None,
                         b.noise.frequency / b.radius,
                         b.noise.octaves,
                         b.noise.gain,
                     )
-                ca = np.asarray(ca)[:nn]
-                cb = np.asarray(cb)[:nn] + k0
-                sl = slice(n0, n0 + nn)
-                better = ca > a[sl]
-                a[sl] = np.where(better, ca, a[sl])
-                best[sl] = np.where(better, cb, best[sl])
+                a[n0 : n0 + len(x)] = ca
+                best[n0 : n0 + len(x)] = cb
         return a, best
 
     def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs):
@@ -378,12 +352,13 @@ class Painting:
         tree = self.tree
         st = self.stroke
         rs = tree.root_size
-        lo = np.floor((seg.lo.min(axis=0) - rs) / rs).astype(np.int64)
-        hi = np.floor((seg.hi.max(axis=0) + rs) / rs).astype(np.int64)
-        lo = np.maximum(lo, 0)
-        hi = np.minimum(hi, np.array(tree.roots) - 1)
-        if np.any(hi < lo):
+        # Clamped as floats before the conversion: a huge brush makes these
+        # infinite (fmax/fmin, like the painter's max/min, ignore NaN).
+        lo = np.fmax(np.floor((seg.lo.min(axis=0) - rs) / rs), 0.0)
+        hi = np.fmin(np.floor((seg.hi.max(axis=0) + rs) / rs), np.array(tree.roots) - 1.0)
+        if not np.all(hi >= lo):
             return np.zeros(0, np.int64), np.zeros(0, bool)
+        lo, hi = lo.astype(np.int64), hi.astype(np.int64)
         gx, gy, gz = np.meshgrid(*(np.arange(lo[a], hi[a] + 1) for a in range(3)), indexing="ij")
         frontier = (gx + tree.roots[0] * (gy + tree.roots[1] * gz)).ravel().astype(np.int64)
         leaves, needs = [], []

@@ -13,7 +13,7 @@ import math
 import re
 from dataclasses import dataclass, field
 
-NAME_RE = re.compile(r"^[A-Za-z0-9._-]+$")
+NAME_RE = re.compile(r"[A-Za-z0-9._-]+")  # used with fullmatch: "$" would admit a final newline
 SHAPES = ("sphere", "cylinder", "box", "cone", "noise")
 MODES = ("paint", "erase", "recolor", "mix", "pickup")
 MAX_DEPTH_LIMIT = 28
@@ -21,6 +21,10 @@ MAX_CAPACITY = 0xFFFF_FFF8  # largest multiple of 8 below NONE
 MAX_IMAGE_SIZE = 16384
 MAX_ROOTS = 1 << 24
 MAX_STAMPS_PER_SEGMENT = 65536
+# Two limits of the JSON reading (spec 12.2) that Python would otherwise
+# meet as RecursionError and ValueError: both readers refuse such lines.
+MAX_NESTING = 512
+MAX_INT_DIGITS = 4300
 SPACING_RANGE = (0.01, 100.0)
 ASPECT_RANGE = (1e-3, 1e3)
 NOISE_OCTAVES_RANGE = (1, 8)
@@ -163,7 +167,7 @@ def _require(line: int, obj: dict, key: str, prefix: str = ""):
 
 
 def _name(line: int, v) -> str:
-    if not isinstance(v, str) or not NAME_RE.match(v) or v in (".", ".."):
+    if not isinstance(v, str) or not NAME_RE.fullmatch(v) or v in (".", ".."):
         raise _fail(line, "name", f"{json.dumps(v)} is not a name of [A-Za-z0-9._-]+ (no paths)")
     return v
 
@@ -270,15 +274,54 @@ def parse_camera(line: int, obj: dict) -> Camera:
     return Camera(eye, q, fov, size, **kw)
 
 
-def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> int:
+def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> float:
     """An upper bound on the stamps one segment places (spec 8.4), used to
-    refuse absurd traces before anything runs."""
+    refuse absurd traces before anything runs: floor(L / (spacing * r_min))
+    + 1, 1 for a zero-length segment, infinite when the quotient overflows
+    (samples 1e308 apart)."""
     if brush.shape == "sphere":
         return 1
     d = [b.p[i] - a.p[i] for i in range(3)]
     length = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    if length == 0:
+        return 1
     r_min = brush.radius * (0.25 + 0.75 * min(a.pressure, b.pressure))
-    return int(length / (brush.spacing * r_min)) + 1
+    quotient = length / (brush.spacing * r_min)
+    return math.floor(quotient) + 1 if math.isfinite(quotient) else math.inf
+
+
+class _IntTooLong(ValueError):
+    pass
+
+
+def _parse_int(text: str) -> int:
+    digits = len(text) - text.startswith("-")
+    if digits > MAX_INT_DIGITS:
+        raise _IntTooLong(f"an integer literal of {digits} digits (at most {MAX_INT_DIGITS} are read)")
+    return int(text)
+
+
+def _nesting_depth(line: str) -> int:
+    """The deepest [/{ nesting of a line outside strings (a '"' toggles a
+    string unless escaped by a backslash inside one); spec 12.2."""
+    depth = deepest = 0
+    in_string = escaped = False
+    for ch in line:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
 
 
 def parse_trace(text: str) -> Trace:
@@ -298,10 +341,14 @@ def parse_trace(text: str) -> Trace:
     for lineno, raw in enumerate(lines, start=1):
         if raw.strip() == "":
             continue
+        if _nesting_depth(raw) > MAX_NESTING:
+            raise TraceError(f"line {lineno}: not valid JSON: brackets nested deeper than {MAX_NESTING} levels")
         try:
-            obj = json.loads(raw)
+            obj = json.loads(raw, parse_int=_parse_int)
         except json.JSONDecodeError as e:
             raise TraceError(f"line {lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
+        except _IntTooLong as e:
+            raise TraceError(f"line {lineno}: not valid JSON: {e}") from None
         if not isinstance(obj, dict):
             raise TraceError(f"line {lineno}: expected a JSON object")
         if header is None:

@@ -57,8 +57,8 @@ class Tree:
         self.extent = np.array(self.roots, np.int64) << self.max_depth  # lattice units per axis
         # Per depth: half a cell in lattice units, and the edge in canvas units.
         d = np.arange(self.max_depth + 1)
-        self.half_lattice = np.exp2(self.max_depth - d) * 0.5
-        self.size_canvas = np.exp2(self.max_depth - d) * self.lattice_unit
+        self.half_lattice = np.ldexp(0.5, self.max_depth - d)  # exact powers of two
+        self.size_canvas = np.ldexp(self.lattice_unit, self.max_depth - d)
         self._alloc_arrays(max(self.n_padded, 64))
         self.n_used = self.n_padded
         r = np.arange(self.n_roots, dtype=np.int64)
