@@ -1,0 +1,153 @@
+//! Face neighbours, refinement with 2:1 face balance, and the balance test
+//! for coarsening (spec 3.1, 4.2, 4.3). Reference twin:
+//! reference/octopaint_ref/tree.py (`refine_round`, `balance_allows_coarsen`).
+//!
+//! The reference refines a round in one batch; here a round is the
+//! sequential definition of spec 4.2 (candidates in ascending index order,
+//! each refining its coarser face-neighbour leaves first, recursively),
+//! which the spec proves allocates exactly the same units in the same order.
+
+use crate::lattice::FACES;
+use crate::pool::{NONE, Refusal, Tree, UNIT};
+
+/// The deepest a tree can be, plus one: bounds the climb of a neighbour search.
+const MAX_PATH: usize = 32;
+
+impl Tree {
+    /// The cell of greatest depth `<= depth(c)` across face `f` of live
+    /// cell `c` (its same-depth-or-coarser face neighbour), or NONE at the
+    /// canvas boundary. Climbs while the face is outward, steps to the
+    /// sibling (or the neighbouring root), then mirrors the climb back down
+    /// while children exist: the g3 walk of spec 3.3, for any face.
+    pub fn neighbour(&self, c: u32, f: usize) -> u32 {
+        let (a, s) = FACES[f];
+        let mut path = [0u32; MAX_PATH];
+        let mut n = 0;
+        let mut x = c;
+        let mut y;
+        loop {
+            if self.depth[x as usize] == 0 {
+                match self.lat.root_neighbour(x, f) {
+                    Some(r) => y = r,
+                    None => return NONE,
+                }
+                break;
+            }
+            let bit = (x >> a) & 1;
+            let inward = (s > 0 && bit == 0) || (s < 0 && bit == 1);
+            if inward {
+                y = x ^ (1 << a);
+                break;
+            }
+            path[n] = x & 7;
+            n += 1;
+            x = self.parent[x as usize];
+        }
+        while n > 0 {
+            let fc = self.first_child[y as usize];
+            if fc == NONE {
+                break;
+            }
+            n -= 1;
+            y = fc + (path[n] ^ (1 << a));
+        }
+        y
+    }
+
+    /// Refine leaf `l` after refining, recursively and in face order, every
+    /// coarser face-neighbour leaf (spec 4.2). `new_units` receives the
+    /// units in allocation order, each with its parent.
+    fn refine_balanced(&mut self, l: u32, new_units: &mut Vec<(u32, u32)>) -> Result<(), Refusal> {
+        let d = self.depth[l as usize];
+        for f in 0..6 {
+            let nb = self.neighbour(l, f);
+            if nb != NONE && self.depth[nb as usize] < d && self.first_child[nb as usize] == NONE {
+                self.refine_balanced(nb, new_units)?;
+            }
+        }
+        let unit = self.allocate_unit()?;
+        self.make_children(l, unit);
+        new_units.push((l, unit));
+        Ok(())
+    }
+
+    /// One round (spec 4.2): refine every candidate leaf, ascending, with
+    /// balance. Returns the new units (parent, unit) in allocation order and
+    /// the refusal that stopped the round, if any; the refinements before it
+    /// stand (every prefix of the order keeps balance).
+    pub fn refine_round(&mut self, candidates: &mut Vec<u32>) -> (Vec<(u32, u32)>, Option<Refusal>) {
+        candidates.sort_unstable();
+        candidates.dedup();
+        let mut new_units = Vec::new();
+        for &l in candidates.iter() {
+            if self.first_child[l as usize] != NONE {
+                continue; // refined earlier in the round, for balance
+            }
+            if let Err(r) = self.refine_balanced(l, &mut new_units) {
+                return (new_units, Some(r));
+            }
+        }
+        (new_units, None)
+    }
+
+    /// For a cell X whose neighbour across X's face `f` is `m` (same depth,
+    /// with children): the 4 children of `m` that touch X (spec 3.4; octant
+    /// bit `a` = 0 when `m` lies on X's +a side, 1 on its −a side).
+    #[inline]
+    pub fn facing_children(&self, m: u32, f: usize) -> [u32; 4] {
+        let (a, s) = FACES[f];
+        let fc = self.first_child[m as usize];
+        let side = if s > 0 { 0 } else { 1 };
+        let mut out = [NONE; 4];
+        let mut i = 0;
+        for k in 0..UNIT {
+            if (k >> a) & 1 == side {
+                out[i] = fc + k;
+                i += 1;
+            }
+        }
+        out
+    }
+
+    /// The same-depth face neighbour of `c` across `f` that has children,
+    /// or NONE.
+    #[inline]
+    pub fn internal_same_depth_neighbour(&self, c: u32, f: usize) -> u32 {
+        let nb = self.neighbour(c, f);
+        if nb != NONE && self.depth[nb as usize] == self.depth[c as usize] && self.first_child[nb as usize] != NONE {
+            nb
+        } else {
+            NONE
+        }
+    }
+
+    /// Collapsing `p`'s children keeps 2:1 balance (spec 4.3): every child
+    /// of an internal same-depth face neighbour that faces `p` is a leaf.
+    pub fn balance_allows_coarsen(&self, p: u32) -> bool {
+        (0..6).all(|f| {
+            let m = self.internal_same_depth_neighbour(p, f);
+            m == NONE || self.facing_children(m, f).iter().all(|&k| self.first_child[k as usize] == NONE)
+        })
+    }
+
+    /// All 8 children of `p` are leaves and all empty or all identical
+    /// (equal rgb bytes and equal f32 sigma; spec 9).
+    pub fn mergeable(&self, p: u32) -> bool {
+        let fc = self.first_child[p as usize];
+        if fc == NONE {
+            return false;
+        }
+        let kids = fc as usize..(fc + UNIT) as usize;
+        if self.first_child[kids.clone()].iter().any(|&g| g != NONE) {
+            return false;
+        }
+        let sig = &self.sigma[kids.clone()];
+        let rgb = &self.rgb[kids];
+        sig.iter().all(|&s| s == 0.0) || (sig.iter().all(|&s| s == sig[0]) && rgb.iter().all(|&c| c == rgb[0]))
+    }
+
+    /// Mergeable and balance allows the collapse (spec 9).
+    pub fn collapsible(&self, p: u32) -> bool {
+        self.mergeable(p) && self.balance_allows_coarsen(p)
+    }
+}

@@ -1,0 +1,150 @@
+//! What changed since the last publication, in the two forms the GPU side
+//! consumes (spec 3.4, 3.5): dirty blocks (65,536-cell ranges whose pool
+//! bytes changed, to be staged and uploaded) and dirty cells (cells whose g3
+//! must be recomputed), folded into the 64×32 neighbour mask.
+//!
+//! Writes mark blocks as they happen (pool.rs). Topology changes are
+//! recorded as "cell X gained or lost children" plus "unit U was created or
+//! freed"; the dirty cells are derived from them when a publication is
+//! taken, against the tree as it is then (spec 3.4 rules 1 and 2).
+
+use crate::lattice::FACES;
+use crate::pool::{FREE, NONE, Tree, UNIT};
+
+/// Cells per block: the staging granule.
+pub const BLOCK_CELLS: u32 = 65536;
+/// Neighbour mask: 64 columns × 32 rows of regions.
+pub const MASK_COLUMNS: usize = 64;
+pub const MASK_ROWS: usize = 32;
+pub const REGIONS: usize = MASK_COLUMNS * MASK_ROWS;
+
+/// The 64×32 neighbour mask, 256 bytes: region `i` is row `i / 64`,
+/// column `i % 64`, bit `column` of `rows[row]`.
+///
+/// ```text
+///           col 0   1   2  ...  63
+///  row 0   [  0 |  1 |  2 | ... | 63 ]
+///  row 1   [ 64 | 65 | ...      |127 ]
+///   ...
+///  row 31  [1984| ...           |2047]
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct NeighbourMask {
+    pub rows: [u64; MASK_ROWS],
+}
+
+impl NeighbourMask {
+    pub fn set(&mut self, region: usize) {
+        self.rows[region / MASK_COLUMNS] |= 1 << (region % MASK_COLUMNS);
+    }
+
+    pub fn get(&self, region: usize) -> bool {
+        self.rows[region / MASK_COLUMNS] >> (region % MASK_COLUMNS) & 1 == 1
+    }
+
+    pub fn count(&self) -> u32 {
+        self.rows.iter().map(|r| r.count_ones()).sum()
+    }
+
+    pub fn union(&mut self, o: &NeighbourMask) {
+        for (a, b) in self.rows.iter_mut().zip(o.rows.iter()) {
+            *a |= b;
+        }
+    }
+}
+
+/// Cells per region for a capacity: `ceil(capacity / 2048)`.
+pub fn region_cells(capacity: u32) -> u32 {
+    capacity.div_ceil(REGIONS as u32)
+}
+
+/// One publication: everything the GPU must refresh.
+#[derive(Clone, Debug, Default)]
+pub struct Publication {
+    /// Dirty blocks, ascending.
+    pub blocks: Vec<u32>,
+    /// Cells whose g3 must be recomputed, ascending.
+    pub dirty_cells: Vec<u32>,
+    pub mask: NeighbourMask,
+}
+
+pub(crate) struct Changes {
+    blocks: Vec<u64>,
+    any_block: bool,
+    topo_cells: Vec<u32>,
+    topo_units: Vec<u32>,
+    direct: Vec<u32>,
+}
+
+impl Changes {
+    pub fn new(capacity: u32) -> Self {
+        let n_blocks = capacity.div_ceil(BLOCK_CELLS) as usize;
+        Changes {
+            blocks: vec![0; n_blocks.div_ceil(64)],
+            any_block: false,
+            topo_cells: Vec::new(),
+            topo_units: Vec::new(),
+            direct: Vec::new(),
+        }
+    }
+
+    #[inline]
+    pub fn mark_block(&mut self, c: u32) {
+        let b = (c / BLOCK_CELLS) as usize;
+        self.blocks[b / 64] |= 1 << (b % 64);
+        self.any_block = true;
+    }
+
+    /// Cell `x` gained or lost the children in `unit`.
+    pub fn topology(&mut self, x: u32, unit: u32) {
+        self.topo_cells.push(x);
+        self.topo_units.push(unit);
+    }
+
+    pub fn direct(&mut self, c: u32) {
+        self.direct.push(c);
+    }
+}
+
+impl Tree {
+    /// Everything changed since the last call: dirty blocks, dirty cells and
+    /// the neighbour mask (spec 3.4, 3.5).
+    pub fn take_publication(&mut self) -> Publication {
+        let ch = &mut self.changes;
+        let mut blocks = Vec::new();
+        if ch.any_block {
+            for (w, word) in ch.blocks.iter_mut().enumerate() {
+                let mut bits = std::mem::take(word);
+                while bits != 0 {
+                    blocks.push((w * 64) as u32 + bits.trailing_zeros());
+                    bits &= bits - 1;
+                }
+            }
+            ch.any_block = false;
+        }
+        let mut cells = std::mem::take(&mut ch.direct);
+        for u in std::mem::take(&mut ch.topo_units) {
+            cells.extend(u..u + UNIT);
+        }
+        let topo = std::mem::take(&mut ch.topo_cells);
+        for x in topo {
+            if (x as usize) >= self.depth.len() || self.depth[x as usize] == FREE {
+                continue;
+            }
+            for f in 0..FACES.len() {
+                let m = self.internal_same_depth_neighbour(x, f);
+                if m != NONE {
+                    cells.extend(self.facing_children(m, f));
+                }
+            }
+        }
+        cells.sort_unstable();
+        cells.dedup();
+        let size = region_cells(self.capacity);
+        let mut mask = NeighbourMask::default();
+        for &c in &cells {
+            mask.set((c / size) as usize);
+        }
+        Publication { blocks, dirty_cells: cells, mask }
+    }
+}

@@ -1,0 +1,44 @@
+//! Octopaint's CPU octree (the painter core): a root array of 2:1-balanced
+//! octrees in pooled arrays, the brushes that paint it, topology cleaning,
+//! undo, the g3 CPU port, tree dumps and the trace reader. No GPU
+//! dependency. Everything follows docs/spec.md, whose sections the comments
+//! cite as "spec N.M"; reference/octopaint_ref is the oracle it is checked
+//! against, index for index.
+//!
+//! | module | what it holds | reference twin |
+//! | --- | --- | --- |
+//! | [`lattice`] | root array, lattice, canvas units, target depth | tree.py |
+//! | [`pool`] | pools, allocator, cell writes | tree.py |
+//! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
+//! | [`g3`] | g3, shader-shaped, plus brute force | g3.py |
+//! | [`dirty`] | dirty blocks, dirty cells, neighbour mask | tree.py |
+//! | [`brush`] | primitives, reach, coverage, blend modes | brush.py |
+//! | [`noise`] | hashed permutation, improved Perlin noise | noise.py |
+//! | [`stroke`] | samples to capsules and stamps | stroke.py |
+//! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
+//! | [`clean`] | topology cleaning | clean.py |
+//! | [`history`] | undo and redo | history.py |
+//! | [`dump`] | `.npz` tree dumps | dump.py |
+//! | [`trace`], [`json`], [`pyrepr`] | the trace reader | trace.py |
+//! | [`replay`] | replaying a trace | replay.py |
+
+pub mod balance;
+pub mod brush;
+pub mod clean;
+pub mod dirty;
+pub mod dump;
+pub mod g3;
+pub mod history;
+pub mod json;
+pub mod lattice;
+pub mod noise;
+pub mod paint;
+pub mod pool;
+pub mod pyrepr;
+pub mod replay;
+pub mod stroke;
+pub mod trace;
+
+pub use paint::Painting;
+pub use pool::{FREE, NONE, Tree, UNIT};
+pub use trace::{Trace, TraceError, read_trace};

@@ -1,0 +1,469 @@
+//! Painting on the tree: per-segment processing with one-level-at-a-time
+//! refinement, per-stroke maximum blending, cleaning and undo (spec 8-10).
+//! Reference twin: reference/octopaint_ref/paint.py.
+//!
+//! A `sample` event is processed in levels (spec 8.10): level 0 paints the
+//! existing leaves within reach; every further level runs one refinement
+//! round on the leaves that need it and paints the new children. Between
+//! levels the tree is consistent and [`Tree::take_publication`] hands the
+//! level's changes to whoever publishes them (the stroke thread of the
+//! real-time pipeline). [`Painting::add_sample`] runs all levels at once.
+
+use glam::DVec3;
+
+use crate::brush::{self, HALF_DIAG, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
+use crate::clean::clean;
+use crate::history::History;
+use crate::noise::permutation;
+use crate::pool::{NONE, Refusal, Tree, UNIT};
+use crate::stroke::{Geometry, Prim, StrokePath};
+use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
+
+/// A touched cell's stroke state (spec 8.8).
+#[derive(Clone, Copy, Debug)]
+struct Slot {
+    cell: u32,
+    before_rgb: [u8; 3],
+    before_sigma: f32,
+    /// The stroke maximum of coverage·flow.
+    a: f64,
+    /// The colour K of the primitive that attained `a`.
+    colour: [f64; 3],
+}
+
+/// The stroke in progress.
+struct StrokeState {
+    brush: Brush,
+    path: StrokePath,
+    /// The stroke colour K (moves toward the canvas in pickup mode).
+    colour: [f64; 3],
+    sigma_b: f64,
+    alpha: f64,
+    /// Every primitive of the stroke so far, in order.
+    prims: Vec<Prim>,
+    perm: Box<[u16; 512]>,
+    stamp_reach: StampReach,
+    refusal_warned: bool,
+    slots: Vec<Slot>,
+}
+
+/// The segment being processed, between levels.
+struct SegmentWork {
+    /// The segment's primitives are `prims[first..]`.
+    first: usize,
+    line: usize,
+    /// Leaves to refine in the next round; None before the paint pass.
+    candidates: Option<Vec<u32>>,
+}
+
+/// Work counters, for benchmarks and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PaintCounters {
+    /// Leaves within reach visited by paint passes (cell updates).
+    pub leaves_visited: u64,
+    /// Cells rewritten with a new blended value.
+    pub cells_written: u64,
+    /// Cells created by refinement.
+    pub cells_created: u64,
+    /// Refinement rounds refused by the cell budget or memory.
+    pub refusals: u64,
+    /// Cells collapsed by cleaning.
+    pub collapses: u64,
+}
+
+/// A tree plus the strokes painted on it.
+pub struct Painting {
+    pub tree: Tree,
+    pub history: History,
+    pub counters: PaintCounters,
+    /// Warnings in the order they happened (the replay prints them).
+    pub warnings: Vec<String>,
+    stroke: Option<StrokeState>,
+    work: Option<SegmentWork>,
+    /// cell -> slot in the stroke, NONE when untouched; cleared per stroke.
+    slot_of: Vec<u32>,
+}
+
+impl Painting {
+    pub fn new(canvas: &Canvas) -> Self {
+        Painting {
+            tree: Tree::new(canvas),
+            history: History::default(),
+            counters: PaintCounters::default(),
+            warnings: Vec::new(),
+            stroke: None,
+            work: None,
+            slot_of: Vec::new(),
+        }
+    }
+
+    pub fn in_stroke(&self) -> bool {
+        self.stroke.is_some()
+    }
+
+    pub fn begin_stroke(&mut self, brush: &Brush) {
+        assert!(self.stroke.is_none(), "a stroke is already open");
+        self.tree.begin_journal();
+        self.stroke = Some(StrokeState {
+            brush: *brush,
+            path: StrokePath::new(*brush),
+            colour: brush.color,
+            sigma_b: brush::sigma_brush(brush.opacity, brush.radius),
+            alpha: brush.opacity,
+            prims: Vec::new(),
+            perm: Box::new(if brush.shape == Shape::Noise { permutation(brush.noise.seed) } else { [0; 512] }),
+            stamp_reach: StampReach::new(brush.aspect),
+            refusal_warned: false,
+            slots: Vec::new(),
+        });
+    }
+
+    /// Process one sample completely (all levels).
+    pub fn add_sample(&mut self, sample: &Sample, line: usize) {
+        self.begin_sample(sample, line);
+        while !self.step_level() {}
+    }
+
+    /// Start a sample: pickup, then the segment's primitives (spec 8.10
+    /// steps 1-2). The levels follow with [`Painting::step_level`].
+    pub fn begin_sample(&mut self, sample: &Sample, line: usize) {
+        assert!(self.work.is_none(), "the previous sample is not finished");
+        let tree = &self.tree;
+        let st = self.stroke.as_mut().expect("sample outside a stroke");
+        if st.brush.mode == Mode::Pickup {
+            if let Some(c) = tree.leaf_at(sample.p) {
+                if tree.sigma[c as usize] > 0.0 {
+                    let canvas = tree.rgb[c as usize].map(|v| f64::from(v) / 255.0);
+                    let rate = st.brush.pickup_rate;
+                    st.colour = [0, 1, 2].map(|i| st.colour[i] + (canvas[i] - st.colour[i]) * rate);
+                }
+            }
+        }
+        let first = st.prims.len();
+        let colour = st.colour;
+        st.path.segment(sample, colour, &mut st.prims);
+        if st.prims.len() > first {
+            self.work = Some(SegmentWork { first, line, candidates: None });
+        }
+    }
+
+    /// Run one level of the current sample. Returns true when the sample is
+    /// finished (also when there was nothing to do).
+    pub fn step_level(&mut self) -> bool {
+        let Some(mut work) = self.work.take() else { return true };
+        let more = match work.candidates.take() {
+            None => {
+                let candidates = self.paint_pass(work.first);
+                let more = !candidates.is_empty();
+                work.candidates = Some(candidates);
+                more
+            }
+            Some(mut candidates) => match self.refine_level(&mut candidates, work.first, work.line) {
+                Some(next) if !next.is_empty() => {
+                    work.candidates = Some(next);
+                    true
+                }
+                _ => false,
+            },
+        };
+        if more {
+            self.work = Some(work);
+        }
+        !more
+    }
+
+    /// End the stroke: clean (spec 9) and make it one undo step (spec 10).
+    pub fn end_stroke(&mut self) {
+        assert!(self.work.is_none(), "the last sample is not finished");
+        let st = self.stroke.take().expect("no stroke open");
+        for s in &st.slots {
+            self.slot_of[s.cell as usize] = NONE;
+        }
+        let collapses = clean(&mut self.tree, st.slots.iter().map(|s| s.cell));
+        self.counters.collapses += collapses as u64;
+        let step = self.tree.commit_journal();
+        self.history.done.push(step);
+        self.history.undone.clear();
+    }
+
+    /// Undo the last stroke; false if there is none.
+    pub fn undo(&mut self) -> bool {
+        assert!(self.stroke.is_none(), "undo inside a stroke");
+        let Some(step) = self.history.done.pop() else { return false };
+        self.tree.apply_step(&step, false);
+        self.history.undone.push(step);
+        true
+    }
+
+    /// Redo the last undone stroke; false if there is none.
+    pub fn redo(&mut self) -> bool {
+        assert!(self.stroke.is_none(), "redo inside a stroke");
+        let Some(step) = self.history.undone.pop() else { return false };
+        self.tree.apply_step(&step, true);
+        self.history.done.push(step);
+        true
+    }
+
+    // ------------------------------------------------------------ levels
+
+    /// Level 0: every leaf within reach of the segment (the top-down
+    /// traversal of spec 8.7) is painted (spec 8.8); returns those that need
+    /// refinement, decided on sigma as it was before the leaf was painted.
+    fn paint_pass(&mut self, first: usize) -> Vec<u32> {
+        let st = self.stroke.as_ref().expect("stroke");
+        let seg = &st.prims[first..];
+        let lat = &self.tree.lat;
+        let rs = lat.root_size;
+        let mut lo = DVec3::INFINITY;
+        let mut hi = DVec3::NEG_INFINITY;
+        for p in seg {
+            lo = lo.min(p.lo);
+            hi = hi.max(p.hi);
+        }
+        let mut box_lo = [0u32; 3];
+        let mut box_hi = [0u32; 3];
+        for a in 0..3 {
+            let top = f64::from(lat.roots[a] - 1);
+            let l = ((lo[a] - rs) / rs).floor().max(0.0);
+            let h = ((hi[a] + rs) / rs).floor().min(top);
+            if !(h >= l) {
+                return Vec::new();
+            }
+            box_lo[a] = l as u32;
+            box_hi[a] = h as u32;
+        }
+        let mut stack: Vec<(u32, [u32; 3])> = Vec::new();
+        for z in box_lo[2]..=box_hi[2] {
+            for y in box_lo[1]..=box_hi[1] {
+                for x in box_lo[0]..=box_hi[0] {
+                    let r = lat.root_index([x, y, z]);
+                    stack.push((r, lat.root_origin(r)));
+                }
+            }
+        }
+        let mut candidates = Vec::new();
+        let mut visited = 0u64;
+        while let Some((c, o)) = stack.pop() {
+            let d = u32::from(self.tree.depth[c as usize]);
+            let x = self.tree.lat.centre(o, d);
+            let h = HALF_DIAG * self.tree.lat.size_canvas[d as usize];
+            let fc = self.tree.first_child[c as usize];
+            let st = self.stroke.as_ref().expect("stroke");
+            let seg = &st.prims[first..];
+            let (reach, needs_depth) = segment_reach(&self.tree, st, seg, x, d, h, fc == NONE);
+            if !reach {
+                continue;
+            }
+            if fc != NONE {
+                for k in 0..UNIT {
+                    stack.push((fc + k, self.tree.child_origin(o, d, k)));
+                }
+                continue;
+            }
+            visited += 1;
+            let mut needs = needs_depth;
+            if matches!(st.brush.mode, Mode::Erase | Mode::Recolor) && !(self.tree.sigma[c as usize] > 0.0) {
+                needs = false; // nothing there to change (spec 8.7)
+            }
+            let (a, k) = stroke_maximum(st, seg, x);
+            if a > 0.0 {
+                let colour = seg[k].colour;
+                self.apply(c, a, colour, false);
+            }
+            if needs {
+                candidates.push(c);
+            }
+        }
+        self.counters.leaves_visited += visited;
+        candidates
+    }
+
+    /// One refinement round on `candidates`, then the new children painted
+    /// (spec 8.10 step 6). Returns the new cells that need refinement, or
+    /// None when the round allocated nothing or was refused.
+    fn refine_level(&mut self, candidates: &mut Vec<u32>, first: usize, line: usize) -> Option<Vec<u32>> {
+        let (units, refusal) = self.tree.refine_round(candidates);
+        if let Some(r) = refusal {
+            self.counters.refusals += 1;
+            let st = self.stroke.as_mut().expect("stroke");
+            if !st.refusal_warned {
+                st.refusal_warned = true;
+                let msg = match r {
+                    Refusal::Capacity => format!(
+                        "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
+                        self.tree.capacity
+                    ),
+                    Refusal::Memory => format!(
+                        "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
+                        self.tree.n_used()
+                    ),
+                };
+                self.warnings.push(msg);
+            }
+        }
+        if units.is_empty() {
+            return None;
+        }
+        self.counters.cells_created += units.len() as u64 * u64::from(UNIT);
+        // New cells with their centres and depth (children of one parent share it).
+        let mut cells: Vec<(u32, DVec3, u32)> = Vec::with_capacity(units.len() * UNIT as usize);
+        for &(parent, unit) in &units {
+            let o = self.tree.origin(parent);
+            let d = u32::from(self.tree.depth[parent as usize]);
+            for k in 0..UNIT {
+                let co = self.tree.child_origin(o, d, k);
+                cells.push((unit + k, self.tree.lat.centre(co, d + 1), d + 1));
+            }
+        }
+        self.paint_new_cells(&cells);
+        if refusal.is_some() {
+            return None;
+        }
+        let st = self.stroke.as_ref().expect("stroke");
+        let seg = &st.prims[first..];
+        let mut next = Vec::new();
+        for &(c, x, d) in &cells {
+            let h = HALF_DIAG * self.tree.lat.size_canvas[d as usize];
+            let (reach, needs) = segment_reach(&self.tree, st, seg, x, d, h, true);
+            let empty = !(self.tree.sigma[c as usize] > 0.0);
+            if reach && needs && !(empty && matches!(st.brush.mode, Mode::Erase | Mode::Recolor)) {
+                next.push(c);
+            }
+        }
+        Some(next)
+    }
+
+    /// New children take their parent's before-value and their own stroke
+    /// maximum over every primitive of the stroke so far (spec 8.8), and are
+    /// always written: one outside the brush returns to its before-value.
+    fn paint_new_cells(&mut self, cells: &[(u32, DVec3, u32)]) {
+        let st = self.stroke.as_ref().expect("stroke");
+        let mut lo = DVec3::INFINITY;
+        let mut hi = DVec3::NEG_INFINITY;
+        for &(_, x, _) in cells {
+            lo = lo.min(x);
+            hi = hi.max(x);
+        }
+        // Only primitives whose box meets the new centres can cover them.
+        let near: Vec<Prim> = st.prims.iter().filter(|p| p.overlaps(lo, hi)).copied().collect();
+        let mut values = Vec::with_capacity(cells.len());
+        for &(c, x, _) in cells {
+            let parent = self.tree.parent[c as usize];
+            let ps = self.slot_of.get(parent as usize).copied().unwrap_or(NONE);
+            let (before_rgb, before_sigma) = if ps != NONE {
+                let s = &st.slots[ps as usize];
+                (s.before_rgb, s.before_sigma)
+            } else {
+                (self.tree.rgb[parent as usize], self.tree.sigma[parent as usize])
+            };
+            let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
+            let colour = if near.is_empty() { [0.0; 3] } else { near[k].colour };
+            values.push((c, before_rgb, before_sigma, a, colour));
+        }
+        for (c, before_rgb, before_sigma, a, colour) in values {
+            self.record(c, before_rgb, before_sigma);
+            self.apply(c, a, colour, true);
+        }
+    }
+
+    /// Give `c` a slot with its before-value (a = 0).
+    fn record(&mut self, c: u32, before_rgb: [u8; 3], before_sigma: f32) -> u32 {
+        let st = self.stroke.as_mut().expect("stroke");
+        if self.slot_of.len() < self.tree.n_used() as usize {
+            self.slot_of.resize(self.tree.n_used() as usize, NONE);
+        }
+        let slot = st.slots.len() as u32;
+        st.slots.push(Slot { cell: c, before_rgb, before_sigma, a: 0.0, colour: [0.0; 3] });
+        self.slot_of[c as usize] = slot;
+        slot
+    }
+
+    /// Raise `c`'s stroke maximum to `a` if larger and write
+    /// `blend(before, K, a)` when it rose (always when `force`).
+    fn apply(&mut self, c: u32, a: f64, colour: [f64; 3], force: bool) {
+        let existing = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
+        let slot = if existing == NONE {
+            let (rgb, sigma) = (self.tree.rgb[c as usize], self.tree.sigma[c as usize]);
+            self.record(c, rgb, sigma)
+        } else {
+            existing
+        };
+        let st = self.stroke.as_mut().expect("stroke");
+        let s = &mut st.slots[slot as usize];
+        let up = a > s.a;
+        if up {
+            s.a = a;
+            s.colour = colour;
+        }
+        if !(up || force) {
+            return;
+        }
+        let before = s.before_rgb.map(|v| f64::from(v) / 255.0);
+        let (rgb, sigma) = blend(
+            st.brush.mode,
+            before,
+            f64::from(s.before_sigma),
+            s.colour,
+            st.sigma_b,
+            st.alpha,
+            s.a,
+            st.brush.mix_ratio,
+        );
+        self.tree.set_value(c, quantize_rgb(rgb), quantize_sigma(sigma));
+        self.counters.cells_written += 1;
+    }
+}
+
+/// Within reach of some primitive of the segment, and (when `want_needs`)
+/// whether some primitive within reach has a target depth below `d`
+/// (spec 8.7).
+#[inline]
+fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, h: f64, want_needs: bool) -> (bool, bool) {
+    let mut reach = false;
+    let mut needs = false;
+    for p in seg {
+        let (r_in, r) = match &p.geo {
+            Geometry::Capsule(cap) => cap.reach(x, h),
+            Geometry::Stamp(s) => (s.reach(st.brush.shape, st.brush.aspect, &st.stamp_reach, x, h), s.r),
+        };
+        if r_in {
+            reach = true;
+            if !want_needs {
+                break;
+            }
+            if d < tree.lat.target_depth(r) {
+                needs = true;
+                break;
+            }
+        }
+    }
+    (reach, needs)
+}
+
+/// The stroke maximum of coverage·flow over `prims` at `x` and the first
+/// primitive attaining it; below TINY it is 0, and a NaN coverage poisons
+/// the maximum to 0 (as the reference's max does).
+#[inline]
+fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
+    let b = &st.brush;
+    let noise = if b.shape == Shape::Noise { brush::noise_factor(&st.perm, b, x) } else { 1.0 };
+    let mut best = f64::NEG_INFINITY;
+    let mut k = 0;
+    for (i, p) in prims.iter().enumerate() {
+        let cov = match &p.geo {
+            Geometry::Capsule(cap) => cap.coverage(x, b.hardness),
+            Geometry::Stamp(s) => {
+                let c = brush::coverage_profile(s.gauge(b.shape, b.aspect, x), b.hardness) * s.f;
+                if b.shape == Shape::Noise { c * noise } else { c }
+            }
+        };
+        if cov.is_nan() {
+            return (0.0, 0);
+        }
+        if cov > best {
+            best = cov;
+            k = i;
+        }
+    }
+    if best < TINY { (0.0, k) } else { (best, k) }
+}

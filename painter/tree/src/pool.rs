@@ -1,0 +1,386 @@
+//! The octree's pools and the allocator (spec 2). Reference twin:
+//! reference/octopaint_ref/tree.py (pools, allocator); both must produce
+//! identical indices.
+//!
+//! One pool per field, structure of arrays, 16 bytes per cell (spec 2.2):
+//!
+//! ```text
+//!  byte 0          4          8     9            12         16
+//!       +----------+----------+-----+------------+----------+
+//!       |  parent  |first_chld|depth| r   g   b  |  sigma   |
+//!       |   u32    |   u32    | u8  |   u8 x3    |   f32    |
+//!       +----------+----------+-----+------------+----------+
+//! ```
+//!
+//! Every pool is exactly `n_used` long: the used length of spec 2.3, so
+//! cells at or past it are free by construction. Origins are not stored: a
+//! cell's origin follows from its parent chain ([`Tree::origin`]).
+//!
+//! Every write to a cell goes through this file, which tells the two
+//! observers of change: the undo journal (history.rs) saves the cell's old
+//! record before the first write in a stroke, and the change log (dirty.rs)
+//! marks its block dirty and records topology changes for g3.
+
+use std::collections::BTreeSet;
+
+use crate::dirty::Changes;
+use crate::history::Journal;
+use crate::lattice::Lattice;
+use crate::trace::Canvas;
+
+/// "No cell".
+pub const NONE: u32 = u32::MAX;
+/// `depth` of a free cell.
+pub const FREE: u8 = 255;
+/// Cells per allocation unit.
+pub const UNIT: u32 = 8;
+
+/// One cell's 16 bytes, as the pools hold them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellRecord {
+    pub parent: u32,
+    pub first_child: u32,
+    pub depth: u8,
+    pub rgb: [u8; 3],
+    pub sigma: f32,
+}
+
+impl CellRecord {
+    pub const FREE: CellRecord = CellRecord { parent: NONE, first_child: NONE, depth: FREE, rgb: [0; 3], sigma: 0.0 };
+
+    /// Equal bit for bit (sigma compared by bits, so -0.0 != 0.0).
+    pub fn same_bits(&self, o: &CellRecord) -> bool {
+        self.parent == o.parent
+            && self.first_child == o.first_child
+            && self.depth == o.depth
+            && self.rgb == o.rgb
+            && self.sigma.to_bits() == o.sigma.to_bits()
+    }
+}
+
+/// Why a unit could not be allocated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refusal {
+    /// The trace's cell budget (spec 2.4).
+    Capacity,
+    /// The machine could not give the pools more memory.
+    Memory,
+}
+
+/// A root array of octrees with pooled cells.
+pub struct Tree {
+    pub lat: Lattice,
+    /// The cell budget: `n_used + 8 <= capacity` after any allocation.
+    pub capacity: u32,
+    pub parent: Vec<u32>,
+    pub first_child: Vec<u32>,
+    pub depth: Vec<u8>,
+    pub rgb: Vec<[u8; 3]>,
+    pub sigma: Vec<f32>,
+    /// Free units below the used length (first cells), lowest first.
+    pub(crate) free_units: BTreeSet<u32>,
+    pub(crate) changes: Changes,
+    pub(crate) journal: Option<Journal>,
+}
+
+impl Tree {
+    pub fn new(canvas: &Canvas) -> Self {
+        let lat = Lattice::new(canvas);
+        let p = lat.padded as usize;
+        let mut t = Tree {
+            capacity: canvas.capacity,
+            parent: vec![NONE; p],
+            first_child: vec![NONE; p],
+            depth: vec![FREE; p],
+            rgb: vec![[0; 3]; p],
+            sigma: vec![0.0; p],
+            free_units: BTreeSet::new(),
+            changes: Changes::new(canvas.capacity),
+            journal: None,
+            lat,
+        };
+        for r in 0..t.lat.n_roots as usize {
+            t.depth[r] = 0;
+        }
+        t
+    }
+
+    /// The used length N (spec 2.3).
+    #[inline]
+    pub fn n_used(&self) -> u32 {
+        self.parent.len() as u32
+    }
+
+    #[inline]
+    pub fn is_leaf(&self, c: u32) -> bool {
+        self.first_child[c as usize] == NONE
+    }
+
+    #[inline]
+    pub fn is_live(&self, c: u32) -> bool {
+        self.depth[c as usize] != FREE
+    }
+
+    pub fn record(&self, c: u32) -> CellRecord {
+        let i = c as usize;
+        if i >= self.parent.len() {
+            return CellRecord::FREE;
+        }
+        CellRecord {
+            parent: self.parent[i],
+            first_child: self.first_child[i],
+            depth: self.depth[i],
+            rgb: self.rgb[i],
+            sigma: self.sigma[i],
+        }
+    }
+
+    /// Units still available under the budget (spec 2.4).
+    pub fn available_units(&self) -> u64 {
+        self.free_units.len() as u64 + u64::from(self.capacity - self.n_used()) / u64::from(UNIT)
+    }
+
+    /// Lattice origin of a live cell, from its parent chain (spec 1.2).
+    pub fn origin(&self, c: u32) -> [u32; 3] {
+        let mut o = [0u32; 3];
+        let mut x = c;
+        loop {
+            let d = u32::from(self.depth[x as usize]);
+            if d == 0 {
+                let r = self.lat.root_origin(x);
+                return [o[0] + r[0], o[1] + r[1], o[2] + r[2]];
+            }
+            let edge = self.lat.edge_lattice(d);
+            for (a, v) in o.iter_mut().enumerate() {
+                *v += ((x >> a) & 1) * edge;
+            }
+            x = self.parent[x as usize];
+        }
+    }
+
+    /// Origin of child octant `k` of a cell with origin `o` and depth `d`.
+    #[inline]
+    pub fn child_origin(&self, o: [u32; 3], d: u32, k: u32) -> [u32; 3] {
+        let half = self.lat.edge_lattice(d + 1);
+        [o[0] + (k & 1) * half, o[1] + ((k >> 1) & 1) * half, o[2] + ((k >> 2) & 1) * half]
+    }
+
+    /// Centre of a live cell in canvas units.
+    pub fn centre(&self, c: u32) -> glam::DVec3 {
+        self.lat.centre(self.origin(c), u32::from(self.depth[c as usize]))
+    }
+
+    /// The cell containing lattice point `q` of the greatest depth `<= m`
+    /// (spec 1.3: a point on a boundary belongs to the higher cell).
+    pub fn cell_at(&self, q: [u32; 3], m: u32) -> u32 {
+        let d0 = self.lat.max_depth;
+        let mut c = self.lat.root_index(q.map(|v| v >> d0));
+        let mut o = self.lat.root_origin(c);
+        loop {
+            let fc = self.first_child[c as usize];
+            let d = u32::from(self.depth[c as usize]);
+            if fc == NONE || d >= m {
+                return c;
+            }
+            let half = self.lat.edge_lattice(d + 1);
+            let mut k = 0;
+            for a in 0..3 {
+                if q[a] - o[a] >= half {
+                    k |= 1 << a;
+                }
+            }
+            o = self.child_origin(o, d, k);
+            c = fc + k;
+        }
+    }
+
+    /// The leaf containing a canvas point, or None outside the canvas.
+    pub fn leaf_at(&self, p: [f64; 3]) -> Option<u32> {
+        self.lat.lattice_point(p).map(|q| self.cell_at(q, self.lat.max_depth))
+    }
+
+    // ---------------------------------------------------------- writes
+
+    /// Tell the journal and the change log that `c` is about to change.
+    #[inline]
+    fn touch(&mut self, c: u32) {
+        if let Some(j) = self.journal.as_mut() {
+            if j.needs_save(c) {
+                let rec = if (c as usize) < self.parent.len() {
+                    CellRecord {
+                        parent: self.parent[c as usize],
+                        first_child: self.first_child[c as usize],
+                        depth: self.depth[c as usize],
+                        rgb: self.rgb[c as usize],
+                        sigma: self.sigma[c as usize],
+                    }
+                } else {
+                    CellRecord::FREE
+                };
+                j.save(c, rec);
+            }
+        }
+        self.changes.mark_block(c);
+    }
+
+    /// Write a cell's colour and density (painting).
+    #[inline]
+    pub fn set_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
+        self.touch(c);
+        self.rgb[c as usize] = rgb;
+        self.sigma[c as usize] = sigma;
+    }
+
+    /// Overwrite a whole cell (undo/redo).
+    pub(crate) fn write_record(&mut self, c: u32, r: CellRecord) {
+        self.touch(c);
+        let i = c as usize;
+        self.parent[i] = r.parent;
+        self.first_child[i] = r.first_child;
+        self.depth[i] = r.depth;
+        self.rgb[i] = r.rgb;
+        self.sigma[i] = r.sigma;
+    }
+
+    /// Allocate one unit (spec 2.3): the lowest free unit, else a new unit
+    /// at the end of the pools. Refused at the budget, or when the machine
+    /// has no memory for bigger pools; nothing changes then.
+    pub fn allocate_unit(&mut self) -> Result<u32, Refusal> {
+        if let Some(u) = self.free_units.pop_first() {
+            return Ok(u);
+        }
+        let n = self.n_used();
+        if u64::from(n) + u64::from(UNIT) > u64::from(self.capacity) {
+            return Err(Refusal::Capacity);
+        }
+        self.grow_by_unit().map_err(|_| Refusal::Memory)?;
+        for c in n..n + UNIT {
+            self.touch(c);
+        }
+        Ok(n)
+    }
+
+    fn grow_by_unit(&mut self) -> Result<(), std::collections::TryReserveError> {
+        let u = UNIT as usize;
+        self.parent.try_reserve(u)?;
+        self.first_child.try_reserve(u)?;
+        self.depth.try_reserve(u)?;
+        self.rgb.try_reserve(u)?;
+        self.sigma.try_reserve(u)?;
+        self.parent.extend_from_slice(&[NONE; UNIT as usize]);
+        self.first_child.extend_from_slice(&[NONE; UNIT as usize]);
+        self.depth.extend_from_slice(&[FREE; UNIT as usize]);
+        self.rgb.extend_from_slice(&[[0; 3]; UNIT as usize]);
+        self.sigma.extend_from_slice(&[0.0; UNIT as usize]);
+        Ok(())
+    }
+
+    /// Make the 8 children of leaf `l` in `unit` (spec 4.1): values copied
+    /// from `l`, which keeps its own (unused) values.
+    pub fn make_children(&mut self, l: u32, unit: u32) {
+        let li = l as usize;
+        let d = self.depth[li] + 1;
+        let (rgb, sigma) = (self.rgb[li], self.sigma[li]);
+        for c in unit..unit + UNIT {
+            self.touch(c);
+            let i = c as usize;
+            self.parent[i] = l;
+            self.first_child[i] = NONE;
+            self.depth[i] = d;
+            self.rgb[i] = rgb;
+            self.sigma[i] = sigma;
+        }
+        self.touch(l);
+        self.first_child[li] = unit;
+        self.changes.topology(l, unit);
+    }
+
+    /// Collapse the 8 leaf children of `p` into it (spec 4.3): `p` takes
+    /// child octant 0's values and the unit is freed. The caller has checked
+    /// that the children are leaves and that balance allows it.
+    pub fn coarsen(&mut self, p: u32) {
+        let pi = p as usize;
+        let unit = self.first_child[pi];
+        let (rgb, sigma) = (self.rgb[unit as usize], self.sigma[unit as usize]);
+        self.touch(p);
+        self.rgb[pi] = rgb;
+        self.sigma[pi] = sigma;
+        self.first_child[pi] = NONE;
+        self.changes.topology(p, unit);
+        self.free_unit(unit);
+    }
+
+    /// Mark a unit's cells free and give trailing free units back (spec 2.3).
+    fn free_unit(&mut self, unit: u32) {
+        for c in unit..unit + UNIT {
+            self.write_record(c, CellRecord::FREE);
+        }
+        self.free_units.insert(unit);
+        self.trim();
+    }
+
+    /// While the last unit below the used length is free, shorten it.
+    fn trim(&mut self) {
+        let mut n = self.n_used();
+        while n > self.lat.padded && self.free_units.last() == Some(&(n - UNIT)) {
+            self.free_units.pop_last();
+            n -= UNIT;
+        }
+        self.set_used_length(n);
+    }
+
+    /// Resize the pools to `n` cells (new cells free). Shrinking only drops
+    /// cells that are free; growing is used by undo and redo, which restore
+    /// a length the pools had before.
+    pub(crate) fn set_used_length(&mut self, n: u32) {
+        let n = n as usize;
+        self.parent.resize(n, NONE);
+        self.first_child.resize(n, NONE);
+        self.depth.resize(n, FREE);
+        self.rgb.resize(n, [0; 3]);
+        self.sigma.resize(n, 0.0);
+    }
+
+    /// Rebuild the free-unit list from the depth pool (after undo/redo).
+    pub(crate) fn rebuild_free_units(&mut self) {
+        self.free_units = (self.lat.padded..self.n_used())
+            .step_by(UNIT as usize)
+            .filter(|&u| self.depth[u as usize] == FREE)
+            .collect();
+    }
+
+    /// Allocator invariants (tests): the free list is exactly the free
+    /// units, no unit is partly free, and the last unit is in use.
+    pub fn check_allocator(&self) -> Vec<String> {
+        let mut problems = Vec::new();
+        let expect: BTreeSet<u32> = (self.lat.padded..self.n_used())
+            .step_by(UNIT as usize)
+            .filter(|&u| self.depth[u as usize] == FREE)
+            .collect();
+        if expect != self.free_units {
+            problems.push("free-unit list differs from the free units in the pools".to_string());
+        }
+        for u in (self.lat.padded..self.n_used()).step_by(UNIT as usize) {
+            let free = (u..u + UNIT).filter(|&c| self.depth[c as usize] == FREE).count();
+            if free != 0 && free != UNIT as usize {
+                problems.push(format!("unit {u} is partly free"));
+            }
+        }
+        if self.n_used() > self.lat.padded && self.depth[(self.n_used() - UNIT) as usize] == FREE {
+            problems.push("the last unit is free but the used length was not trimmed".to_string());
+        }
+        problems
+    }
+
+    /// Bytes the pools hold per used cell (the core is 16).
+    pub const BYTES_PER_CELL: usize = 4 + 4 + 1 + 3 + 4;
+
+    /// Bytes allocated by the pools (capacity of the vectors, not length).
+    pub fn pool_bytes_allocated(&self) -> usize {
+        self.parent.capacity() * 4
+            + self.first_child.capacity() * 4
+            + self.depth.capacity()
+            + self.rgb.capacity() * 3
+            + self.sigma.capacity() * 4
+    }
+}
