@@ -28,8 +28,9 @@ def replayed(tmp_path_factory):
 @pytest.mark.parametrize("name", TRACE_NAMES)
 def test_every_snapshot_is_a_valid_tree(replayed, name):
     out, stats = replayed
-    assert stats[name].written, f"{name} writes no snapshot"
-    for path in stats[name].written:
+    dumps = [p for p in stats[name].written if p.endswith(".npz")]
+    assert dumps, f"{name} writes no snapshot"
+    for path in dumps:
         problems = check_arrays(load_dump(path))
         assert not problems, (path, problems)
 
