@@ -29,12 +29,20 @@ class ReplayStats:
 
 
 def replay(
-    trace: Trace, out_dir: str | None, warn=None, after_segment=None, on_snapshot=None, on_render=None, renders=True
+    trace: Trace,
+    out_dir: str | None,
+    warn=None,
+    after_segment=None,
+    on_snapshot=None,
+    on_render=None,
+    renders=True,
+    after_event=None,
 ) -> ReplayStats:
     """Replay `trace`; write `<name>.npz` into out_dir at snapshot events
     and `<name>.png` at render events (nothing when out_dir is None).
     on_snapshot(name, painting) and on_render(name, Rendered) are called at
-    every snapshot and render (tests use them). Images are f64 local-frame
+    every snapshot and render (tests use them); after_event(event, painting)
+    after every event (the conformance driver follows a cell's history). Images are f64 local-frame
     renders (raycast.py): the oracle for the GPU ray caster. renders=False
     skips them (timing the painting alone)."""
     stats = ReplayStats()
@@ -92,6 +100,8 @@ def replay(
                 path = os.path.join(out_dir, ev.value + ".png")
                 write_atomic(path, png_bytes(image.image))
                 stats.written.append(path)
+        if after_event:
+            after_event(ev, painting)
     stats.seconds = time.perf_counter() - t0
     t = painting.tree
     stats.cells = t.n_used

@@ -2,6 +2,7 @@
 //! to tree dumps, trace validation, and the tree benchmark.
 
 mod bench_tree;
+mod canonical;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -45,6 +46,10 @@ enum Command {
     /// `PATH: MESSAGE` for each (exit status 2 if any is malformed).
     Check {
         traces: Vec<PathBuf>,
+        /// Print each trace as parsed, one canonical line per event (the
+        /// conformance driver compares it with the reference reader's).
+        #[arg(long)]
+        canonical: bool,
     },
     /// Benchmarks that print figures (docs/benchmarks.md).
     Bench {
@@ -89,8 +94,13 @@ impl ReplayObserver for Reporter<'_> {
                     EventKind::Redo => "redo",
                 };
                 println!(
-                    "history: line {} {kind}: parent {} first_child {} depth {} rgb {:?} sigma {:e}",
-                    ev.line, now.parent as i64, now.first_child as i64, now.depth, now.rgb, now.sigma
+                    "history: line {} {kind}: parent {} first_child {} depth {} rgb {:?} sigma {}",
+                    ev.line,
+                    now.parent,
+                    now.first_child,
+                    now.depth,
+                    now.rgb,
+                    octopaint_tree::pyrepr::py_float_repr(f64::from(now.sigma))
                 );
                 *last = now;
             }
@@ -139,14 +149,22 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>) 
     ExitCode::SUCCESS
 }
 
-fn cmd_check(traces: &[PathBuf]) -> ExitCode {
+fn cmd_check(traces: &[PathBuf], canonical: bool) -> ExitCode {
     let mut status = ExitCode::SUCCESS;
     for path in traces {
-        match read_trace(path) {
-            Ok(_) => println!("{}: ok", path.display()),
-            Err(e) => {
-                println!("{}: {e}", path.display());
-                status = ExitCode::from(2);
+        let result = read_trace(path);
+        if result.is_err() {
+            status = ExitCode::from(2);
+        }
+        if canonical {
+            println!("== {}", path.display());
+            for line in canonical::canonical(&result) {
+                println!("{line}");
+            }
+        } else {
+            match result {
+                Ok(_) => println!("{}: ok", path.display()),
+                Err(e) => println!("{}: {e}", path.display()),
             }
         }
     }
@@ -157,7 +175,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
         Command::Replay { trace, out, quiet, history } => cmd_replay(&trace, &out, quiet, history),
-        Command::Check { traces } => cmd_check(&traces),
+        Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {

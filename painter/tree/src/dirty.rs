@@ -68,6 +68,7 @@ pub struct Publication {
     pub mask: NeighbourMask,
 }
 
+#[derive(Clone)]
 pub(crate) struct Changes {
     blocks: Vec<u64>,
     any_block: bool,

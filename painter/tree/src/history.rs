@@ -11,6 +11,7 @@
 
 use crate::pool::{CellRecord, Tree};
 
+#[derive(Clone)]
 pub(crate) struct Journal {
     n_before: u32,
     saved: Vec<u64>,

@@ -24,6 +24,7 @@
 
 pub mod balance;
 pub mod brush;
+pub mod check;
 pub mod clean;
 pub mod dirty;
 pub mod dump;

@@ -68,6 +68,7 @@ pub enum Refusal {
 }
 
 /// A root array of octrees with pooled cells.
+#[derive(Clone)]
 pub struct Tree {
     pub lat: Lattice,
     /// The cell budget: `n_used + 8 <= capacity` after any allocation.

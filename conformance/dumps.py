@@ -1,0 +1,92 @@
+"""Comparing two tree dumps (docs/spec.md sections 11 and 13).
+
+Tolerances are data: TOLERANCES says, per array, how close the painter's
+values must be to the reference's. Every entry is exact today: both sides
+compute the stored values with IEEE f64 arithmetic in the spec's order
+(spec 13 says why), so any difference is a bug to find, not noise to allow.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# array -> how it is compared
+TOLERANCES = {
+    "roots": "equal",
+    "max_depth": "equal",
+    "root_size": "equal",
+    "parent": "equal",
+    "first_child": "equal",
+    "depth": "equal",
+    "origin": "equal",
+    "g3": "equal",
+    "rgb": "equal",  # steps per channel: 0
+    "sigma": "bits",  # f32 bit patterns
+}
+ARRAY_ORDER = ("roots", "max_depth", "root_size", "parent", "first_child", "depth", "origin", "g3", "rgb", "sigma")
+
+
+@dataclass
+class Difference:
+    array: str
+    count: int  # cells that differ (1 for scalars and shapes)
+    first_cell: int | None  # None for scalars and shape mismatches
+    detail: str
+
+
+def load(path: str) -> dict:
+    with np.load(path, allow_pickle=False) as z:
+        return {k: z[k] for k in z.files}
+
+
+def _rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """bool [N]: cell i differs (any component)."""
+    d = a != b
+    return d.reshape(len(d), -1).any(axis=1) if d.ndim > 1 else d
+
+
+def compare(ref: dict, painter: dict) -> list[Difference]:
+    """Every array that differs beyond its tolerance, in ARRAY_ORDER."""
+    out = []
+    for name in ARRAY_ORDER:
+        if name not in ref or name not in painter:
+            side = "reference" if name not in ref else "painter"
+            out.append(Difference(name, 1, None, f"missing from the {side}'s dump"))
+            continue
+        a, b = ref[name], painter[name]
+        if a.dtype != b.dtype or a.shape != b.shape:
+            out.append(Difference(name, 1, None, f"reference {a.dtype}{list(a.shape)}, painter {b.dtype}{list(b.shape)}"))
+            continue
+        if a.ndim == 0 or name == "roots":
+            if not np.array_equal(a, b):
+                out.append(Difference(name, 1, None, f"reference {a.tolist()}, painter {b.tolist()}"))
+            continue
+        if TOLERANCES[name] == "bits":
+            bad = a.view(np.uint32) != b.view(np.uint32)
+        else:
+            bad = _rows_differ(a, b)
+        if bad.any():
+            cells = np.nonzero(bad)[0]
+            i = int(cells[0])
+            out.append(
+                Difference(
+                    name,
+                    len(cells),
+                    i,
+                    f"{len(cells)} cells differ; first cell {i}: reference {a[i].tolist()}, painter {b[i].tolist()}",
+                )
+            )
+    return out
+
+
+def record(d: dict, cell: int) -> str:
+    """One cell's stored fields, for the report."""
+    if cell >= len(d["parent"]):
+        return f"cell {cell} is past the used length {len(d['parent'])}"
+    return (
+        f"parent {int(d['parent'][cell])} first_child {int(d['first_child'][cell])} depth {int(d['depth'][cell])} "
+        f"rgb {d['rgb'][cell].tolist()} sigma {float(d['sigma'][cell])!r} origin {d['origin'][cell].tolist()} "
+        f"g3 {d['g3'][cell].tolist()}"
+    )
