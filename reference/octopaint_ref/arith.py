@@ -33,10 +33,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 from jax import lax
 
-from . import brush  # noqa: F401  (enables jax_enable_x64 for the package)
+# f16 and f32 are carried in f64: the package runs with x64 (as brush.py).
+jax.config.update("jax_enable_x64", True)
 
 
 @dataclass(frozen=True)

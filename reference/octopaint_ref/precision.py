@@ -29,7 +29,7 @@ from .camera import look_at, split_eye
 from .dump import tree_arrays
 from .oracle import exact_path
 from .paint import Painting
-from .raycast import LEFT, OVERFLOW, Ray, cast, device_tree, render, start_points
+from .raycast import OVERFLOW, Ray, cast, device_tree, render, start_points
 from .trace import Brush, Camera, Canvas, Sample
 
 PRECISIONS = ("f16", "f32", "f64")
