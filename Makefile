@@ -1,14 +1,22 @@
 # Octopaint: the two commands of the README.
-#   make demo   set up, replay the scene trace, validate its tree dumps
-#   make test   set up, run every test
+#   make demo   set up, replay the scene trace with the reference (images and
+#               tree dumps) and with the painter (tree dumps), compare them
+#   make test   set up, run every test: the painter's (cargo), the
+#               reference's and the conformance driver's (pytest), then
+#               conformance on every trace in traces/
 # Setup is a virtual environment in .venv with the reference package
-# (reference/pyproject.toml) installed in editable mode.
+# (reference/pyproject.toml) installed in editable mode, and the painter built
+# in release mode (painter/target/release/octopaint). Needs python3, cargo and
+# network access to PyPI and crates.io.
 
 VENV := .venv
 PY := $(VENV)/bin/python
 OUT := out
+PAINTER := painter/target/release/octopaint
+CARGO := cargo
+export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup clean
+.PHONY: demo test setup painter test-painter test-reference conformance precision examples clean
 
 setup: $(VENV)/.installed
 
@@ -20,12 +28,37 @@ $(VENV)/.installed: reference/pyproject.toml
 	$(PY) -m pip install --quiet -e ./reference
 	@touch $@
 
-demo: setup
-	$(VENV)/bin/octopaint-ref replay traces/scene.jsonl --out $(OUT)
-	$(VENV)/bin/octopaint-ref check $(OUT)/*.npz
+# Cargo decides what to rebuild; --locked keeps the dependency versions of Cargo.lock.
+painter:
+	@command -v $(CARGO) >/dev/null || { echo "cargo is missing: install Rust (https://rustup.rs)"; exit 1; }
+	$(CARGO) build --release --locked --manifest-path painter/Cargo.toml
 
-test: setup
+demo: setup painter
+	$(VENV)/bin/octopaint-ref replay traces/scene.jsonl --out $(OUT)/reference
+	$(VENV)/bin/octopaint-ref check $(OUT)/reference/*.npz
+	$(PAINTER) replay traces/scene.jsonl --out $(OUT)/painter
+	$(PY) conformance/driver.py traces/scene.jsonl --painter $(PAINTER) --report $(OUT)/conformance --generated 200
+
+test-painter:
+	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml
+
+test-reference: setup painter
 	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider tests
+	$(PY) -m pytest -q -p no:cacheprovider conformance/tests
+
+conformance: setup painter
+	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance
+
+test: setup painter test-painter test-reference conformance
+
+# The precision study's figures and tables (about 7 minutes), docs/precision/.
+precision: setup
+	$(PY) -m octopaint_ref.precision --out docs/precision
+
+# The differentiable-rendering examples and their images, docs/examples/.
+examples: setup
+	$(PY) reference/examples/fit_leaves.py --out docs/examples
+	$(PY) reference/examples/inverse_paint.py --out docs/examples
 
 clean:
 	rm -rf $(VENV) $(OUT)

@@ -69,10 +69,12 @@ def dump_bytes(arrays: dict) -> bytes:
 
 
 def write_atomic(path: str, data: bytes) -> None:
-    """Write, fsync, rename: a reader never sees a half-written file."""
+    """Write, fsync, rename: a reader never sees a half-written file. The
+    file is made readable by all (0644), not mkstemp's owner-only 0600."""
     d = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=os.path.basename(path))
     try:
+        os.fchmod(fd, 0o644)
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()

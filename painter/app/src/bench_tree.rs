@@ -1,6 +1,177 @@
-//! `octopaint bench tree` (written with the benchmark).
+//! `octopaint bench tree`: stamping and refinement throughput of the CPU
+//! octree on a deterministic stroke set, and its memory per cell.
+//!
+//! The stroke set: `--strokes` strokes (default 200) of `--samples` sphere
+//! samples (default 50), each a smooth random walk with samples half a
+//! radius apart, brush radius `--radius` finest cells, on one root of
+//! `2^11` finest cells per axis (one canvas unit per finest cell).
+//! Pseudo-random values come from hashing an index (lowbias32), and
+//! `--write-strokes` writes the set as text so that the OpenVDB peer
+//! (painter/bench/openvdb_stamp.cpp) paints exactly the same samples; the
+//! script painter/bench/tree_vs_openvdb.sh runs both and prints the ratios.
+//!
+//! Figures (one JSON object on stdout):
+//! - cell updates/s while stamping: leaves a paint pass finds with
+//!   coverage > 0 (each compared with its stroke maximum, rewritten when it
+//!   rises) per second of paint pass; OpenVDB's voxel writes are counted
+//!   the same way;
+//! - cells created/s: cells made by refinement per second of refinement
+//!   levels (rounds plus painting the new children);
+//! - overall: (updates + created) per second of the whole replay;
+//! - bytes per cell: the pools (16), what the vectors allocate, and the
+//!   undo history.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use anyhow::Context;
+use octopaint_tree::noise::hash32;
+use octopaint_tree::paint::Painting;
+use octopaint_tree::pool::{FREE, Tree};
+use octopaint_tree::trace::{Brush, Canvas, Mode, Sample, Shape};
+
 #[derive(clap::Args)]
-pub struct Args {}
-pub fn run(_a: &Args) -> anyhow::Result<()> {
-    anyhow::bail!("not written yet")
+pub struct Args {
+    /// Brush radius in finest cells.
+    #[arg(long, default_value_t = 10.0)]
+    radius: f64,
+    #[arg(long, default_value_t = 200)]
+    strokes: u32,
+    #[arg(long, default_value_t = 50)]
+    samples: u32,
+    /// Write the stroke set here (text: `stroke R hardness opacity r g b`,
+    /// then one `x y z` line per sample).
+    #[arg(long)]
+    write_strokes: Option<std::path::PathBuf>,
+}
+
+/// Max depth of the benchmark canvas: one root of 2^11 finest cells a side.
+const DEPTH: u32 = 11;
+const SIDE: f64 = (1u32 << DEPTH) as f64;
+
+fn unit(stream: u32, i: u32) -> f64 {
+    f64::from(hash32(hash32(stream) ^ i.wrapping_mul(0x9E37_79B9))) / 4294967296.0
+}
+
+struct StrokeSet {
+    brushes: Vec<Brush>,
+    samples: Vec<Vec<[f64; 3]>>,
+}
+
+fn stroke_set(a: &Args) -> StrokeSet {
+    let r = a.radius;
+    let mut brushes = Vec::new();
+    let mut samples = Vec::new();
+    for s in 0..a.strokes {
+        let colour = [unit(1, s), unit(2, s), unit(3, s)];
+        brushes.push(Brush::new(Shape::Sphere, Mode::Paint, r, colour, 0.8, 0.5));
+        // A smooth random walk: the heading turns a little at every sample.
+        let margin = 4.0 * r + 64.0;
+        let mut p = [0, 1, 2].map(|k| margin + unit(10 + k, s) * (SIDE - 2.0 * margin));
+        let mut dir = [0, 1, 2].map(|k| unit(20 + k, s) - 0.5);
+        let mut pts = Vec::new();
+        for i in 0..a.samples {
+            pts.push(p);
+            let j = s * 1000 + i;
+            for (k, d) in dir.iter_mut().enumerate() {
+                *d += 0.6 * (unit(30 + k as u32, j) - 0.5);
+            }
+            let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt().max(1e-9);
+            for k in 0..3 {
+                // Half a radius per sample; turn back from the canvas edges.
+                let step = 0.5 * r * dir[k] / n;
+                let next = p[k] + step;
+                if next < margin || next > SIDE - margin {
+                    dir[k] = -dir[k];
+                    p[k] -= step;
+                } else {
+                    p[k] = next;
+                }
+            }
+        }
+        samples.push(pts);
+    }
+    StrokeSet { brushes, samples }
+}
+
+fn write_strokes(set: &StrokeSet, path: &std::path::Path) -> anyhow::Result<()> {
+    let mut text = String::new();
+    for (b, pts) in set.brushes.iter().zip(&set.samples) {
+        let _ = writeln!(text, "stroke {} {} {} {} {} {}", b.radius, b.hardness, b.opacity, b.color[0], b.color[1], b.color[2]);
+        for p in pts {
+            let _ = writeln!(text, "{} {} {}", p[0], p[1], p[2]);
+        }
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+fn count_cells(t: &Tree) -> (u64, u64) {
+    let live = t.depth.iter().filter(|&&d| d != FREE).count() as u64;
+    let leaves = (0..t.n_used()).filter(|&c| t.is_live(c) && t.is_leaf(c)).count() as u64;
+    (live, leaves)
+}
+
+pub fn run(a: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
+    let set = stroke_set(a);
+    if let Some(p) = &a.write_strokes {
+        write_strokes(&set, p)?;
+    }
+    let canvas = Canvas { roots: [1, 1, 1], max_depth: DEPTH, root_size: SIDE, capacity: 0xFFFF_FFF8 };
+    let mut painting = Painting::new(&canvas);
+    let t0 = Instant::now();
+    for (b, pts) in set.brushes.iter().zip(&set.samples) {
+        painting.begin_stroke(b);
+        for p in pts {
+            painting.add_sample(&Sample::at(*p), 0);
+        }
+        painting.end_stroke();
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    let c = painting.counters;
+    let t = &painting.tree;
+    let (live, leaves) = count_cells(t);
+    let n = f64::from(t.n_used());
+    let history = painting.history.bytes() as f64;
+    let per_s = |count: u64, ns: u64| if ns == 0 { 0.0 } else { count as f64 / (ns as f64 * 1e-9) };
+    let json = format!(
+        concat!(
+            "{{\"impl\": \"octopaint\", \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
+            "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
+            "\"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
+            "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
+            "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, ",
+            "\"peak_rss_mib\": {:.1}}}"
+        ),
+        a.radius,
+        a.strokes,
+        a.samples,
+        seconds,
+        c.leaves_hit,
+        per_s(c.leaves_hit, c.paint_pass_ns),
+        c.leaves_visited,
+        c.paint_pass_ns as f64 * 1e-9,
+        c.cells_created,
+        per_s(c.cells_created, c.refine_ns),
+        c.refine_ns as f64 * 1e-9,
+        c.stroke_end_ns as f64 * 1e-9,
+        (c.leaves_hit + c.cells_created) as f64 / seconds,
+        c.cells_written,
+        t.n_used(),
+        live,
+        leaves,
+        t.depth.iter().filter(|&&d| d != FREE).max().copied().unwrap_or(0),
+        Tree::BYTES_PER_CELL,
+        t.pool_bytes_allocated() as f64 / n,
+        history / n,
+        peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
+    );
+    println!("{json}");
+    Ok(())
 }

@@ -130,19 +130,31 @@ impl Capsule {
         CapsulePoint { dist, u, r: self.r0 + (self.r1 - self.r0) * u }
     }
 
-    /// Within reach of a cell with half-diagonal `h` at `x` (spec 8.7), and
-    /// the local radius there.
+    /// A cell with half-diagonal `h` whose centre projects to `cp` is within
+    /// reach (spec 8.7).
+    #[inline]
+    pub fn within_reach(&self, cp: &CapsulePoint, h: f64) -> bool {
+        cp.dist - cp.r <= h * self.slack
+    }
+
+    /// Coverage·flow at a point that projects to `cp` (spec 8.5).
+    #[inline]
+    pub fn coverage_at(&self, cp: &CapsulePoint, hardness: f64) -> f64 {
+        let flow = self.f0 + (self.f1 - self.f0) * cp.u;
+        coverage_profile(cp.dist / cp.r, hardness) * flow
+    }
+
+    /// Within reach of a cell with half-diagonal `h` at `x`, and the local
+    /// radius there.
     #[inline]
     pub fn reach(&self, x: DVec3, h: f64) -> (bool, f64) {
         let cp = self.project(x);
-        (cp.dist - cp.r <= h * self.slack, cp.r)
+        (self.within_reach(&cp, h), cp.r)
     }
 
     #[inline]
     pub fn coverage(&self, x: DVec3, hardness: f64) -> f64 {
-        let cp = self.project(x);
-        let flow = self.f0 + (self.f1 - self.f0) * cp.u;
-        coverage_profile(cp.dist / cp.r, hardness) * flow
+        self.coverage_at(&self.project(x), hardness)
     }
 
     pub fn bounds(&self) -> (DVec3, DVec3) {

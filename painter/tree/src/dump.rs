@@ -234,10 +234,12 @@ pub fn dump_bytes(tree: &Tree) -> Vec<u8> {
 
 /// Write `data` to `path` atomically: a temporary file in the same folder,
 /// fsync, rename. A reader never sees a half-written file, and a failure
-/// leaves any earlier file in place.
+/// leaves any earlier file in place. The file is readable by all (0644).
 pub fn write_atomic(path: &Path, data: &[u8]) -> std::io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
     let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)?;
+    let mut tmp =
+        tempfile::Builder::new().prefix(".tmp-").permissions(std::fs::Permissions::from_mode(0o644)).tempfile_in(dir)?;
     tmp.write_all(data)?;
     tmp.as_file().sync_all()?;
     tmp.persist(path).map_err(|e| e.error)?;

@@ -73,18 +73,16 @@ impl Tree {
     }
 
     /// Stop saving and return the stroke's undo step: the cells whose
-    /// record changed, ascending.
+    /// record changed, in the order they were first written (each cell
+    /// once, so the order of writing them back does not matter).
     pub(crate) fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
-        let mut order: Vec<usize> = (0..j.cells.len()).collect();
-        order.sort_unstable_by_key(|&i| j.cells[i]);
         let mut step = UndoStep { n_before: j.n_before, n_after: self.n_used(), cells: vec![], before: vec![], after: vec![] };
-        for i in order {
-            let c = j.cells[i];
+        for (&c, before) in j.cells.iter().zip(&j.before) {
             let now = self.record(c);
-            if !now.same_bits(&j.before[i]) {
+            if !now.same_bits(before) {
                 step.cells.push(c);
-                step.before.push(j.before[i]);
+                step.before.push(*before);
                 step.after.push(now);
             }
         }

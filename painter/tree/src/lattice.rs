@@ -122,6 +122,16 @@ impl Lattice {
         Some(q)
     }
 
+    /// Whether a cell of depth `d` is coarser than the target depth of
+    /// radius `r`, i.e. `d < target_depth(r)`, in O(1): edges shrink with
+    /// depth, so `d` is below the first small-enough depth exactly when its
+    /// own edge `root_size·2^-d` (= `size_canvas[d]`, exact) is still larger
+    /// than `r/10`, and no depth is below D's target when `d = D`.
+    #[inline]
+    pub fn coarser_than_target(&self, d: u32, r: f64) -> bool {
+        d < self.max_depth && self.size_canvas[d as usize] > r / crate::brush::CELLS_PER_RADIUS
+    }
+
     /// Target depth of radius `r` (spec 8.7): the smallest `d` in [0, D] with
     /// `root_size · 2^-d <= r / 10`, or D if there is none.
     #[inline]
@@ -158,6 +168,19 @@ mod tests {
         assert_eq!(lat.target_depth(2.5), 2);
         assert_eq!(lat.target_depth(2.4999), 3);
         assert_eq!(lat.target_depth(1e-9), 10);
+    }
+
+    #[test]
+    fn coarser_than_target_agrees_with_target_depth() {
+        for (d_max, root_size) in [(10, 1.0), (25, 10000.0), (0, 3.0), (28, 1e-9)] {
+            let lat = Lattice::new(&Canvas { roots: [1, 1, 1], max_depth: d_max, root_size, capacity: 64 });
+            for i in 0..400 {
+                let r = root_size * (2f64).powf(-(i as f64) * 0.1 + 4.0);
+                for d in 0..=d_max {
+                    assert_eq!(lat.coarser_than_target(d, r), d < lat.target_depth(r), "{d_max} {root_size} {r} {d}");
+                }
+            }
+        }
     }
 
     #[test]

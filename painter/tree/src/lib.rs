@@ -28,6 +28,7 @@ pub mod check;
 pub mod clean;
 pub mod dirty;
 pub mod dump;
+pub mod fuzz_harness;
 pub mod g3;
 pub mod history;
 pub mod json;

@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use crate::brush::{self, HALF_DIAG, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
+use crate::brush::{self, Capsule, HALF_DIAG, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::clean::clean;
 use crate::history::History;
 use crate::noise::permutation;
@@ -19,14 +19,14 @@ use crate::pool::{NONE, Refusal, Tree, UNIT};
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
-/// A touched cell's stroke state (spec 8.8).
+/// A touched cell's stroke state (spec 8.8), but for its stroke maximum
+/// `a`, which lives in its own array: the paint pass reads it for every
+/// leaf and rarely needs the rest.
 #[derive(Clone, Copy, Debug)]
 struct Slot {
     cell: u32,
     before_rgb: [u8; 3],
     before_sigma: f32,
-    /// The stroke maximum of coverage·flow.
-    a: f64,
     /// The colour K of the primitive that attained `a`.
     colour: [f64; 3],
 }
@@ -45,6 +45,8 @@ struct StrokeState {
     stamp_reach: StampReach,
     refusal_warned: bool,
     slots: Vec<Slot>,
+    /// The stroke maximum of coverage·flow of each slot.
+    slot_a: Vec<f64>,
 }
 
 /// The segment being processed, between levels.
@@ -59,8 +61,11 @@ struct SegmentWork {
 /// Work counters, for benchmarks and tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PaintCounters {
-    /// Leaves within reach visited by paint passes (cell updates).
+    /// Leaves within reach visited by paint passes.
     pub leaves_visited: u64,
+    /// Of those, the leaves with coverage > 0 (cell updates: each is
+    /// compared with its stroke maximum and rewritten when it rises).
+    pub leaves_hit: u64,
     /// Cells rewritten with a new blended value.
     pub cells_written: u64,
     /// Cells created by refinement.
@@ -69,6 +74,12 @@ pub struct PaintCounters {
     pub refusals: u64,
     /// Cells collapsed by cleaning.
     pub collapses: u64,
+    /// Time in paint passes (level 0), in refinement levels (rounds plus
+    /// painting the new children), and in cleaning and undo bookkeeping at
+    /// stroke end, in nanoseconds.
+    pub paint_pass_ns: u64,
+    pub refine_ns: u64,
+    pub stroke_end_ns: u64,
 }
 
 /// A tree plus the strokes painted on it.
@@ -82,6 +93,10 @@ pub struct Painting {
     work: Option<SegmentWork>,
     /// cell -> slot in the stroke, NONE when untouched; cleared per stroke.
     slot_of: Vec<u32>,
+    /// Allocations kept from one stroke or level to the next.
+    spare_slots: Vec<Slot>,
+    spare_slot_a: Vec<f64>,
+    spare_stack: Vec<(u32, [u32; 3])>,
 }
 
 impl Painting {
@@ -94,6 +109,9 @@ impl Painting {
             stroke: None,
             work: None,
             slot_of: Vec::new(),
+            spare_slots: Vec::new(),
+            spare_slot_a: Vec::new(),
+            spare_stack: Vec::new(),
         }
     }
 
@@ -114,7 +132,8 @@ impl Painting {
             perm: Box::new(if brush.shape == Shape::Noise { permutation(brush.noise.seed) } else { [0; 512] }),
             stamp_reach: StampReach::new(brush.aspect),
             refusal_warned: false,
-            slots: Vec::new(),
+            slots: std::mem::take(&mut self.spare_slots),
+            slot_a: std::mem::take(&mut self.spare_slot_a),
         });
     }
 
@@ -151,20 +170,26 @@ impl Painting {
     /// finished (also when there was nothing to do).
     pub fn step_level(&mut self) -> bool {
         let Some(mut work) = self.work.take() else { return true };
+        let t0 = std::time::Instant::now();
         let more = match work.candidates.take() {
             None => {
                 let candidates = self.paint_pass(work.first);
                 let more = !candidates.is_empty();
                 work.candidates = Some(candidates);
+                self.counters.paint_pass_ns += t0.elapsed().as_nanos() as u64;
                 more
             }
-            Some(mut candidates) => match self.refine_level(&mut candidates, work.first, work.line) {
-                Some(next) if !next.is_empty() => {
-                    work.candidates = Some(next);
-                    true
-                }
-                _ => false,
-            },
+            Some(mut candidates) => {
+                let more = match self.refine_level(&mut candidates, work.first, work.line) {
+                    Some(next) if !next.is_empty() => {
+                        work.candidates = Some(next);
+                        true
+                    }
+                    _ => false,
+                };
+                self.counters.refine_ns += t0.elapsed().as_nanos() as u64;
+                more
+            }
         };
         if more {
             self.work = Some(work);
@@ -175,15 +200,21 @@ impl Painting {
     /// End the stroke: clean (spec 9) and make it one undo step (spec 10).
     pub fn end_stroke(&mut self) {
         assert!(self.work.is_none(), "the last sample is not finished");
-        let st = self.stroke.take().expect("no stroke open");
+        let t0 = std::time::Instant::now();
+        let mut st = self.stroke.take().expect("no stroke open");
         for s in &st.slots {
             self.slot_of[s.cell as usize] = NONE;
         }
         let collapses = clean(&mut self.tree, st.slots.iter().map(|s| s.cell));
+        st.slots.clear();
+        st.slot_a.clear();
+        self.spare_slots = st.slots;
+        self.spare_slot_a = st.slot_a;
         self.counters.collapses += collapses as u64;
         let step = self.tree.commit_journal();
         self.history.done.push(step);
         self.history.undone.clear();
+        self.counters.stroke_end_ns += t0.elapsed().as_nanos() as u64;
     }
 
     /// Undo the last stroke; false if there is none.
@@ -232,7 +263,8 @@ impl Painting {
             box_lo[a] = l as u32;
             box_hi[a] = h as u32;
         }
-        let mut stack: Vec<(u32, [u32; 3])> = Vec::new();
+        let mut stack = std::mem::take(&mut self.spare_stack);
+        stack.clear();
         for z in box_lo[2]..=box_hi[2] {
             for y in box_lo[1]..=box_hi[1] {
                 for x in box_lo[0]..=box_hi[0] {
@@ -242,7 +274,13 @@ impl Painting {
             }
         }
         let mut candidates = Vec::new();
-        let mut visited = 0u64;
+        let st = self.stroke.as_ref().expect("stroke");
+        if let [Prim { geo: Geometry::Capsule(cap), colour, .. }] = &st.prims[first..] {
+            let (cap, colour) = (*cap, *colour);
+            self.spare_stack = self.paint_pass_capsule(&cap, colour, stack, &mut candidates);
+            return candidates;
+        }
+        let (mut visited, mut hit) = (0u64, 0u64);
         while let Some((c, o)) = stack.pop() {
             let d = u32::from(self.tree.depth[c as usize]);
             let x = self.tree.lat.centre(o, d);
@@ -267,6 +305,7 @@ impl Painting {
             }
             let (a, k) = stroke_maximum(st, seg, x);
             if a > 0.0 {
+                hit += 1;
                 let colour = seg[k].colour;
                 self.apply(c, a, colour, false);
             }
@@ -275,7 +314,54 @@ impl Painting {
             }
         }
         self.counters.leaves_visited += visited;
+        self.counters.leaves_hit += hit;
+        self.spare_stack = stack;
         candidates
+    }
+
+    /// The paint pass of a segment that is one capsule (every sphere
+    /// stroke): the same traversal and decisions as the general pass, with
+    /// the projection of each cell centre on the capsule computed once for
+    /// reach, refinement and coverage.
+    fn paint_pass_capsule(
+        &mut self,
+        cap: &Capsule,
+        colour: [f64; 3],
+        mut stack: Vec<(u32, [u32; 3])>,
+        candidates: &mut Vec<u32>,
+    ) -> Vec<(u32, [u32; 3])> {
+        let st = self.stroke.as_ref().expect("stroke");
+        let hardness = st.brush.hardness;
+        let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
+        let (mut visited, mut hit) = (0u64, 0u64);
+        while let Some((c, o)) = stack.pop() {
+            let d = u32::from(self.tree.depth[c as usize]);
+            let lat = &self.tree.lat;
+            let cp = cap.project(lat.centre(o, d));
+            if !cap.within_reach(&cp, HALF_DIAG * lat.size_canvas[d as usize]) {
+                continue;
+            }
+            let fc = self.tree.first_child[c as usize];
+            if fc != NONE {
+                for k in 0..UNIT {
+                    stack.push((fc + k, self.tree.child_origin(o, d, k)));
+                }
+                continue;
+            }
+            visited += 1;
+            let needs = lat.coarser_than_target(d, cp.r) && !(sigma_gate && !(self.tree.sigma[c as usize] > 0.0));
+            let a = cap.coverage_at(&cp, hardness);
+            if a >= TINY {
+                hit += 1;
+                self.apply(c, a, colour, false);
+            }
+            if needs {
+                candidates.push(c);
+            }
+        }
+        self.counters.leaves_visited += visited;
+        self.counters.leaves_hit += hit;
+        stack
     }
 
     /// One refinement round on `candidates`, then the new children painted
@@ -373,7 +459,8 @@ impl Painting {
             self.slot_of.resize(self.tree.n_used() as usize, NONE);
         }
         let slot = st.slots.len() as u32;
-        st.slots.push(Slot { cell: c, before_rgb, before_sigma, a: 0.0, colour: [0.0; 3] });
+        st.slots.push(Slot { cell: c, before_rgb, before_sigma, colour: [0.0; 3] });
+        st.slot_a.push(0.0);
         self.slot_of[c as usize] = slot;
         slot
     }
@@ -389,14 +476,15 @@ impl Painting {
             existing
         };
         let st = self.stroke.as_mut().expect("stroke");
-        let s = &mut st.slots[slot as usize];
-        let up = a > s.a;
-        if up {
-            s.a = a;
-            s.colour = colour;
-        }
+        let slot_a = &mut st.slot_a[slot as usize];
+        let up = a > *slot_a;
         if !(up || force) {
             return;
+        }
+        let s = &mut st.slots[slot as usize];
+        if up {
+            *slot_a = a;
+            s.colour = colour;
         }
         let before = s.before_rgb.map(|v| f64::from(v) / 255.0);
         let (rgb, sigma) = blend(
@@ -406,7 +494,7 @@ impl Painting {
             s.colour,
             st.sigma_b,
             st.alpha,
-            s.a,
+            *slot_a,
             st.brush.mix_ratio,
         );
         self.tree.set_value(c, quantize_rgb(rgb), quantize_sigma(sigma));
@@ -431,7 +519,7 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
             if !want_needs {
                 break;
             }
-            if d < tree.lat.target_depth(r) {
+            if tree.lat.coarser_than_target(d, r) {
                 needs = true;
                 break;
             }
