@@ -230,8 +230,9 @@ class Painting:
         """Stroke maximum of coverage * flow over `prims` at the centres of
         `cells`, and the index of the first primitive attaining it (exact
         numpy, in chunks of at most CHUNK_ENTRIES cell-primitive pairs). A
-        NaN coverage (only from absurd inputs) makes the maximum NaN, which
-        never counts as a hit."""
+        primitive covers nothing outside its box (spec 8.5), so the painter
+        may test the box first. A NaN coverage (only from absurd inputs)
+        makes the maximum NaN, which never counts as a hit."""
         n, k = len(cells), len(prims)
         a = np.zeros(n)
         best = np.zeros(n, np.int64)
@@ -245,9 +246,9 @@ class Painting:
             for n0 in range(0, n, step):
                 x = x_all[n0 : n0 + step]
                 if b.shape == "sphere":
-                    ca, cb = B.capsule_max(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness)
+                    cov = B.capsule_coverage(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness)
                 else:
-                    ca, cb = B.stamp_max(
+                    cov = B.stamp_coverage(
                         np,
                         b.shape,
                         x,
@@ -262,6 +263,8 @@ class Painting:
                         b.noise.octaves,
                         b.noise.gain,
                     )
+                inside = np.all((prims.lo[None, :, :] <= x[:, None, :]) & (x[:, None, :] <= prims.hi[None, :, :]), axis=2)
+                ca, cb = B.max_and_argmax(np, np.where(inside, cov, 0.0))
                 a[n0 : n0 + len(x)] = ca
                 best[n0 : n0 + len(x)] = cb
         return a, best

@@ -23,6 +23,9 @@ pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
         .collect();
     let mut collapses = 0;
     loop {
+        // Siblings are touched together: dropping their repeated parent
+        // first leaves far less to sort.
+        work.dedup();
         work.sort_unstable();
         work.dedup();
         let done: Vec<u32> = work

@@ -5,9 +5,11 @@
 //! The bytes are fixed by the spec so that the same tree always gives the
 //! same file, in either implementation: a zip of stored `.npy` entries laid
 //! out exactly as CPython's `zipfile.writestr` and numpy's `write_array`
-//! (format 1.0) write them. No zip or npy crate promises those exact bytes
-//! (version fields, padding, the growth-axis spaces of the npy header, when
-//! zip64 records appear), so both formats are written out here.
+//! (format 1.0) write them. No zip or npy crate promises those exact bytes:
+//! the `zip` crate (2.6) writes "version made by 4.5" where CPython writes
+//! 2.0 and decides zip64 records differently, and numpy's header carries
+//! growth-axis spaces and 64-byte padding. So both formats are written out
+//! here, and the conformance driver compares the files byte for byte.
 //!
 //! ```text
 //!  local header (30 bytes)         central entry (46 bytes)      end record (22)

@@ -20,8 +20,14 @@ pub(crate) struct Journal {
 }
 
 impl Journal {
+    /// Whether `c`'s record must be saved before its first write. Cells at
+    /// or past the used length of the stroke's start were free then: their
+    /// before-record is known and commit adds them without a save.
     #[inline]
     pub fn needs_save(&self, c: u32) -> bool {
+        if c >= self.n_before {
+            return false;
+        }
         let w = (c / 64) as usize;
         w >= self.saved.len() || self.saved[w] >> (c % 64) & 1 == 0
     }
@@ -73,8 +79,9 @@ impl Tree {
     }
 
     /// Stop saving and return the stroke's undo step: the cells whose
-    /// record changed, in the order they were first written (each cell
-    /// once, so the order of writing them back does not matter).
+    /// record changed (each once, so the order of writing them back does
+    /// not matter): the saved cells, then the cells past the old used
+    /// length, which were free.
     pub(crate) fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
         let mut step = UndoStep { n_before: j.n_before, n_after: self.n_used(), cells: vec![], before: vec![], after: vec![] };
@@ -83,6 +90,14 @@ impl Tree {
             if !now.same_bits(before) {
                 step.cells.push(c);
                 step.before.push(*before);
+                step.after.push(now);
+            }
+        }
+        for c in j.n_before..self.n_used() {
+            let now = self.record(c);
+            if !now.same_bits(&CellRecord::FREE) {
+                step.cells.push(c);
+                step.before.push(CellRecord::FREE);
                 step.after.push(now);
             }
         }

@@ -19,6 +19,10 @@ use crate::pool::{NONE, Refusal, Tree, UNIT};
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
+/// `v / 255.0` for every stored channel value, computed once (the same
+/// correctly rounded quotients the blend would compute each time).
+static UNIT_RGB: std::sync::LazyLock<[f64; 256]> = std::sync::LazyLock::new(|| std::array::from_fn(|v| v as f64 / 255.0));
+
 /// A touched cell's stroke state (spec 8.8), but for its stroke maximum
 /// `a`, which lives in its own array: the paint pass reads it for every
 /// leaf and rarely needs the rest.
@@ -275,9 +279,9 @@ impl Painting {
         }
         let mut candidates = Vec::new();
         let st = self.stroke.as_ref().expect("stroke");
-        if let [Prim { geo: Geometry::Capsule(cap), colour, .. }] = &st.prims[first..] {
-            let (cap, colour) = (*cap, *colour);
-            self.spare_stack = self.paint_pass_capsule(&cap, colour, stack, &mut candidates);
+        if let [prim @ Prim { geo: Geometry::Capsule(cap), .. }] = &st.prims[first..] {
+            let (cap, prim) = (*cap, *prim);
+            self.spare_stack = self.paint_pass_capsule(&cap, &prim, stack, &mut candidates);
             return candidates;
         }
         let (mut visited, mut hit) = (0u64, 0u64);
@@ -326,10 +330,11 @@ impl Painting {
     fn paint_pass_capsule(
         &mut self,
         cap: &Capsule,
-        colour: [f64; 3],
+        prim: &Prim,
         mut stack: Vec<(u32, [u32; 3])>,
         candidates: &mut Vec<u32>,
     ) -> Vec<(u32, [u32; 3])> {
+        let colour = prim.colour;
         let st = self.stroke.as_ref().expect("stroke");
         let hardness = st.brush.hardness;
         let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
@@ -337,7 +342,8 @@ impl Painting {
         while let Some((c, o)) = stack.pop() {
             let d = u32::from(self.tree.depth[c as usize]);
             let lat = &self.tree.lat;
-            let cp = cap.project(lat.centre(o, d));
+            let x = lat.centre(o, d);
+            let cp = cap.project(x);
             if !cap.within_reach(&cp, HALF_DIAG * lat.size_canvas[d as usize]) {
                 continue;
             }
@@ -350,7 +356,7 @@ impl Painting {
             }
             visited += 1;
             let needs = lat.coarser_than_target(d, cp.r) && !(sigma_gate && !(self.tree.sigma[c as usize] > 0.0));
-            let a = cap.coverage_at(&cp, hardness);
+            let a = if prim.holds(x) { cap.coverage_at(&cp, hardness) } else { 0.0 };
             if a >= TINY {
                 hit += 1;
                 self.apply(c, a, colour, false);
@@ -486,7 +492,7 @@ impl Painting {
             *slot_a = a;
             s.colour = colour;
         }
-        let before = s.before_rgb.map(|v| f64::from(v) / 255.0);
+        let before = s.before_rgb.map(|v| UNIT_RGB[v as usize]);
         let (rgb, sigma) = blend(
             st.brush.mode,
             before,
@@ -535,9 +541,12 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
 fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
     let b = &st.brush;
     let noise = if b.shape == Shape::Noise { brush::noise_factor(&st.perm, b, x) } else { 1.0 };
-    let mut best = f64::NEG_INFINITY;
+    let mut best = 0.0;
     let mut k = 0;
     for (i, p) in prims.iter().enumerate() {
+        if !p.holds(x) {
+            continue; // covers nothing here (spec 8.5)
+        }
         let cov = match &p.geo {
             Geometry::Capsule(cap) => cap.coverage(x, b.hardness),
             Geometry::Stamp(s) => {

@@ -254,10 +254,9 @@ impl Tree {
         if u64::from(n) + u64::from(UNIT) > u64::from(self.capacity) {
             return Err(Refusal::Capacity);
         }
+        // The new cells are free, as they were before: nothing to journal
+        // or publish until they are written (make_children).
         self.grow_by_unit().map_err(|_| Refusal::Memory)?;
-        for c in n..n + UNIT {
-            self.touch(c);
-        }
         Ok(n)
     }
 

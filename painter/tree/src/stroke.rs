@@ -33,6 +33,13 @@ impl Prim {
     pub fn overlaps(&self, lo: DVec3, hi: DVec3) -> bool {
         self.hi.cmpge(lo).all() && self.lo.cmple(hi).all()
     }
+
+    /// The box holds `x` (closed). Outside it the primitive covers nothing
+    /// (spec 8.5).
+    #[inline]
+    pub fn holds(&self, x: DVec3) -> bool {
+        self.lo.cmple(x).all() && x.cmple(self.hi).all()
+    }
 }
 
 /// The previous sample of a stroke: position, radius, flow, quaternion.

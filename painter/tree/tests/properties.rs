@@ -140,6 +140,9 @@ fn check_values(pre: &Tree, post: &Tree, s: &StrokeSpec) -> Result<(), TestCaseE
         let noise = if b.shape == Shape::Noise { octopaint_tree::brush::noise_factor(&perm, b, x) } else { 1.0 };
         let (mut a, mut k) = (f64::NEG_INFINITY, 0);
         for (i, p) in prims.iter().enumerate() {
+            if !p.holds(x) {
+                continue; // no coverage outside the box (spec 8.5)
+            }
             let cov = match &p.geo {
                 Geometry::Capsule(cap) => cap.coverage(x, b.hardness),
                 Geometry::Stamp(st) => {
