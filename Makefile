@@ -4,10 +4,13 @@
 #   make test   set up, run every test: the painter's (cargo), the
 #               reference's and the conformance driver's (pytest), then
 #               conformance on every trace in traces/
-# Setup is a virtual environment in .venv with the reference package
-# (reference/pyproject.toml) installed in editable mode, and the painter built
-# in release mode (painter/target/release/octopaint). Needs python3, cargo and
-# network access to PyPI and crates.io.
+# Setup is Mesa's CPU drivers for Vulkan and GL (lavapipe, llvmpipe: the GPU
+# tests and renders run on them when the machine has no GPU), a virtual
+# environment in .venv with the reference package (reference/pyproject.toml)
+# installed in editable mode, and the painter built in release mode
+# (painter/target/release/octopaint). Needs python3, cargo, apt-get (as root,
+# only when the drivers are missing) and network access to Debian, PyPI and
+# crates.io.
 
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -16,9 +19,19 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup painter test-painter test-reference conformance precision examples clean
+.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu clean
 
-setup: $(VENV)/.installed
+setup: system $(VENV)/.installed
+
+# The Vulkan loader and Mesa's drivers; a machine with a GPU driver of its
+# own keeps it (wgpu prefers a discrete or integrated GPU to lavapipe).
+MESA_PACKAGES := mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri
+system:
+	@if ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1 || ! ldconfig -p | grep -q libEGL_mesa; then \
+	  echo "installing $(MESA_PACKAGES)"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MESA_PACKAGES) >/dev/null || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MESA_PACKAGES) >/dev/null; }; \
+	fi
 
 $(VENV)/.installed: reference/pyproject.toml
 	@python3 -m venv $(VENV) 2>/dev/null || { \
@@ -37,9 +50,9 @@ demo: setup painter
 	$(VENV)/bin/octopaint-ref replay traces/scene.jsonl --out $(OUT)/reference
 	$(VENV)/bin/octopaint-ref check $(OUT)/reference/*.npz
 	$(PAINTER) replay traces/scene.jsonl --out $(OUT)/painter
-	$(PY) conformance/driver.py traces/scene.jsonl --painter $(PAINTER) --report $(OUT)/conformance --generated 200
+	$(PY) conformance/driver.py traces/scene.jsonl --painter $(PAINTER) --report $(OUT)/conformance --generated 200 --require-images
 
-test-painter:
+test-painter: system
 	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml
 
 test-reference: setup painter
@@ -47,9 +60,14 @@ test-reference: setup painter
 	$(PY) -m pytest -q -p no:cacheprovider conformance/tests
 
 conformance: setup painter
-	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance
+	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance --require-images
 
 test: setup painter test-painter test-reference conformance
+
+# GPU pipeline figures: upload MB/s per block size, g3 pass and ray casting
+# ms per frame at 1280x720 on the scene trace (docs/benchmarks.md).
+bench-gpu: setup painter
+	$(PAINTER) bench gpu traces/scene.jsonl
 
 # The precision study's figures and tables (about 7 minutes), docs/precision/.
 precision: setup

@@ -3,7 +3,8 @@
 For every trace: replay it with the reference (`octopaint-ref replay`) and
 the painter (`octopaint replay`), then compare what they wrote: tree dumps
 array by array (dumps.TOLERANCES) and byte for byte, images within
-images.IMAGE_TOLERANCE, and the warnings the spec defines. Before that, the
+images.IMAGE_TOLERANCES (per precision of the painter's ray caster), and
+the warnings the spec defines. Before that, the
 two trace readers are compared on every malformed trace and on generated
 variants (readers.py). The report (Markdown) lists every difference; for a
 differing dump it gives the first differing cell and its history in both
@@ -43,6 +44,7 @@ class TraceResult:
     dumps: int = 0
     cells: int = 0
     images_compared: int = 0
+    worst_psnr: float = float("inf")
     images_not_rendered: list = field(default_factory=list)
     problems: list = field(default_factory=list)  # Markdown paragraphs
 
@@ -65,7 +67,7 @@ def _fence(lines: list[str]) -> str:
     return "```\n" + "\n".join(lines) + "\n```"
 
 
-def check_trace(trace: str, painter: str, work: str, report_dir: str) -> TraceResult:
+def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32") -> TraceResult:
     name = os.path.basename(trace)[: -len(".jsonl")]
     r = TraceResult(name)
     ref_dir = os.path.join(work, name, "reference")
@@ -74,7 +76,7 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str) -> TraceRe
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
     ref_cmd = [os.path.join(REPO, ".venv", "bin", "octopaint-ref"), "replay", trace, "--out", ref_dir, "--quiet"]
-    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet"]
+    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision]
     ref, r.ref_seconds = _run(ref_cmd)
     pt, r.painter_seconds = _run(pt_cmd)
     if ref.returncode != pt.returncode:
@@ -99,8 +101,9 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str) -> TraceRe
                 r.images_not_rendered.append(f)
                 continue
             diff_path = os.path.join(report_dir, f"{name}-{f[:-4]}-diff.png")
-            res = images.compare(a, b, diff_path)
+            res = images.compare(a, b, diff_path, images.IMAGE_TOLERANCES[precision])
             r.images_compared += 1
+            r.worst_psnr = min(r.worst_psnr, res.psnr_db)
             if not res.ok:
                 r.problems.append(f"**image `{f}`**: {res.detail}; diff image `{os.path.basename(diff_path)}`")
             continue
@@ -140,6 +143,7 @@ def main(argv=None) -> int:
     ap.add_argument("--painter", required=True, help="the octopaint binary")
     ap.add_argument("--generated", type=int, default=2000, help="generated trace variants for the reader comparison")
     ap.add_argument("--require-images", action="store_true", help="an image the painter does not write is a difference")
+    ap.add_argument("--precision", choices=("f32", "f16"), default="f32", help="the painter's ray caster precision (and its image tolerance)")
     args = ap.parse_args(argv)
     traces = args.traces or sorted(glob.glob(os.path.join(REPO, "traces", "*.jsonl")))
     os.makedirs(args.report, exist_ok=True)
@@ -159,19 +163,20 @@ def main(argv=None) -> int:
     out += ["## Replays", "", "| trace | dumps | cells | images | reference (s) | painter (s) | speed-up | result |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     details = []
     for trace in traces:
-        r = check_trace(os.path.abspath(trace), args.painter, work, args.report)
+        r = check_trace(os.path.abspath(trace), args.painter, work, args.report, args.precision)
         if r.images_not_rendered and args.require_images:
             r.problems.append(f"images not written by the painter: {', '.join(r.images_not_rendered)}")
         ok = not r.problems
         failed |= not ok
         speed = r.ref_seconds / r.painter_seconds if r.painter_seconds > 0 else float("nan")
-        imgs = f"{r.images_compared}" + (f" (+{len(r.images_not_rendered)} not rendered by the painter)" if r.images_not_rendered else "")
+        imgs = f"{r.images_compared}" + (f", worst {r.worst_psnr:.1f} dB" if r.images_compared and r.worst_psnr != float("inf") else "")
+        imgs += (f" (+{len(r.images_not_rendered)} not rendered by the painter)" if r.images_not_rendered else "")
         out.append(f"| {r.name} | {r.dumps} | {r.cells:,} | {imgs} | {r.ref_seconds:.2f} | {r.painter_seconds:.2f} | {speed:.1f}x | {'same' if ok else '**differs**'} |")
         print(f"{r.name}: {'same' if ok else 'DIFFERS'} ({r.dumps} dumps, reference {r.ref_seconds:.1f} s, painter {r.painter_seconds:.1f} s)", flush=True)
         if r.problems:
             details += [f"### {r.name}", ""] + [p + "\n" for p in r.problems]
     out += ["", "Dumps are compared array by array with the tolerances of `conformance/dumps.py` (all exact) and byte for byte; "
-            "images with those of `conformance/images.py`.", ""]
+            f"images with those of `conformance/images.py` for the painter's {args.precision} ray caster (PSNR: inf where identical).", ""]
     if any("not rendered" in line for line in out):
         out += ["Images the painter does not write yet are listed, not compared: the painter's GPU ray caster is a later "
                 "issue; `--require-images` makes them differences.", ""]

@@ -51,7 +51,7 @@ def reference_history(trace_path: str, cell: int) -> list[str]:
 
 def painter_history(painter: str, trace_path: str, cell: int, scratch_dir: str) -> list[str]:
     res = subprocess.run(
-        [painter, "replay", trace_path, "--out", scratch_dir, "--quiet", "--history", str(cell)],
+        [painter, "replay", trace_path, "--out", scratch_dir, "--quiet", "--renderer", "none", "--history", str(cell)],
         capture_output=True,
         timeout=3600,
     )

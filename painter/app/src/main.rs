@@ -1,8 +1,10 @@
 //! `octopaint`: the painter's command line. Today: headless replay of traces
 //! to tree dumps, trace validation, and the tree benchmark.
 
+mod bench_gpu;
 mod bench_tree;
 mod canonical;
+mod png_out;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -12,7 +14,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::CellRecord;
 use octopaint_tree::replay::{ReplayObserver, replay};
-use octopaint_tree::trace::{Event, EventKind, read_trace};
+use octopaint_gpu::{Backend, Precision, Renderer};
+use octopaint_tree::raycast::{RayInput, RayParams};
+use octopaint_tree::trace::{Camera, Event, EventKind, read_trace};
 
 #[derive(Parser)]
 #[command(name = "octopaint", version, about = "Octopaint, volumetric painting on a dynamic deep octree")]
@@ -41,6 +45,18 @@ enum Command {
         /// conformance report uses it to show a differing cell's history).
         #[arg(long, value_name = "CELL")]
         history: Option<u32>,
+        /// Who draws the images at render events and computes g3 for the
+        /// dumps: the GPU pipeline (the default), the CPU port of its
+        /// shaders, or nobody (dumps only, g3 from the CPU port).
+        #[arg(long, value_enum, default_value_t = RendererChoice::Gpu)]
+        renderer: RendererChoice,
+        /// The graphics API of the GPU renderer.
+        #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
+        backend: BackendChoice,
+        /// Precision of the GPU ray caster's positions (f16 needs an adapter
+        /// with SHADER_F16).
+        #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+        precision: PrecisionChoice,
     },
     /// Validate traces without replaying them: print `PATH: ok` or
     /// `PATH: MESSAGE` for each (exit status 2 if any is malformed).
@@ -58,10 +74,32 @@ enum Command {
     },
 }
 
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum RendererChoice {
+    Gpu,
+    Cpu,
+    None,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum BackendChoice {
+    Auto,
+    Vulkan,
+    Gl,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum PrecisionChoice {
+    F32,
+    F16,
+}
+
 #[derive(Subcommand)]
 enum Bench {
     /// Stamping and refinement throughput on a deterministic stroke set.
     Tree(bench_tree::Args),
+    /// The GPU pipeline on a painted trace: uploads, g3 pass, ray casting.
+    Gpu(bench_gpu::Args),
 }
 
 /// Prints warnings as they happen; shows progress on a terminal; records a
@@ -70,6 +108,14 @@ struct Reporter<'a> {
     trace: &'a Path,
     bar: ProgressBar,
     history: Option<(u32, CellRecord)>,
+    draw: Draw,
+}
+
+/// Who draws the images and computes the dumps' g3.
+enum Draw {
+    Gpu(Box<Renderer>, Precision),
+    Cpu,
+    Nobody,
 }
 
 impl ReplayObserver for Reporter<'_> {
@@ -106,9 +152,40 @@ impl ReplayObserver for Reporter<'_> {
             }
         }
     }
+
+    fn render(&mut self, name: &str, camera: &Camera, painting: &mut Painting, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+        let [w, h] = camera.size;
+        let rgb = match &mut self.draw {
+            Draw::Nobody => return Ok(None),
+            Draw::Gpu(renderer, precision) => renderer.render(&mut painting.tree, camera, *precision).map_err(std::io::Error::other)?,
+            Draw::Cpu => {
+                let tree = &painting.tree;
+                let g3 = octopaint_tree::g3::g3_table(tree);
+                let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3: &g3 };
+                octopaint_tree::raycast::render(&inp, &RayParams::new(tree, camera))
+            }
+        };
+        let Some(dir) = out_dir else { return Ok(None) };
+        let path = dir.join(format!("{name}.png"));
+        png_out::write_png(&path, &rgb, w, h)?;
+        Ok(Some(path))
+    }
+
+    fn dump_g3(&mut self, painting: &mut Painting) -> std::io::Result<Option<Vec<[u32; 3]>>> {
+        match &mut self.draw {
+            Draw::Gpu(renderer, _) => renderer.read_g3(&mut painting.tree).map(Some).map_err(std::io::Error::other),
+            _ => Ok(None),
+        }
+    }
 }
 
-fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>) -> ExitCode {
+struct DrawOptions {
+    renderer: RendererChoice,
+    backend: BackendChoice,
+    precision: PrecisionChoice,
+}
+
+fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, opts: DrawOptions) -> ExitCode {
     let trace = match read_trace(trace_path) {
         Ok(t) => t,
         Err(e) => {
@@ -121,7 +198,38 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>) 
     if quiet {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
-    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)) };
+    let draw = match opts.renderer {
+        RendererChoice::None => Draw::Nobody,
+        RendererChoice::Cpu => Draw::Cpu,
+        RendererChoice::Gpu => {
+            let backend = match opts.backend {
+                BackendChoice::Auto => Backend::Auto,
+                BackendChoice::Vulkan => Backend::Vulkan,
+                BackendChoice::Gl => Backend::Gl,
+            };
+            let precision = match opts.precision {
+                PrecisionChoice::F32 => Precision::F32,
+                PrecisionChoice::F16 => Precision::F16,
+            };
+            match Renderer::new(backend) {
+                Ok(r) if r.gpu.supports(precision) => {
+                    if !quiet {
+                        eprintln!("octopaint: rendering on {}", r.gpu.describe());
+                    }
+                    Draw::Gpu(Box::new(r), precision)
+                }
+                Ok(r) => {
+                    eprintln!("octopaint: {} has no SHADER_F16 for --precision f16", r.gpu.describe());
+                    return ExitCode::from(1);
+                }
+                Err(e) => {
+                    eprintln!("octopaint: {e}; --renderer cpu draws on the CPU, --renderer none skips images");
+                    return ExitCode::from(1);
+                }
+            }
+        }
+    };
+    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw };
     let result = replay(&trace, Some(out), &mut rep);
     rep.bar.finish_and_clear();
     let (stats, _) = match result {
@@ -133,7 +241,7 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>) 
     };
     if !stats.renders.is_empty() {
         eprintln!(
-            "octopaint: {} render event(s) not drawn: the GPU ray caster is not built yet",
+            "octopaint: {} render event(s) not drawn (--renderer none)",
             stats.renders.len()
         );
     }
@@ -174,12 +282,21 @@ fn cmd_check(traces: &[PathBuf], canonical: bool) -> ExitCode {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Replay { trace, out, quiet, history } => cmd_replay(&trace, &out, quiet, history),
+        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
+            cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
+        }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("octopaint: bench tree: {e:#}");
+                ExitCode::from(1)
+            }
+        },
+        Command::Bench { which: Bench::Gpu(args) } => match bench_gpu::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("octopaint: bench gpu: {e:#}");
                 ExitCode::from(1)
             }
         },

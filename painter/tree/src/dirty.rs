@@ -70,6 +70,8 @@ pub struct Publication {
 
 #[derive(Clone)]
 pub(crate) struct Changes {
+    /// Everything is dirty: a new consumer (a GPU) has seen nothing yet.
+    everything: bool,
     blocks: Vec<u64>,
     any_block: bool,
     topo_cells: Vec<u32>,
@@ -81,6 +83,7 @@ impl Changes {
     pub fn new(capacity: u32) -> Self {
         let n_blocks = capacity.div_ceil(BLOCK_CELLS) as usize;
         Changes {
+            everything: false,
             blocks: vec![0; n_blocks.div_ceil(64)],
             any_block: false,
             topo_cells: Vec::new(),
@@ -108,6 +111,12 @@ impl Changes {
 }
 
 impl Tree {
+    /// Make the next publication cover every block and every cell: for a
+    /// consumer that starts from nothing (a GPU attached to a painted tree).
+    pub fn mark_everything_dirty(&mut self) {
+        self.changes.everything = true;
+    }
+
     /// Everything changed since the last call: dirty blocks, dirty cells and
     /// the neighbour mask (spec 3.4, 3.5).
     pub fn take_publication(&mut self) -> Publication {
@@ -143,6 +152,15 @@ impl Tree {
         cells.dedup();
         let size = region_cells(self.capacity);
         let mut mask = NeighbourMask::default();
+        if std::mem::take(&mut self.changes.everything) {
+            let n = self.n_used();
+            blocks.extend(0..n.div_ceil(BLOCK_CELLS));
+            blocks.sort_unstable();
+            blocks.dedup();
+            cells.extend(0..n);
+            cells.sort_unstable();
+            cells.dedup();
+        }
         for &c in &cells {
             mask.set((c / size) as usize);
         }

@@ -211,8 +211,13 @@ pub fn origins(tree: &Tree) -> Vec<[u32; 3]> {
 
 /// The dump of a tree, as bytes (spec 11.1).
 pub fn dump_bytes(tree: &Tree) -> Vec<u8> {
+    dump_bytes_with(tree, &g3_table(tree))
+}
+
+/// The dump of a tree with a given g3 table (read back from the GPU).
+pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
     let n = tree.n_used() as usize;
-    let g3 = g3_table(tree);
+    assert_eq!(g3.len(), n, "one g3 row per cell");
     let origin = origins(tree);
     let roots = tree.lat.roots;
     let max_depth = [tree.lat.max_depth];
@@ -223,7 +228,7 @@ pub fn dump_bytes(tree: &Tree) -> Vec<u8> {
         NpyArray { name: "depth", descr: "|u1", shape: vec![n], data: &tree.depth },
         NpyArray { name: "rgb", descr: "|u1", shape: vec![n, 3], data: bytemuck::cast_slice(&tree.rgb) },
         NpyArray { name: "sigma", descr: "<f4", shape: vec![n], data: bytemuck::cast_slice(&tree.sigma) },
-        NpyArray { name: "g3", descr: "<u4", shape: vec![n, 3], data: bytemuck::cast_slice(&g3) },
+        NpyArray { name: "g3", descr: "<u4", shape: vec![n, 3], data: bytemuck::cast_slice(g3) },
         NpyArray { name: "origin", descr: "<u4", shape: vec![n, 3], data: bytemuck::cast_slice(&origin) },
         NpyArray { name: "roots", descr: "<u4", shape: vec![3], data: bytemuck::cast_slice(&roots[..]) },
         NpyArray { name: "max_depth", descr: "<u4", shape: vec![], data: bytemuck::cast_slice(&max_depth[..]) },

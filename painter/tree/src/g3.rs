@@ -27,6 +27,19 @@ impl<'a> G3Input<'a> {
     pub fn of(tree: &'a Tree) -> Self {
         G3Input { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, roots: tree.lat.roots }
     }
+
+    // Reads past the pools (NONE included) give a free cell, as on the GPU
+    // (shared/pools.wgsl `cell_at`): only a tree caught mid-upload has such
+    // links.
+    fn depth(&self, c: u32) -> u32 {
+        self.depth.get(c as usize).map_or(u32::from(FREE), |&d| u32::from(d))
+    }
+    fn parent(&self, c: u32) -> u32 {
+        self.parent.get(c as usize).copied().unwrap_or(NONE)
+    }
+    fn first_child(&self, c: u32) -> u32 {
+        self.first_child.get(c as usize).copied().unwrap_or(NONE)
+    }
 }
 
 /// g3[c][a] for one live non-root cell `c` and axis `a`: climb while the
@@ -40,7 +53,7 @@ pub fn g3_cell(inp: &G3Input, c: u32, a: u32) -> u32 {
     let mut x = c;
     let mut y: u32;
     loop {
-        if inp.depth[x as usize] == 0 {
+        if inp.depth(x) == 0 {
             // Root-array arithmetic (spec 1.1).
             let rx = inp.roots[0];
             let ry = inp.roots[1];
@@ -63,12 +76,15 @@ pub fn g3_cell(inp: &G3Input, c: u32, a: u32) -> u32 {
             y = x ^ (1 << a); // the face is inward here: the sibling
             break;
         }
+        if n >= G3_MAX_CLIMB {
+            return NONE; // deeper than any valid tree: a cell caught mid-upload
+        }
         octants[n] = x & 7;
         n += 1;
-        x = inp.parent[x as usize];
+        x = inp.parent(x);
     }
     while n > 0 {
-        let fc = inp.first_child[y as usize];
+        let fc = inp.first_child(y);
         if fc == NONE {
             break;
         }
@@ -80,8 +96,8 @@ pub fn g3_cell(inp: &G3Input, c: u32, a: u32) -> u32 {
 
 /// g3 of one cell: NONE for roots and free cells.
 pub fn g3_row(inp: &G3Input, c: u32) -> [u32; 3] {
-    let d = inp.depth[c as usize];
-    if d == 0 || d == FREE {
+    let d = inp.depth(c);
+    if d == 0 || d == u32::from(FREE) {
         return [NONE; 3];
     }
     [g3_cell(inp, c, 0), g3_cell(inp, c, 1), g3_cell(inp, c, 2)]

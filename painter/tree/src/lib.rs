@@ -11,6 +11,7 @@
 //! | [`pool`] | pools, allocator, cell writes | tree.py |
 //! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
 //! | [`g3`] | g3, shader-shaped, plus brute force | g3.py |
+//! | [`raycast`] | the ray caster's CPU port, shader-shaped | raycast.py |
 //! | [`dirty`] | dirty blocks, dirty cells, neighbour mask | tree.py |
 //! | [`brush`] | primitives, reach, coverage, blend modes | brush.py |
 //! | [`noise`] | hashed permutation, improved Perlin noise | noise.py |
@@ -37,6 +38,7 @@ pub mod noise;
 pub mod paint;
 pub mod pool;
 pub mod pyrepr;
+pub mod raycast;
 pub mod replay;
 pub mod stroke;
 pub mod trace;

@@ -5,10 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::dump::{dump_bytes, write_atomic};
+use crate::dump::{dump_bytes_with, write_atomic};
+use crate::g3::g3_table;
 use crate::paint::Painting;
 use crate::pool::FREE;
-use crate::trace::{Event, EventKind, Trace};
+use crate::trace::{Camera, Event, EventKind, Trace};
 
 #[derive(Debug, Default)]
 pub struct ReplayStats {
@@ -19,7 +20,7 @@ pub struct ReplayStats {
     pub deepest: u32,
     pub written: Vec<PathBuf>,
     pub warnings: Vec<String>,
-    /// `render` events: the painter core draws nothing (the GPU pipeline does).
+    /// `render` events the observer did not draw.
     pub renders: Vec<String>,
 }
 
@@ -29,6 +30,17 @@ pub trait ReplayObserver {
     fn warning(&mut self, _msg: &str) {}
     /// After every event, with the painting as that event left it.
     fn after_event(&mut self, _ev: &Event, _painting: &Painting) {}
+    /// A `render` event: draw the tree as `camera` sees it and write
+    /// `<name>.png` into `out_dir` (nothing when it is None). Returns the
+    /// path written, or None when this observer does not render.
+    fn render(&mut self, _name: &str, _camera: &Camera, _painting: &mut Painting, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+        Ok(None)
+    }
+    /// The g3 table a snapshot dumps; None: the CPU port's (g3.rs). The GPU
+    /// replay returns the table it read back from the GPU.
+    fn dump_g3(&mut self, _painting: &mut Painting) -> std::io::Result<Option<Vec<[u32; 3]>>> {
+        Ok(None)
+    }
 }
 
 impl ReplayObserver for () {}
@@ -50,6 +62,7 @@ pub fn replay(
     }
     let mut painting = Painting::new(&trace.canvas);
     let mut brush = None;
+    let mut camera: Option<Camera> = None;
     let t0 = Instant::now();
     for ev in &trace.events {
         match &ev.kind {
@@ -71,13 +84,23 @@ pub fn replay(
             }
             EventKind::Snapshot(name) => {
                 if let Some(d) = out_dir {
+                    let g3 = match obs.dump_g3(&mut painting)? {
+                        Some(g3) => g3,
+                        None => g3_table(&painting.tree),
+                    };
                     let path = d.join(format!("{name}.npz"));
-                    write_atomic(&path, &dump_bytes(&painting.tree))?;
+                    write_atomic(&path, &dump_bytes_with(&painting.tree, &g3))?;
                     stats.written.push(path);
                 }
             }
-            EventKind::Render(name) => stats.renders.push(name.clone()),
-            EventKind::Camera(_) => {}
+            EventKind::Render(name) => {
+                let cam = camera.as_ref().expect("validated: a camera precedes every render");
+                match obs.render(name, cam, &mut painting, out_dir)? {
+                    Some(path) => stats.written.push(path),
+                    None => stats.renders.push(name.clone()),
+                }
+            }
+            EventKind::Camera(c) => camera = Some(*c),
         }
         for w in painting.warnings.drain(..) {
             obs.warning(&w);

@@ -1,0 +1,105 @@
+//! The adapter and the device. A machine without an adapter is an error
+//! with a message saying what to install, never a silent fallback: the
+//! tests that need a GPU fail on such a machine rather than skip.
+
+use crate::shaders::Precision;
+
+/// Which graphics API to run on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// Vulkan if an adapter has it, else OpenGL.
+    Auto,
+    Vulkan,
+    Gl,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error(
+        "no {0} adapter found (on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL)"
+    )]
+    NoAdapter(&'static str),
+    #[error("the GPU refused a device: {0}")]
+    Device(#[from] wgpu::RequestDeviceError),
+    #[error("the adapter's largest storage binding ({0} bytes) is below one page of 65,536 cells")]
+    BindingTooSmall(u64),
+    #[error("the tree has {cells} cells; this GPU holds at most {max} ({pages} pages of {page} cells)")]
+    Capacity { cells: u64, max: u64, pages: u32, page: u64 },
+    #[error("this adapter has no SHADER_F16: the f16 ray caster needs it")]
+    NoF16,
+    #[error("reading back from the GPU failed: {0}")]
+    Readback(String),
+}
+
+/// A device and its queue, with what the pipeline needs to know of the
+/// adapter.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    pub f16: bool,
+}
+
+impl Gpu {
+    /// Open the first adapter of `backend`.
+    pub fn open(backend: Backend) -> Result<Gpu, GpuError> {
+        let backends = match backend {
+            Backend::Auto => wgpu::Backends::VULKAN | wgpu::Backends::GL,
+            Backend::Vulkan => wgpu::Backends::VULKAN,
+            Backend::Gl => wgpu::Backends::GL,
+        };
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+        desc.backends = backends;
+        let instance = wgpu::Instance::new(desc);
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        // Vulkan first (it has SHADER_F16 on lavapipe; GL does not), then
+        // discrete before integrated before CPU.
+        adapters.sort_by_key(|a| {
+            let i = a.get_info();
+            let api = if i.backend == wgpu::Backend::Vulkan { 0 } else { 1 };
+            let kind = match i.device_type {
+                wgpu::DeviceType::DiscreteGpu => 0,
+                wgpu::DeviceType::IntegratedGpu => 1,
+                wgpu::DeviceType::VirtualGpu => 2,
+                wgpu::DeviceType::Cpu => 3,
+                wgpu::DeviceType::Other => 4,
+            };
+            (api, kind)
+        });
+        let name = match backend {
+            Backend::Auto => "Vulkan or GL",
+            Backend::Vulkan => "Vulkan",
+            Backend::Gl => "GL",
+        };
+        let adapter = adapters.into_iter().next().ok_or(GpuError::NoAdapter(name))?;
+        let f16 = adapter.features().contains(wgpu::Features::SHADER_F16);
+        let limits = adapter.limits();
+        let mut required_features = wgpu::Features::empty();
+        if f16 {
+            required_features |= wgpu::Features::SHADER_F16;
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("octopaint"),
+            required_features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))?;
+        Ok(Gpu { device, queue, info: adapter.get_info(), limits, f16 })
+    }
+
+    /// Whether the ray caster can run in `precision` here.
+    pub fn supports(&self, precision: Precision) -> bool {
+        precision == Precision::F32 || self.f16
+    }
+
+    /// A line naming the adapter, for logs and reports.
+    pub fn describe(&self) -> String {
+        format!("{} ({:?}, {:?}, driver {})", self.info.name, self.info.backend, self.info.device_type, self.info.driver_info)
+    }
+
+    /// Block until the GPU has done everything submitted so far.
+    pub fn wait(&self) {
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+    }
+}

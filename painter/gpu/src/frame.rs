@@ -1,0 +1,126 @@
+//! One frame of the GPU pipeline (docs/architecture.md): upload staged
+//! blocks, the neighbour mask's g3 pass, ray casting. [`Renderer`] drives
+//! it headless: `sync` brings the GPU up to date with the tree (every dirty
+//! block staged and uploaded, then the g3 pass over the dirty regions),
+//! `render` casts an image, `read_g3` reads g3 back for a tree dump.
+
+use std::time::Instant;
+
+use octopaint_tree::dirty::{BLOCK_CELLS, NeighbourMask};
+use octopaint_tree::pool::Tree;
+use octopaint_tree::raycast::RayParams;
+use octopaint_tree::trace::Camera;
+
+use crate::context::{Backend, Gpu, GpuError};
+use crate::g3::G3Pass;
+use crate::pools::{GpuPools, stage_block};
+use crate::raycast::RayCaster;
+use crate::shaders::Precision;
+
+/// What one `sync` or frame did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SyncStats {
+    /// Blocks staged and uploaded.
+    pub blocks: u32,
+    /// Regions the g3 pass recomputed.
+    pub regions: u32,
+    /// Blocks still waiting after this frame.
+    pub pending: u32,
+    pub stage_seconds: f64,
+    pub gpu_seconds: f64,
+}
+
+pub struct Renderer {
+    pub gpu: Gpu,
+    pub pools: GpuPools,
+    g3: G3Pass,
+    ray: RayCaster,
+    attached: bool,
+    /// Dirty blocks not uploaded yet, and the regions whose g3 must be
+    /// recomputed until they all are.
+    pending_blocks: Vec<u32>,
+    pending_mask: NeighbourMask,
+}
+
+impl Renderer {
+    /// A renderer follows one tree: the first frame uploads all of it.
+    pub fn new(backend: Backend) -> Result<Renderer, GpuError> {
+        let gpu = Gpu::open(backend)?;
+        let pools = GpuPools::new(&gpu)?;
+        let g3 = G3Pass::new(&gpu, &pools);
+        let ray = RayCaster::new(&gpu, &pools);
+        Ok(Renderer { gpu, pools, g3, ray, attached: false, pending_blocks: Vec::new(), pending_mask: NeighbourMask::default() })
+    }
+
+    /// Take the tree's new changes into the pending set.
+    fn collect(&mut self, tree: &mut Tree) {
+        if !self.attached {
+            tree.mark_everything_dirty();
+            self.attached = true;
+        }
+        let publication = tree.take_publication();
+        self.pending_blocks.extend(publication.blocks);
+        self.pending_blocks.sort_unstable();
+        self.pending_blocks.dedup();
+        self.pending_mask.union(&publication.mask);
+    }
+
+    /// One frame's GPU work before ray casting (docs/architecture.md):
+    /// stage and upload at most `max_blocks` pending blocks (all with None),
+    /// then recompute g3 over the pending regions. The regions stay pending
+    /// until every block is up, since g3 read from half-uploaded pools may
+    /// be stale.
+    pub fn upload_frame(&mut self, tree: &mut Tree, max_blocks: Option<usize>) -> Result<SyncStats, GpuError> {
+        self.collect(tree);
+        let t0 = Instant::now();
+        let take = max_blocks.unwrap_or(usize::MAX).min(self.pending_blocks.len());
+        let blocks: Vec<u32> = self.pending_blocks.drain(..take).collect();
+        let last = blocks.iter().max().map_or(0, |&b| u64::from(b + 1) * u64::from(BLOCK_CELLS));
+        self.pools.ensure(&self.gpu, last.max(u64::from(tree.n_used())))?;
+        let mut stats = SyncStats::default();
+        for &b in &blocks {
+            let staged = stage_block(tree, b);
+            self.pools.upload(&self.gpu, &staged);
+            stats.blocks += 1;
+        }
+        stats.stage_seconds = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame uploads") });
+        stats.regions = self.g3.encode(&self.gpu, &self.pools, &mut enc, &self.pending_mask, tree.capacity, tree.lat.roots);
+        self.gpu.queue.submit([enc.finish()]);
+        self.gpu.wait();
+        stats.gpu_seconds = t1.elapsed().as_secs_f64();
+        stats.pending = self.pending_blocks.len() as u32;
+        if self.pending_blocks.is_empty() {
+            self.pending_mask = NeighbourMask::default();
+        }
+        Ok(stats)
+    }
+
+    /// Bring the GPU fully up to date with `tree`: every dirty block
+    /// uploaded, g3 recomputed over every dirty region.
+    pub fn sync(&mut self, tree: &mut Tree) -> Result<SyncStats, GpuError> {
+        self.upload_frame(tree, None)
+    }
+
+    /// Cast an image of what the GPU holds now (no upload): `w·h·3` bytes.
+    pub fn cast(&mut self, tree: &Tree, camera: &Camera, precision: Precision) -> Result<Vec<u8>, GpuError> {
+        let params = RayParams::new(tree, camera);
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
+        self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
+        self.gpu.queue.submit([enc.finish()]);
+        self.ray.read_image(&self.gpu, params.width, params.height)
+    }
+
+    /// The image `camera` sees of `tree` with everything uploaded.
+    pub fn render(&mut self, tree: &mut Tree, camera: &Camera, precision: Precision) -> Result<Vec<u8>, GpuError> {
+        self.sync(tree)?;
+        self.cast(tree, camera, precision)
+    }
+
+    /// g3 of every used cell, as the GPU holds it (after a sync).
+    pub fn read_g3(&mut self, tree: &mut Tree) -> Result<Vec<[u32; 3]>, GpuError> {
+        self.sync(tree)?;
+        self.pools.read_g3(&self.gpu, u64::from(tree.n_used()))
+    }
+}

@@ -1,0 +1,26 @@
+//! Octopaint's GPU pipeline on wgpu (docs/spec.md 3.3-3.5, 6, 7): the pools
+//! on the GPU as storage buffers split into pages, uploads of staged
+//! 65,536-cell blocks, the g3 pass over the regions the neighbour mask
+//! marks, and cell-local ray casting into an image.
+//!
+//! | module | what it holds | shader | CPU port |
+//! | --- | --- | --- | --- |
+//! | [`context`] | adapter and device | | |
+//! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | tree/src/pool.rs |
+//! | [`g3`] | the g3 pass | g3.wgsl | tree/src/g3.rs |
+//! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
+//! | [`frame`] | one frame: uploads, mask, g3 pass, ray cast | | |
+
+pub mod context;
+pub mod frame;
+pub mod g3;
+pub mod pools;
+pub mod raycast;
+pub mod shaders {
+    //! The WGSL of every pipeline (validated by build.rs).
+    include!("shader_source.rs");
+}
+
+pub use context::{Backend, Gpu, GpuError};
+pub use frame::Renderer;
+pub use shaders::Precision;

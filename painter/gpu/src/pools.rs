@@ -1,0 +1,272 @@
+//! The pools on the GPU (docs/spec.md 2.2, docs/buffer-layouts.md): one
+//! 16-byte [`GpuCell`] per cell and 12 bytes of g3, in pages of `2^k`
+//! cells, one storage binding per page, so that capacity is not capped by
+//! the largest binding (128 MiB on lavapipe: 2^23 cells). The WGSL twin is
+//! shaders/shared/pools.wgsl.
+//!
+//! Uploads go by block (65,536 cells): [`stage_block`] copies a block out of
+//! the CPU pools into the GPU layout (the staging copy the real-time
+//! pipeline makes on its staging thread), and [`GpuPools::upload`] writes
+//! it; the whole pool is never copied.
+
+use bytemuck::{Pod, Zeroable};
+use octopaint_tree::dirty::BLOCK_CELLS;
+use octopaint_tree::pool::{FREE, NONE, Tree};
+
+use crate::context::{Gpu, GpuError};
+
+/// Pages per pool: one binding each (shared/pools.wgsl PAGES).
+pub const PAGES: usize = 4;
+
+/// One cell as the GPU holds it, 16 bytes (shared/pools.wgsl `Cell`):
+///
+/// ```text
+///  byte 0          4          8                   12         16
+///       +----------+----------+----+----+----+----+----------+
+///       |  parent  |first_chld| r  | g  | b  |dpth|  sigma   |
+///       +----------+----------+----+----+----+----+----------+
+/// ```
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuCell {
+    pub parent: u32,
+    pub first_child: u32,
+    /// r | g << 8 | b << 16 | depth << 24
+    pub rgbd: u32,
+    pub sigma: f32,
+}
+
+impl GpuCell {
+    pub const FREE: GpuCell = GpuCell { parent: NONE, first_child: NONE, rgbd: (FREE as u32) << 24, sigma: 0.0 };
+}
+
+/// Cells copied out of the CPU pools in the GPU layout, ready to upload:
+/// one block (65,536 cells) in the pipeline, other sizes in benchmarks.
+pub struct StagedBlock {
+    pub first: u64,
+    pub cells: Vec<GpuCell>,
+}
+
+/// Copy block `block` of the tree into the GPU layout; cells past the used
+/// length are free.
+pub fn stage_block(tree: &Tree, block: u32) -> StagedBlock {
+    stage_range(tree, u64::from(block) * u64::from(BLOCK_CELLS), BLOCK_CELLS as usize)
+}
+
+/// Copy `len` cells from `first` into the GPU layout (free past the used
+/// length).
+pub fn stage_range(tree: &Tree, first: u64, len: usize) -> StagedBlock {
+    let start = first as usize;
+    let n = tree.n_used() as usize;
+    let end = (start + len).min(n.max(start));
+    let mut cells = Vec::with_capacity(len);
+    for c in start..end {
+        let [r, g, b] = tree.rgb[c];
+        cells.push(GpuCell {
+            parent: tree.parent[c],
+            first_child: tree.first_child[c],
+            rgbd: u32::from(r) | u32::from(g) << 8 | u32::from(b) << 16 | u32::from(tree.depth[c]) << 24,
+            sigma: tree.sigma[c],
+        });
+    }
+    cells.resize(len, GpuCell::FREE);
+    StagedBlock { first, cells }
+}
+
+pub struct GpuPools {
+    /// Cells per page, `1 << page_shift`.
+    pub page_shift: u32,
+    cells: Vec<wgpu::Buffer>,
+    g3: Vec<wgpu::Buffer>,
+    /// Stand-ins for pages not allocated yet: one for the read-only cell
+    /// slots, one per g3 slot (a buffer bound twice read-write in one
+    /// dispatch would be a usage conflict).
+    dummy_cells: wgpu::Buffer,
+    dummy_g3: Vec<wgpu::Buffer>,
+    pub layout_cells: wgpu::BindGroupLayout,
+    pub layout_g3_rw: wgpu::BindGroupLayout,
+    pub layout_g3_ro: wgpu::BindGroupLayout,
+    pub group_cells: wgpu::BindGroup,
+    pub group_g3_rw: wgpu::BindGroup,
+    pub group_g3_ro: wgpu::BindGroup,
+}
+
+fn storage_layout(gpu: &Gpu, label: &str, read_only: bool) -> wgpu::BindGroupLayout {
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..PAGES as u32)
+        .map(|binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect();
+    gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
+}
+
+/// A buffer whose every byte is `fill` (FREE cells, NONE g3 entries).
+fn filled_buffer(gpu: &Gpu, label: &str, size: u64, pattern: &[u8]) -> wgpu::Buffer {
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: true,
+    });
+    {
+        // A megabyte of the pattern, copied in as often as the buffer needs.
+        let reps = (1 << 20) / pattern.len();
+        let block: Vec<u8> = pattern.iter().copied().cycle().take(reps * pattern.len()).collect();
+        let mut view = buf.get_mapped_range_mut(..).expect("a buffer mapped at creation");
+        let len = view.len();
+        let mut at = 0;
+        while at < len {
+            let n = block.len().min(len - at);
+            view.slice(at..at + n).copy_from_slice(&block[..n]);
+            at += n;
+        }
+    }
+    buf.unmap();
+    buf
+}
+
+impl GpuPools {
+    pub fn new(gpu: &Gpu) -> Result<GpuPools, GpuError> {
+        let limit = u64::from(gpu.limits.max_storage_buffer_binding_size).min(gpu.limits.max_buffer_size);
+        // The largest power of two of 16-byte cells one binding holds.
+        let cells_fit = limit / std::mem::size_of::<GpuCell>() as u64;
+        if cells_fit < u64::from(BLOCK_CELLS) {
+            return Err(GpuError::BindingTooSmall(limit));
+        }
+        let page_shift = 63 - cells_fit.leading_zeros();
+        let page_shift = page_shift.min(28);
+        let dummy_cells = filled_buffer(gpu, "unallocated cells page", 16, bytemuck::bytes_of(&GpuCell::FREE));
+        let dummy_g3: Vec<wgpu::Buffer> = (0..PAGES).map(|_| filled_buffer(gpu, "unallocated g3 page", 16, &[0xFF; 16])).collect();
+        let layout_cells = storage_layout(gpu, "cells pages", true);
+        let layout_g3_rw = storage_layout(gpu, "g3 pages (write)", false);
+        let layout_g3_ro = storage_layout(gpu, "g3 pages (read)", true);
+        let (group_cells, group_g3_rw, group_g3_ro) =
+            Self::groups(gpu, &[], &[], &dummy_cells, &dummy_g3, &layout_cells, &layout_g3_rw, &layout_g3_ro);
+        Ok(GpuPools {
+            page_shift,
+            cells: Vec::new(),
+            g3: Vec::new(),
+            dummy_cells,
+            dummy_g3,
+            layout_cells,
+            layout_g3_rw,
+            layout_g3_ro,
+            group_cells,
+            group_g3_rw,
+            group_g3_ro,
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn groups(
+        gpu: &Gpu,
+        cells: &[wgpu::Buffer],
+        g3: &[wgpu::Buffer],
+        dummy_cells: &wgpu::Buffer,
+        dummy_g3: &[wgpu::Buffer],
+        layout_cells: &wgpu::BindGroupLayout,
+        layout_g3_rw: &wgpu::BindGroupLayout,
+        layout_g3_ro: &wgpu::BindGroupLayout,
+    ) -> (wgpu::BindGroup, wgpu::BindGroup, wgpu::BindGroup) {
+        let make = |label: &str, layout: &wgpu::BindGroupLayout, slots: &[&wgpu::Buffer]| {
+            let entries: Vec<wgpu::BindGroupEntry> =
+                slots.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+        };
+        let cell_slots: Vec<&wgpu::Buffer> = (0..PAGES).map(|i| cells.get(i).unwrap_or(dummy_cells)).collect();
+        let g3_slots: Vec<&wgpu::Buffer> = (0..PAGES).map(|i| g3.get(i).unwrap_or(&dummy_g3[i])).collect();
+        (make("cells", layout_cells, &cell_slots), make("g3 (write)", layout_g3_rw, &g3_slots), make("g3 (read)", layout_g3_ro, &g3_slots))
+    }
+
+    pub fn page_cells(&self) -> u64 {
+        1u64 << self.page_shift
+    }
+
+    /// Cells the allocated pages hold.
+    pub fn cells_held(&self) -> u64 {
+        self.cells.len() as u64 * self.page_cells()
+    }
+
+    /// Make sure the pages hold `n` cells, adding pages (every cell FREE,
+    /// every g3 entry NONE) and rebuilding the bind groups. Returns whether
+    /// pages were added.
+    pub fn ensure(&mut self, gpu: &Gpu, n: u64) -> Result<bool, GpuError> {
+        let page = self.page_cells();
+        let needed = n.div_ceil(page) as usize;
+        if needed > PAGES {
+            return Err(GpuError::Capacity { cells: n, max: PAGES as u64 * page, pages: PAGES as u32, page });
+        }
+        if needed <= self.cells.len() {
+            return Ok(false);
+        }
+        while self.cells.len() < needed {
+            let i = self.cells.len();
+            self.cells.push(filled_buffer(gpu, &format!("cells page {i}"), page * 16, bytemuck::bytes_of(&GpuCell::FREE)));
+            self.g3.push(filled_buffer(gpu, &format!("g3 page {i}"), page * 12, &[0xFF; 12]));
+        }
+        let (a, b, c) =
+            Self::groups(gpu, &self.cells, &self.g3, &self.dummy_cells, &self.dummy_g3, &self.layout_cells, &self.layout_g3_rw, &self.layout_g3_ro);
+        self.group_cells = a;
+        self.group_g3_rw = b;
+        self.group_g3_ro = c;
+        Ok(true)
+    }
+
+    /// Write staged cells into their page (they must not cross pages:
+    /// blocks never do).
+    pub fn upload(&self, gpu: &Gpu, staged: &StagedBlock) {
+        let first = staged.first;
+        let page = (first >> self.page_shift) as usize;
+        debug_assert_eq!(page, ((first + staged.cells.len() as u64 - 1) >> self.page_shift) as usize);
+        let offset = (first & (self.page_cells() - 1)) * 16;
+        gpu.queue.write_buffer(&self.cells[page], offset, bytemuck::cast_slice(&staged.cells));
+    }
+
+    /// g3 of cells `0..n`, read back from the GPU.
+    pub fn read_g3(&self, gpu: &Gpu, n: u64) -> Result<Vec<[u32; 3]>, GpuError> {
+        let mut out = Vec::with_capacity(n as usize);
+        let page = self.page_cells();
+        for (i, buf) in self.g3.iter().enumerate() {
+            let start = i as u64 * page;
+            if start >= n {
+                break;
+            }
+            let count = (n - start).min(page);
+            let bytes = read_buffer(gpu, buf, count * 12)?;
+            out.extend(bytemuck::cast_slice::<u8, [u32; 3]>(&bytes).iter().copied());
+        }
+        Ok(out)
+    }
+}
+
+/// The first `size` bytes of a buffer, through a mappable copy.
+pub fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+    if size == 0 {
+        return Ok(Vec::new());
+    }
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("read-back"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
+    enc.copy_buffer_to_buffer(buf, 0, &staging, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait();
+    rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
+    let data = staging.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?.to_vec();
+    staging.unmap();
+    Ok(data)
+}

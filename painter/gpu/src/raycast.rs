@@ -1,0 +1,165 @@
+//! The ray caster (docs/spec.md 6, 7): one invocation per pixel, writing
+//! 8-bit sRGB. Shader: shaders/raycast.wgsl (f32, and f16 where the adapter
+//! has SHADER_F16); CPU port: painter/tree/src/raycast.rs, whose
+//! [`RayParams`] the host computes for both.
+
+use bytemuck::{Pod, Zeroable};
+use octopaint_tree::raycast::RayParams;
+
+use crate::context::{Gpu, GpuError};
+use crate::pools::{GpuPools, read_buffer};
+use crate::shaders::{Precision, raycast_source};
+
+/// shaders/raycast.wgsl `RayParams`, as uploaded (a layout test compares
+/// them through naga).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct RayParamsGpu {
+    pub eye_cell: [u32; 4],
+    pub eye_rel: [f32; 4],
+    pub roots: [u32; 4],
+    pub extent: [f32; 4],
+    pub extent_max: [u32; 4],
+    pub tan_fov: [f32; 4],
+    pub rot0: [f32; 4],
+    pub rot1: [f32; 4],
+    pub rot2: [f32; 4],
+    pub background: [f32; 4],
+    pub misc: [u32; 4],
+}
+
+impl RayParamsGpu {
+    /// The uniform for `p`, with the cells the pages hold.
+    pub fn from_params(p: &RayParams, cells_held: u32) -> Self {
+        let row = |r: [f32; 3]| [r[0], r[1], r[2], 0.0];
+        RayParamsGpu {
+            eye_cell: [p.eye_cell[0], p.eye_cell[1], p.eye_cell[2], p.width],
+            eye_rel: [p.eye_rel[0], p.eye_rel[1], p.eye_rel[2], p.lattice_unit],
+            roots: [p.roots[0], p.roots[1], p.roots[2], p.max_depth],
+            extent: [p.extent[0], p.extent[1], p.extent[2], 0.0],
+            extent_max: [p.extent_max[0], p.extent_max[1], p.extent_max[2], cells_held],
+            tan_fov: p.tan_fov,
+            rot0: row(p.rot[0]),
+            rot1: row(p.rot[1]),
+            rot2: row(p.rot[2]),
+            background: [p.background[0], p.background[1], p.background[2], 0.0],
+            misc: [p.height, p.max_steps, p.n_roots, u32::from(p.inside)],
+        }
+    }
+}
+
+pub struct RayCaster {
+    pipelines: Vec<(Precision, wgpu::ComputePipeline)>,
+    layout_params: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    pixels: Option<(u64, wgpu::Buffer)>,
+}
+
+impl RayCaster {
+    pub fn new(gpu: &Gpu, pools: &GpuPools) -> RayCaster {
+        let layout_params = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ray params"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("ray caster"),
+            bind_group_layouts: &[Some(&pools.layout_cells), Some(&pools.layout_g3_ro), Some(&layout_params)],
+            immediate_size: 0,
+        });
+        let mut pipelines = Vec::new();
+        for precision in [Precision::F32, Precision::F16] {
+            if !gpu.supports(precision) {
+                continue;
+            }
+            let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("raycast.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(raycast_source(precision).into()),
+            });
+            let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("ray caster"),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("PAGE_SHIFT", f64::from(pools.page_shift))],
+                    zero_initialize_workgroup_memory: false,
+                },
+                cache: None,
+            });
+            pipelines.push((precision, pipeline));
+        }
+        let params = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ray params"),
+            size: std::mem::size_of::<RayParamsGpu>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        RayCaster { pipelines, layout_params, params, pixels: None }
+    }
+
+    fn pixels(&mut self, gpu: &Gpu, n: u64) -> wgpu::Buffer {
+        match &self.pixels {
+            Some((size, buf)) if *size >= n * 4 => buf.clone(),
+            _ => {
+                let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("pixels"),
+                    size: (n * 4).max(4),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                self.pixels = Some((n * 4, buf.clone()));
+                buf
+            }
+        }
+    }
+
+    /// Encode the ray cast of one image into `enc`; the pixels stay on the
+    /// GPU until [`RayCaster::read_image`].
+    pub fn encode(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision) -> Result<(), GpuError> {
+        let pipeline = self.pipelines.iter().find(|(p, _)| *p == precision).map(|(_, p)| p.clone()).ok_or(GpuError::NoF16)?;
+        let n = u64::from(params.width) * u64::from(params.height);
+        let pixels = self.pixels(gpu, n);
+        let held = pools.cells_held().min(u64::from(u32::MAX)) as u32;
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&RayParamsGpu::from_params(params, held)));
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("ray params"),
+            layout: &self.layout_params,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
+            ],
+        });
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("ray cast"), timestamp_writes: None });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &pools.group_cells, &[]);
+        pass.set_bind_group(1, &pools.group_g3_ro, &[]);
+        pass.set_bind_group(2, &group, &[]);
+        pass.dispatch_workgroups(params.width.div_ceil(8), params.height.div_ceil(8), 1);
+        Ok(())
+    }
+
+    /// The last image cast, `width·height·3` bytes of sRGB, row 0 at the top.
+    pub fn read_image(&self, gpu: &Gpu, width: u32, height: u32) -> Result<Vec<u8>, GpuError> {
+        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let n = u64::from(width) * u64::from(height);
+        let raw = read_buffer(gpu, buf, n * 4)?;
+        Ok(raw.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect())
+    }
+}

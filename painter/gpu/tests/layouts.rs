@@ -1,0 +1,56 @@
+//! Every struct the GPU reads exists once in WGSL and once in Rust: their
+//! sizes and member offsets must agree (naga computes the WGSL layout).
+
+use octopaint_gpu::g3::G3Params;
+use octopaint_gpu::pools::GpuCell;
+use octopaint_gpu::raycast::RayParamsGpu;
+use octopaint_gpu::shaders::{Precision, g3_source, raycast_source};
+
+/// (size, member offsets) of a WGSL struct.
+fn wgsl_layout(source: &str, name: &str) -> (u32, Vec<(String, u32)>) {
+    let module = naga::front::wgsl::parse_str(source).unwrap();
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).unwrap();
+    for (handle, ty) in module.types.iter() {
+        if ty.name.as_deref() == Some(name) {
+            if let naga::TypeInner::Struct { members, span } = &ty.inner {
+                let offsets = members.iter().map(|m| (m.name.clone().unwrap(), m.offset)).collect();
+                assert_eq!(layouter[handle].size, *span);
+                return (*span, offsets);
+            }
+        }
+    }
+    panic!("no struct {name}");
+}
+
+macro_rules! offsets {
+    ($t:ty, $($f:ident),*) => {
+        vec![$((stringify!($f).to_string(), std::mem::offset_of!($t, $f) as u32)),*]
+    };
+}
+
+#[test]
+fn cell_layout_agrees() {
+    let (size, offsets) = wgsl_layout(&g3_source(), "Cell");
+    assert_eq!(size as usize, std::mem::size_of::<GpuCell>());
+    assert_eq!(offsets, offsets!(GpuCell, parent, first_child, rgbd, sigma));
+}
+
+#[test]
+fn g3_params_layout_agrees() {
+    let (size, offsets) = wgsl_layout(&g3_source(), "G3Params");
+    assert_eq!(size as usize, std::mem::size_of::<G3Params>());
+    assert_eq!(offsets, offsets!(G3Params, roots, region_cells, n_regions, chunks, n_cells, row));
+}
+
+#[test]
+fn ray_params_layout_agrees() {
+    for precision in [Precision::F32, Precision::F16] {
+        let (size, offsets) = wgsl_layout(&raycast_source(precision), "RayParams");
+        assert_eq!(size as usize, std::mem::size_of::<RayParamsGpu>());
+        assert_eq!(
+            offsets,
+            offsets!(RayParamsGpu, eye_cell, eye_rel, roots, extent, extent_max, tan_fov, rot0, rot1, rot2, background, misc)
+        );
+    }
+}

@@ -1,0 +1,327 @@
+//! Ray casting in cell-local coordinates: the CPU port of
+//! shaders/raycast.wgsl (f32 variant), kept line for line so the two can be
+//! compared; painter/gpu tests render with both and compare the images.
+//! Reference: reference/octopaint_ref/raycast.py (the f64 oracle, spec 6
+//! and 7). The host-side camera set-up shared with the GPU is
+//! [`RayParams::new`].
+
+use crate::brush::quat_to_rows;
+use crate::pool::{FREE, NONE, Tree};
+use crate::trace::Camera;
+
+/// The per-frame constants of the ray caster, as the shader's uniform
+/// holds them (painter/gpu/src/raycast.rs uploads exactly these fields).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayParams {
+    /// The eye's lattice point clamped into the canvas.
+    pub eye_cell: [u32; 3],
+    /// The eye minus `eye_cell` in lattice units (the fraction when inside).
+    pub eye_rel: [f32; 3],
+    pub lattice_unit: f32,
+    pub roots: [u32; 3],
+    pub max_depth: u32,
+    pub extent: [f32; 3],
+    pub extent_max: [u32; 3],
+    pub tan_fov: [f32; 4],
+    pub rot: [[f32; 3]; 3],
+    pub background: [f32; 3],
+    pub width: u32,
+    pub height: u32,
+    pub max_steps: u32,
+    pub n_roots: u32,
+    pub inside: bool,
+}
+
+/// Steps before a ray gives up (a broken tree caught mid-upload).
+pub const MAX_STEPS: u32 = 1 << 16;
+const T_MIN: f32 = 1.0 / 256.0;
+
+impl RayParams {
+    /// The frame constants of `camera` over `tree`'s canvas, computed in
+    /// f64 on the host (spec 6, 7: the eye split into a lattice point and a
+    /// fraction) and rounded once to f32.
+    pub fn new(tree: &Tree, camera: &Camera) -> Self {
+        let lat = &tree.lat;
+        let lu = lat.lattice_unit;
+        let mut eye_cell = [0u32; 3];
+        let mut eye_rel = [0f32; 3];
+        let mut inside = true;
+        for a in 0..3 {
+            let x = camera.eye[a] / lu;
+            let e = x.floor();
+            let phi = x - e;
+            let top = (lat.extent[a] - 1) as f64;
+            let clamped = e.clamp(0.0, top);
+            inside &= e == clamped;
+            eye_cell[a] = clamped as u32;
+            eye_rel[a] = ((e - clamped) + phi) as f32;
+        }
+        let rows = quat_to_rows(camera.q);
+        let [l, r, u, d] = camera.fov;
+        RayParams {
+            eye_cell,
+            eye_rel,
+            lattice_unit: lu as f32,
+            roots: lat.roots,
+            max_depth: lat.max_depth,
+            extent: lat.extent.map(|e| e as f32),
+            extent_max: lat.extent.map(|e| (e - 1) as u32),
+            tan_fov: [l.tan() as f32, r.tan() as f32, u.tan() as f32, d.tan() as f32],
+            rot: rows.map(|row| row.map(|v| v as f32)),
+            background: camera.background.map(|v| v as f32),
+            width: camera.size[0],
+            height: camera.size[1],
+            max_steps: MAX_STEPS,
+            n_roots: lat.n_roots,
+            inside,
+        }
+    }
+}
+
+/// What the shader reads: the pools and g3.
+pub struct RayInput<'a> {
+    pub parent: &'a [u32],
+    pub first_child: &'a [u32],
+    pub depth: &'a [u8],
+    pub rgb: &'a [[u8; 3]],
+    pub sigma: &'a [f32],
+    pub g3: &'a [[u32; 3]],
+}
+
+impl RayInput<'_> {
+    // Reads past the pools (NONE included) give a free cell, as on the GPU
+    // (shared/pools.wgsl `cell_at`).
+    fn depth_of(&self, c: u32) -> u32 {
+        self.depth.get(c as usize).map_or(u32::from(FREE), |&d| u32::from(d))
+    }
+    fn parent_of(&self, c: u32) -> u32 {
+        self.parent.get(c as usize).copied().unwrap_or(NONE)
+    }
+    fn first_child_of(&self, c: u32) -> u32 {
+        self.first_child.get(c as usize).copied().unwrap_or(NONE)
+    }
+}
+
+fn consistent(inp: &RayInput, p: &RayParams, c: u32) -> bool {
+    if c < p.n_roots {
+        return true;
+    }
+    let par = inp.parent_of(c);
+    par != NONE && inp.first_child_of(par) == (c & 0xFFFF_FFF8)
+}
+
+fn ldexp(x: f32, e: i32) -> f32 {
+    x * 2f32.powi(e)
+}
+
+fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
+    if fl >= 0.0 {
+        let m = fl as u32;
+        if m <= top - base { base + m } else { top }
+    } else {
+        let m = (-fl) as u32;
+        if m <= base { base - m } else { 0 }
+    }
+}
+
+/// One pixel, as the shader's `main` computes it: 8-bit sRGB.
+pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3] {
+    let pr = params;
+    let (w, h) = (pr.width, pr.height);
+    let dd = pr.max_depth;
+    let [tl, tr, tu, td] = pr.tan_fov;
+    let tx = tl + (x as f32 + 0.5) / w as f32 * (tr - tl);
+    let ty = tu - (y as f32 + 0.5) / h as f32 * (tu - td);
+    let v = pr.rot.map(|row| row[0] * tx + row[1] * ty - row[2]);
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let dir = v.map(|c| c / n);
+    let d = dir;
+
+    let e = pr.eye_rel;
+    let lo = pr.eye_cell.map(|c| -(c as f32));
+    let hi = [0, 1, 2].map(|a| pr.extent[a] - pr.eye_cell[a] as f32);
+    let mut t_in = -3.0e38f32;
+    let mut t_out = 3.0e38f32;
+    let mut entry_axis: i32 = -1;
+    for a in 0..3 {
+        let in_slab = e[a] >= lo[a] && e[a] < hi[a];
+        let mut near = if in_slab { -3.0e38 } else { 3.0e38 };
+        let mut far = if in_slab { 3.0e38 } else { -3.0e38 };
+        if dir[a] != 0.0 {
+            let t0 = (lo[a] - e[a]) / dir[a];
+            let t1 = (hi[a] - e[a]) / dir[a];
+            near = t0.min(t1);
+            far = t0.max(t1);
+        }
+        if near > t_in {
+            t_in = near;
+            entry_axis = a as i32;
+        }
+        t_out = t_out.min(far);
+    }
+    let inside = pr.inside;
+    let mut colour = [0f32; 3];
+    let mut trans = 1f32;
+    let mut running = true;
+    if !inside && !(t_in <= t_out && t_out > 0.0) {
+        running = false;
+    }
+    let mut q_lat = pr.eye_cell;
+    let mut q_frac = e;
+    if !inside {
+        for a in 0..3 {
+            let q = e[a] + t_in * dir[a];
+            let fl = q.floor();
+            q_lat[a] = offset_lattice(pr.eye_cell[a], fl, pr.extent_max[a]);
+            q_frac[a] = q - fl;
+        }
+    }
+    if !inside && entry_axis >= 0 {
+        let ax = entry_axis as usize;
+        q_lat[ax] = if dir[ax] > 0.0 { 0 } else { pr.extent_max[ax] };
+        q_frac[ax] = 0.0;
+    }
+    for a in 0..3 {
+        q_lat[a] = q_lat[a].min(pr.extent_max[a]);
+    }
+
+    let (rx, ry) = (pr.roots[0], pr.roots[1]);
+    let root = q_lat.map(|v| v >> dd);
+    let mut cell = root[0] + rx * (root[1] + ry * root[2]);
+    let mut depth = 0u32;
+    let mut origin = root.map(|v| v << dd);
+    for _ in 0..dd {
+        let fc = inp.first_child_of(cell);
+        if fc == NONE {
+            break;
+        }
+        let half = 1u32 << (dd - depth - 1);
+        let bits = [0, 1, 2].map(|a| u32::from(q_lat[a] - origin[a] >= half));
+        let child = fc + (bits[0] | (bits[1] << 1) | (bits[2] << 2));
+        if inp.parent_of(child) != cell {
+            break;
+        }
+        cell = child;
+        depth += 1;
+        origin = [0, 1, 2].map(|a| origin[a] + bits[a] * half);
+    }
+    let inv = ldexp(1.0, -((dd - depth) as i32));
+    let mut p = [0, 1, 2].map(|a| {
+        let rel = (q_lat[a] - origin[a]) as f32 * inv;
+        let frac = q_frac[a] * inv;
+        (rel + frac) - 0.5
+    });
+    if !inside && entry_axis >= 0 {
+        let ax = entry_axis as usize;
+        p[ax] = if dir[ax] > 0.0 { -0.5 } else { 0.5 };
+    }
+    p = p.map(|v| v.clamp(-0.5, 0.5));
+    let mut visible = consistent(inp, pr, cell);
+
+    let mut steps = 0u32;
+    while running {
+        let mut t_axes = [60000f32; 3];
+        let mut bound = [-0.5f32; 3];
+        for a in 0..3 {
+            bound[a] = if d[a] > 0.0 { 0.5 } else { -0.5 };
+            if d[a] != 0.0 {
+                t_axes[a] = ((bound[a] - p[a]) / d[a]).max(0.0);
+            }
+        }
+        let mut axis = 0usize;
+        if t_axes[1] < t_axes[axis] {
+            axis = 1;
+        }
+        if t_axes[2] < t_axes[axis] {
+            axis = 2;
+        }
+        let t = t_axes[axis];
+
+        if visible {
+            let len_canvas = t * ldexp(pr.lattice_unit, (dd - depth) as i32);
+            let ext = (-inp.sigma.get(cell as usize).copied().unwrap_or(0.0) * len_canvas).exp();
+            let rgb = inp.rgb.get(cell as usize).copied().unwrap_or([0; 3]).map(|c| c as f32 / 255.0);
+            for i in 0..3 {
+                colour[i] += trans * (1.0 - ext) * rgb[i];
+            }
+            trans *= ext;
+        }
+
+        let mut p_exit = [0, 1, 2].map(|a| p[a] + t * d[a]);
+        p_exit[axis] = bound[axis];
+
+        let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
+        let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
+        let size = 1u32 << (dd - depth);
+        let mut nxt = NONE;
+        if cell < pr.n_roots {
+            let mut r = origin.map(|v| (v >> dd) as i32);
+            r[axis] += sgn;
+            if r.iter().all(|&v| v >= 0) && (0..3).all(|a| (r[a] as u32) < pr.roots[a]) {
+                nxt = r[0] as u32 + rx * (r[1] as u32 + ry * r[2] as u32);
+            }
+        } else if (bits[axis] == 1) == (sgn > 0) {
+            nxt = inp.g3.get(cell as usize).map_or(NONE, |row| row[axis]);
+        } else {
+            nxt = cell ^ (1 << axis);
+        }
+        steps += 1;
+        if trans < T_MIN {
+            break;
+        }
+        if nxt == NONE {
+            break;
+        }
+        let dn = inp.depth_of(nxt);
+        let coarser = dn + 1 == depth;
+        if dn != depth && !coarser {
+            break;
+        }
+        if steps >= pr.max_steps {
+            break;
+        }
+        let entry = -0.5 * sgn as f32;
+        let mut p_next = p_exit;
+        let mut o_next = origin;
+        if coarser {
+            p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+            o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
+            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
+        } else {
+            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
+        }
+        p_next[axis] = entry;
+        visible = consistent(inp, pr, nxt);
+        cell = nxt;
+        depth = dn;
+        origin = o_next;
+        p = p_next;
+        let fc = inp.first_child_of(nxt);
+        if visible && fc != NONE {
+            let cbits = p_next.map(|v| u32::from(v >= 0.0));
+            let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+            if inp.parent_of(child) == nxt {
+                p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
+                origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
+                cell = child;
+                depth = dn + 1;
+            }
+        }
+    }
+    let _ = steps;
+    for i in 0..3 {
+        colour[i] += trans * pr.background[i];
+    }
+    colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
+}
+
+/// A whole image, row 0 at the top: `width·height·3` bytes of sRGB.
+pub fn render(inp: &RayInput, params: &RayParams) -> Vec<u8> {
+    let mut out = Vec::with_capacity((params.width * params.height * 3) as usize);
+    for y in 0..params.height {
+        for x in 0..params.width {
+            out.extend_from_slice(&trace_pixel(inp, params, x, y));
+        }
+    }
+    out
+}

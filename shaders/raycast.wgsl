@@ -1,0 +1,310 @@
+// Ray casting in cell-local coordinates (docs/spec.md 6 and 7), one pixel
+// per invocation, writing 8-bit sRGB pixels. CPU port:
+// painter/tree/src/raycast.rs, kept line for line; reference:
+// reference/octopaint_ref/raycast.py (the f64 oracle). Host side:
+// painter/gpu/src/raycast.rs. Prepended with a precision prelude
+// (`alias real = f32;`, or `enable f16; alias real = f16;` for the f16
+// variant) and shared/pools.wgsl.
+//
+// Positions, exit distances and frame changes are `real`; compositing is
+// f32. Every position is in the frame of the current cell: centre at 0,
+// edge 1.
+
+const LEFT: u32 = 1u;
+const OPAQUE: u32 = 2u;
+const LOST: u32 = 3u;
+const OVERFLOW: u32 = 4u;
+const RUNNING: u32 = 0u;
+const T_MIN: f32 = 0.00390625; // 1/256 (spec 6)
+
+// Kept in sync with painter/gpu/src/raycast.rs (RayParams); a layout test
+// compares the two through naga.
+struct RayParams {
+    // xyz: the eye's lattice point clamped into the canvas; w: image width
+    eye_cell: vec4<u32>,
+    // xyz: the eye minus eye_cell, lattice units (the fraction when inside);
+    // w: canvas units per lattice unit
+    eye_rel: vec4<f32>,
+    // xyz: roots per axis; w: max depth D
+    roots: vec4<u32>,
+    // xyz: lattice units per axis (R_a * 2^D, exact in f32); w: unused
+    extent: vec4<f32>,
+    // xyz: the last lattice point per axis, R_a * 2^D - 1; w: cells the
+    // pages hold (reads past it are free cells)
+    extent_max: vec4<u32>,
+    // tan(left), tan(right), tan(up), tan(down)
+    tan_fov: vec4<f32>,
+    // rows of the camera-to-canvas rotation M(q)
+    rot0: vec4<f32>,
+    rot1: vec4<f32>,
+    rot2: vec4<f32>,
+    // rgb background, w unused
+    background: vec4<f32>,
+    // x: image height, y: step limit, z: roots in all, w: 1 if the eye is
+    // inside the canvas (then eye_rel is its fraction in [0, 1))
+    misc: vec4<u32>,
+}
+
+@group(1) @binding(0) var<storage, read> g3_0: array<u32>;
+@group(1) @binding(1) var<storage, read> g3_1: array<u32>;
+@group(1) @binding(2) var<storage, read> g3_2: array<u32>;
+@group(1) @binding(3) var<storage, read> g3_3: array<u32>;
+
+@group(2) @binding(0) var<uniform> params: RayParams;
+// One pixel per u32: r | g << 8 | b << 16 | 255 << 24, row 0 at the top.
+@group(2) @binding(1) var<storage, read_write> pixels: array<u32>;
+
+fn g3_at(c: u32, a: u32) -> u32 {
+    if (c >= cells_held) {
+        return NONE;
+    }
+    let j = (c & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
+    switch (c >> PAGE_SHIFT) {
+        case 0u: { return g3_0[j]; }
+        case 1u: { return g3_1[j]; }
+        case 2u: { return g3_2[j]; }
+        default: { return g3_3[j]; }
+    }
+}
+
+// Links agree: a root, or a child whose parent's first_child is its unit
+// (spec 7, inconsistent links).
+fn consistent(c: u32) -> bool {
+    if (c < params.misc.z) {
+        return true;
+    }
+    let par = cell_at(c).parent;
+    return par != NONE && cell_at(par).first_child == (c & 0xFFFFFFF8u);
+}
+
+// base + fl (an integral float) clamped to [0, top], without wrapping.
+fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
+    if (fl >= 0.0) {
+        let m = u32(fl);
+        return select(top, base + m, m <= top - base);
+    }
+    let m = u32(-fl);
+    return select(0u, base - m, m <= base);
+}
+
+// 2^-(D - depth), exact.
+fn inv_edge(depth: u32) -> f32 {
+    return ldexp(1.0, -i32(params.roots.w - depth));
+}
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    cells_held = params.extent_max.w;
+    let w = params.eye_cell.w;
+    let h = params.misc.x;
+    if (gid.x >= w || gid.y >= h) {
+        return;
+    }
+    let D = params.roots.w;
+
+    // The pixel's ray (spec 6).
+    let tl = params.tan_fov.x;
+    let tr = params.tan_fov.y;
+    let tu = params.tan_fov.z;
+    let td = params.tan_fov.w;
+    let tx = tl + (f32(gid.x) + 0.5) / f32(w) * (tr - tl);
+    let ty = tu - (f32(gid.y) + 0.5) / f32(h) * (tu - td);
+    let v = vec3<f32>(
+        params.rot0.x * tx + params.rot0.y * ty - params.rot0.z,
+        params.rot1.x * tx + params.rot1.y * ty - params.rot1.z,
+        params.rot2.x * tx + params.rot2.y * ty - params.rot2.z,
+    );
+    let dir = v / sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+    let d = vec3<real>(dir);
+
+    // Clip to the canvas box (spec 7 'Start'), in lattice units relative
+    // to eye_cell: exact bounds, the eye offset rounded once.
+    let e = params.eye_rel.xyz;
+    let lo = -vec3<f32>(params.eye_cell.xyz);
+    let hi = params.extent.xyz - vec3<f32>(params.eye_cell.xyz);
+    var t_in = -3.0e38;
+    var t_out = 3.0e38;
+    var entry_axis = -1;
+    for (var a = 0; a < 3; a = a + 1) {
+        let in_slab = e[a] >= lo[a] && e[a] < hi[a];
+        var near = select(3.0e38, -3.0e38, in_slab);
+        var far = select(-3.0e38, 3.0e38, in_slab);
+        if (dir[a] != 0.0) {
+            let t0 = (lo[a] - e[a]) / dir[a];
+            let t1 = (hi[a] - e[a]) / dir[a];
+            near = min(t0, t1);
+            far = max(t0, t1);
+        }
+        if (near > t_in) {
+            t_in = near;
+            entry_axis = a;
+        }
+        t_out = min(t_out, far);
+    }
+    let inside = params.misc.w == 1u;
+    var colour = vec3<f32>(0.0);
+    var trans = 1.0;
+    var status = RUNNING;
+    if (!inside && !(t_in <= t_out && t_out > 0.0)) {
+        status = LEFT;
+    }
+    // The start point as a lattice point plus a fraction.
+    var q_lat = params.eye_cell.xyz;
+    var q_frac = e;
+    if (!inside) {
+        let q = e + t_in * dir;
+        for (var a = 0; a < 3; a = a + 1) {
+            let fl = floor(q[a]);
+            q_lat[a] = offset_lattice(params.eye_cell[a], fl, params.extent_max[a]);
+            q_frac[a] = q[a] - fl;
+        }
+    }
+    if (!inside && entry_axis >= 0) {
+        // On the entry axis the point is the bounding plane itself.
+        let ax = u32(entry_axis);
+        q_lat[ax] = select(params.extent_max[ax], 0u, dir[ax] > 0.0);
+        q_frac[ax] = 0.0;
+    }
+    q_lat = min(q_lat, params.extent_max.xyz);
+
+    // Locate the leaf containing the start point (spec 1.3), refusing a
+    // descent into a child whose parent does not point back.
+    let rx = params.roots.x;
+    let ry = params.roots.y;
+    let root = q_lat >> vec3<u32>(D);
+    var cell = root.x + rx * (root.y + ry * root.z);
+    var depth = 0u;
+    var origin = root << vec3<u32>(D);
+    for (var i = 0u; i < D; i = i + 1u) {
+        let fc = cell_at(cell).first_child;
+        if (fc == NONE) {
+            break;
+        }
+        let half = 1u << (D - depth - 1u);
+        let bits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), q_lat - origin >= vec3<u32>(half)));
+        let child = fc + (bits.x | (bits.y << 1u) | (bits.z << 2u));
+        if (cell_at(child).parent != cell) {
+            break;
+        }
+        cell = child;
+        depth = depth + 1u;
+        origin = origin + bits * half;
+    }
+    // The local position: ((E - o) + phi) / S - 1/2, (E - o) exact.
+    let inv = inv_edge(depth);
+    let rel = vec3<real>(vec3<f32>(q_lat - origin) * inv);
+    let frac = vec3<real>(vec3<real>(q_frac) * real(inv));
+    var p = (rel + frac) - real(0.5);
+    if (!inside && entry_axis >= 0) {
+        let ax = u32(entry_axis);
+        p[ax] = select(real(0.5), real(-0.5), dir[ax] > 0.0);
+    }
+    p = clamp(p, vec3<real>(-0.5), vec3<real>(0.5));
+    var visible = consistent(cell);
+
+    var steps = 0u;
+    loop {
+        if (status != RUNNING) {
+            break;
+        }
+        let here = cell_at(cell);
+        // Exit distances, clamped at 0; the smallest, ties to the lowest axis.
+        var t_axes = vec3<real>(real(60000.0));
+        var bound = vec3<real>(real(-0.5));
+        for (var a = 0; a < 3; a = a + 1) {
+            bound[a] = select(real(-0.5), real(0.5), d[a] > real(0.0));
+            if (d[a] != real(0.0)) {
+                t_axes[a] = max((bound[a] - p[a]) / d[a], real(0.0));
+            }
+        }
+        var axis = 0u;
+        if (t_axes.y < t_axes[axis]) {
+            axis = 1u;
+        }
+        if (t_axes.z < t_axes[axis]) {
+            axis = 2u;
+        }
+        let t = t_axes[axis];
+
+        // Emission-absorption over the segment (f32; spec 6).
+        if (visible) {
+            let len_canvas = f32(t) * ldexp(params.eye_rel.w, i32(D - depth));
+            let ext = exp(-here.sigma * len_canvas);
+            let rgb = vec3<f32>(f32(here.rgbd & 255u), f32((here.rgbd >> 8u) & 255u), f32((here.rgbd >> 16u) & 255u)) / 255.0;
+            colour = colour + trans * (1.0 - ext) * rgb;
+            trans = trans * ext;
+        }
+
+        var p_exit = p + t * d;
+        p_exit[axis] = bound[axis];
+
+        // The next cell: sibling across an inward face, g3 across an
+        // outward one, root-array arithmetic for roots.
+        let sgn = select(-1, 1, d[axis] > real(0.0));
+        let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
+        let size = 1u << (D - depth);
+        var nxt = NONE;
+        if (cell < params.misc.z) {
+            var r = vec3<i32>(origin >> vec3<u32>(D));
+            r[axis] = r[axis] + sgn;
+            if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
+                nxt = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+            }
+        } else if ((bits[axis] == 1u) == (sgn > 0)) {
+            nxt = g3_at(cell, axis);
+        } else {
+            nxt = cell ^ (1u << axis);
+        }
+        steps = steps + 1u;
+        if (trans < T_MIN) {
+            status = OPAQUE;
+            break;
+        }
+        if (nxt == NONE) {
+            status = LEFT;
+            break;
+        }
+        let next = cell_at(nxt);
+        let dn = depth_of(next);
+        let coarser = dn + 1u == depth;
+        if (dn != depth && !coarser) {
+            status = LOST; // a freed or unbalanced cell: only mid-upload
+            break;
+        }
+        if (steps >= params.misc.y) {
+            status = OVERFLOW;
+            break;
+        }
+        // Into the next frame: p' = p * scale + shift (spec 7).
+        let entry = real(-0.5) * real(sgn);
+        var p_next = p_exit;
+        var o_next = origin;
+        if (coarser) {
+            p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+            o_next = origin - bits * size;
+            o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
+        } else {
+            o_next[axis] = o_next[axis] + u32(sgn) * size;
+        }
+        p_next[axis] = entry;
+        visible = consistent(nxt);
+        // At most one descent, into the child holding the entry point.
+        cell = nxt;
+        depth = dn;
+        origin = o_next;
+        p = p_next;
+        if (visible && next.first_child != NONE) {
+            let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
+            let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+            if (cell_at(child).parent == nxt) {
+                p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+                origin = o_next + cbits * (1u << (D - dn - 1u));
+                cell = child;
+                depth = dn + 1u;
+            }
+        }
+    }
+    colour = colour + trans * params.background.xyz;
+    let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));
+    pixels[gid.y * w + gid.x] = px.x | (px.y << 8u) | (px.z << 16u) | (255u << 24u);
+}

@@ -1,0 +1,61 @@
+// The pools on the GPU, shared by every stage (docs/spec.md 2.2; the byte
+// layout is drawn in docs/buffer-layouts.md). Kept in sync with
+// painter/gpu/src/pools.rs (GpuCell, PAGES) and painter/tree/src/pool.rs;
+// a stride test in painter/gpu checks the Rust copy.
+//
+// One cell, 16 bytes:
+//
+//   byte 0          4          8                   12         16
+//        +----------+----------+----+----+----+----+----------+
+//        |  parent  |first_chld| r  | g  | b  |dpth|  sigma   |
+//        |   u32    |   u32    |       rgbd u32    |   f32    |
+//        +----------+----------+----+----+----+----+----------+
+//
+// Pools are split into PAGES pages of 2^PAGE_SHIFT cells, one binding each,
+// so that capacity is not capped by one binding's size (128 MiB on
+// lavapipe: 2^23 cells of 16 bytes).
+
+const NONE: u32 = 0xFFFFFFFFu;
+const FREE: u32 = 255u;
+const PAGES: u32 = 4u;
+
+struct Cell {
+    parent: u32,
+    first_child: u32,
+    // r | g << 8 | b << 16 | depth << 24
+    rgbd: u32,
+    sigma: f32,
+}
+
+override PAGE_SHIFT: u32 = 23u;
+
+@group(0) @binding(0) var<storage, read> cells0: array<Cell>;
+@group(0) @binding(1) var<storage, read> cells1: array<Cell>;
+@group(0) @binding(2) var<storage, read> cells2: array<Cell>;
+@group(0) @binding(3) var<storage, read> cells3: array<Cell>;
+
+// Cells the allocated pages hold; every stage sets it first thing in
+// `main` from its parameters. A read at or past it (NONE included) gives a
+// free cell, so a link broken mid-upload never reads another page's cell
+// or an unallocated binding (the CPU ports read out-of-range cells the same
+// way).
+var<private> cells_held: u32;
+
+const FREE_CELL: Cell = Cell(NONE, NONE, 0xFF000000u, 0.0);
+
+fn cell_at(i: u32) -> Cell {
+    if (i >= cells_held) {
+        return FREE_CELL;
+    }
+    let j = i & ((1u << PAGE_SHIFT) - 1u);
+    switch (i >> PAGE_SHIFT) {
+        case 0u: { return cells0[j]; }
+        case 1u: { return cells1[j]; }
+        case 2u: { return cells2[j]; }
+        default: { return cells3[j]; }
+    }
+}
+
+fn depth_of(c: Cell) -> u32 {
+    return c.rgbd >> 24u;
+}
