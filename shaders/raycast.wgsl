@@ -43,6 +43,9 @@ struct RayParams {
     // x: image height, y: step limit, z: roots in all, w: 1 if the eye is
     // inside the canvas (then eye_rel is its fraction in [0, 1))
     misc: vec4<u32>,
+    // x: 1 to skip cells whose links disagree (spec 7; 0 only in the
+    // real-time benchmark's comparison of strategies); yzw: unused
+    flags: vec4<u32>,
 }
 
 @group(1) @binding(0) var<storage, read> g3_0: array<u32>;
@@ -70,7 +73,7 @@ fn g3_at(c: u32, a: u32) -> u32 {
 // Links agree: a root, or a child whose parent's first_child is its unit
 // (spec 7, inconsistent links).
 fn consistent(c: u32) -> bool {
-    if (c < params.misc.z) {
+    if (c < params.misc.z || params.flags.x == 0u) {
         return true;
     }
     let par = cell_at(c).parent;
@@ -183,7 +186,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let half = 1u << (D - depth - 1u);
         let bits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), q_lat - origin >= vec3<u32>(half)));
         let child = fc + (bits.x | (bits.y << 1u) | (bits.z << 2u));
-        if (cell_at(child).parent != cell) {
+        if (params.flags.x != 0u && cell_at(child).parent != cell) {
             break;
         }
         cell = child;
@@ -296,7 +299,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if (visible && next.first_child != NONE) {
             let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
             let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
-            if (cell_at(child).parent == nxt) {
+            if (params.flags.x == 0u || cell_at(child).parent == nxt) {
                 p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
                 origin = o_next + cbits * (1u << (D - dn - 1u));
                 cell = child;

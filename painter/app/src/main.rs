@@ -162,7 +162,7 @@ impl ReplayObserver for Reporter<'_> {
                 let tree = &painting.tree;
                 let g3 = octopaint_tree::g3::g3_table(tree);
                 let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3: &g3 };
-                octopaint_tree::raycast::render(&inp, &RayParams::new(tree, camera))
+                octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera))
             }
         };
         let Some(dir) = out_dir else { return Ok(None) };

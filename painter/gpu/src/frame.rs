@@ -33,8 +33,8 @@ pub struct SyncStats {
 pub struct Renderer {
     pub gpu: Gpu,
     pub pools: GpuPools,
-    g3: G3Pass,
-    ray: RayCaster,
+    pub g3: G3Pass,
+    pub ray: RayCaster,
     attached: bool,
     /// Dirty blocks not uploaded yet, and the regions whose g3 must be
     /// recomputed until they all are.
@@ -105,7 +105,7 @@ impl Renderer {
 
     /// Cast an image of what the GPU holds now (no upload): `w·h·3` bytes.
     pub fn cast(&mut self, tree: &Tree, camera: &Camera, precision: Precision) -> Result<Vec<u8>, GpuError> {
-        let params = RayParams::new(tree, camera);
+        let params = RayParams::new(&tree.lat, camera);
         let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
         self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
         self.gpu.queue.submit([enc.finish()]);

@@ -56,10 +56,17 @@ pub fn stage_block(tree: &Tree, block: u32) -> StagedBlock {
 /// Copy `len` cells from `first` into the GPU layout (free past the used
 /// length).
 pub fn stage_range(tree: &Tree, first: u64, len: usize) -> StagedBlock {
+    let mut cells = Vec::with_capacity(len);
+    stage_into(tree, first, len, &mut cells);
+    StagedBlock { first, cells }
+}
+
+/// [`stage_range`] into a reused buffer (the staging thread's pool).
+pub fn stage_into(tree: &Tree, first: u64, len: usize, cells: &mut Vec<GpuCell>) {
+    cells.clear();
     let start = first as usize;
     let n = tree.n_used() as usize;
     let end = (start + len).min(n.max(start));
-    let mut cells = Vec::with_capacity(len);
     for c in start..end {
         let [r, g, b] = tree.rgb[c];
         cells.push(GpuCell {
@@ -70,7 +77,6 @@ pub fn stage_range(tree: &Tree, first: u64, len: usize) -> StagedBlock {
         });
     }
     cells.resize(len, GpuCell::FREE);
-    StagedBlock { first, cells }
 }
 
 pub struct GpuPools {
@@ -219,14 +225,39 @@ impl GpuPools {
         Ok(true)
     }
 
-    /// Write staged cells into their page (they must not cross pages:
-    /// blocks never do).
+    /// Write staged cells into their pages.
     pub fn upload(&self, gpu: &Gpu, staged: &StagedBlock) {
-        let first = staged.first;
-        let page = (first >> self.page_shift) as usize;
-        debug_assert_eq!(page, ((first + staged.cells.len() as u64 - 1) >> self.page_shift) as usize);
-        let offset = (first & (self.page_cells() - 1)) * 16;
-        gpu.queue.write_buffer(&self.cells[page], offset, bytemuck::cast_slice(&staged.cells));
+        self.upload_cells(gpu, staged.first, &staged.cells);
+    }
+
+    /// Write `cells` from cell `first` on, split at page boundaries (the
+    /// pages must hold them: [`GpuPools::ensure`]).
+    pub fn upload_cells(&self, gpu: &Gpu, first: u64, cells: &[GpuCell]) {
+        let page_cells = self.page_cells();
+        let mut at = 0usize;
+        while at < cells.len() {
+            let c = first + at as u64;
+            let page = (c >> self.page_shift) as usize;
+            let offset = c & (page_cells - 1);
+            let n = ((page_cells - offset) as usize).min(cells.len() - at);
+            gpu.queue.write_buffer(&self.cells[page], offset * 16, bytemuck::cast_slice(&cells[at..at + n]));
+            at += n;
+        }
+    }
+
+    /// Cells `0..n` as the GPU holds them (tests).
+    pub fn read_cells(&self, gpu: &Gpu, n: u64) -> Result<Vec<GpuCell>, GpuError> {
+        let mut out = Vec::with_capacity(n as usize);
+        let page = self.page_cells();
+        for (i, buf) in self.cells.iter().enumerate() {
+            let start = i as u64 * page;
+            if start >= n {
+                break;
+            }
+            let bytes = read_buffer(gpu, buf, (n - start).min(page) * 16)?;
+            out.extend(bytemuck::cast_slice::<u8, GpuCell>(&bytes).iter().copied());
+        }
+        Ok(out)
     }
 
     /// g3 of cells `0..n`, read back from the GPU.

@@ -26,6 +26,7 @@ pub struct RayParamsGpu {
     pub rot2: [f32; 4],
     pub background: [f32; 4],
     pub misc: [u32; 4],
+    pub flags: [u32; 4],
 }
 
 impl RayParamsGpu {
@@ -44,6 +45,7 @@ impl RayParamsGpu {
             rot2: row(p.rot[2]),
             background: [p.background[0], p.background[1], p.background[2], 0.0],
             misc: [p.height, p.max_steps, p.n_roots, u32::from(p.inside)],
+            flags: [u32::from(p.skip_invalid), 0, 0, 0],
         }
     }
 }

@@ -15,7 +15,7 @@ fn cpu_image(painting: &octopaint_tree::paint::Painting, camera: &octopaint_tree
     let t = &painting.tree;
     let g3 = g3_table(t);
     let inp = RayInput { parent: &t.parent, first_child: &t.first_child, depth: &t.depth, rgb: &t.rgb, sigma: &t.sigma, g3: &g3 };
-    render(&inp, &RayParams::new(t, camera))
+    render(&inp, &RayParams::new(&t.lat, camera))
 }
 
 #[test]

@@ -78,16 +78,31 @@ impl Tree {
     pub fn refine_round(&mut self, candidates: &mut Vec<u32>) -> (Vec<(u32, u32)>, Option<Refusal>) {
         candidates.sort_unstable();
         candidates.dedup();
+        let (units, _, refusal) = self.refine_candidates(candidates, usize::MAX);
+        (units, refusal)
+    }
+
+    /// Part of a round: refine the candidates of `sorted` (ascending, each
+    /// once) in order until at least `max_units` units are allocated or the
+    /// list ends. Returns the new units, how many candidates were consumed,
+    /// and the refusal that stopped it. Calling it on consecutive parts of
+    /// a round's sorted candidates refines exactly what one call on the
+    /// whole list does, in the same order: the round's order is sequential
+    /// (spec 4.2), and no cell made in a round is refined later in it.
+    pub fn refine_candidates(&mut self, sorted: &[u32], max_units: usize) -> (Vec<(u32, u32)>, usize, Option<Refusal>) {
         let mut new_units = Vec::new();
-        for &l in candidates.iter() {
+        for (i, &l) in sorted.iter().enumerate() {
+            if new_units.len() >= max_units {
+                return (new_units, i, None);
+            }
             if self.first_child[l as usize] != NONE {
                 continue; // refined earlier in the round, for balance
             }
             if let Err(r) = self.refine_balanced(l, &mut new_units) {
-                return (new_units, Some(r));
+                return (new_units, i + 1, Some(r));
             }
         }
-        (new_units, None)
+        (new_units, sorted.len(), None)
     }
 
     /// For a cell X whose neighbour across X's face `f` is `m` (same depth,

@@ -58,8 +58,16 @@ struct SegmentWork {
     /// The segment's primitives are `prims[first..]`.
     first: usize,
     line: usize,
-    /// Leaves to refine in the next round; None before the paint pass.
-    candidates: Option<Vec<u32>>,
+    stage: Stage,
+}
+
+enum Stage {
+    /// The paint pass comes next.
+    PaintPass,
+    /// A round is under way: its candidates, ascending, from `at` on are
+    /// still to refine; `next` gathers the new cells that need refinement
+    /// (the next round's candidates).
+    Round { candidates: Vec<u32>, at: usize, next: Vec<u32> },
 }
 
 /// Work counters, for benchmarks and tests.
@@ -166,30 +174,53 @@ impl Painting {
         let colour = st.colour;
         st.path.segment(sample, colour, &mut st.prims);
         if st.prims.len() > first {
-            self.work = Some(SegmentWork { first, line, candidates: None });
+            self.work = Some(SegmentWork { first, line, stage: Stage::PaintPass });
         }
     }
 
     /// Run one level of the current sample. Returns true when the sample is
     /// finished (also when there was nothing to do).
     pub fn step_level(&mut self) -> bool {
+        self.step(None)
+    }
+
+    /// One step of the current sample: the paint pass, or a round of
+    /// refinement, or with `max_units` only the part of a round that
+    /// allocates about that many units (and paints their children). Smaller
+    /// steps publish sooner (the real-time pipeline's aggressive staging);
+    /// the tree is 2:1 balanced after every step, and the final tree is the
+    /// same for any step size. Returns true when the sample is finished.
+    pub fn step(&mut self, max_units: Option<usize>) -> bool {
         let Some(mut work) = self.work.take() else { return true };
         let t0 = std::time::Instant::now();
-        let more = match work.candidates.take() {
-            None => {
-                let candidates = self.paint_pass(work.first);
+        let more = match std::mem::replace(&mut work.stage, Stage::PaintPass) {
+            Stage::PaintPass => {
+                let mut candidates = self.paint_pass(work.first);
+                candidates.sort_unstable();
+                candidates.dedup();
                 let more = !candidates.is_empty();
-                work.candidates = Some(candidates);
+                work.stage = Stage::Round { candidates, at: 0, next: Vec::new() };
                 self.counters.paint_pass_ns += t0.elapsed().as_nanos() as u64;
                 more
             }
-            Some(mut candidates) => {
-                let more = match self.refine_level(&mut candidates, work.first, work.line) {
-                    Some(next) if !next.is_empty() => {
-                        work.candidates = Some(next);
-                        true
+            Stage::Round { candidates, at, mut next } => {
+                let part = self.refine_part(&candidates[at..], max_units.unwrap_or(usize::MAX), work.first, work.line);
+                let more = match part {
+                    None => false,
+                    Some((consumed, new_needing)) => {
+                        next.extend(new_needing);
+                        if at + consumed < candidates.len() {
+                            work.stage = Stage::Round { candidates, at: at + consumed, next };
+                            true
+                        } else if next.is_empty() {
+                            false
+                        } else {
+                            next.sort_unstable();
+                            next.dedup();
+                            work.stage = Stage::Round { candidates: next, at: 0, next: Vec::new() };
+                            true
+                        }
                     }
-                    _ => false,
                 };
                 self.counters.refine_ns += t0.elapsed().as_nanos() as u64;
                 more
@@ -370,11 +401,12 @@ impl Painting {
         stack
     }
 
-    /// One refinement round on `candidates`, then the new children painted
-    /// (spec 8.10 step 6). Returns the new cells that need refinement, or
-    /// None when the round allocated nothing or was refused.
-    fn refine_level(&mut self, candidates: &mut Vec<u32>, first: usize, line: usize) -> Option<Vec<u32>> {
-        let (units, refusal) = self.tree.refine_round(candidates);
+    /// Refinement of (part of) a round's sorted candidates, then the new
+    /// children painted (spec 8.10 step 6). Returns how many candidates were
+    /// consumed and the new cells that need refinement, or None when the
+    /// segment stops: a refusal, or a round that allocated nothing.
+    fn refine_part(&mut self, candidates: &[u32], max_units: usize, first: usize, line: usize) -> Option<(usize, Vec<u32>)> {
+        let (units, consumed, refusal) = self.tree.refine_candidates(candidates, max_units);
         if let Some(r) = refusal {
             self.counters.refusals += 1;
             let st = self.stroke.as_mut().expect("stroke");
@@ -394,7 +426,9 @@ impl Painting {
             }
         }
         if units.is_empty() {
-            return None;
+            // Nothing allocated: a refusal, or candidates all refined already
+            // for balance (the round goes on with the rest).
+            return if refusal.is_some() || consumed == 0 { None } else { Some((consumed, Vec::new())) };
         }
         self.counters.cells_created += units.len() as u64 * u64::from(UNIT);
         // New cells with their centres and depth (children of one parent share it).
@@ -422,7 +456,7 @@ impl Painting {
                 next.push(c);
             }
         }
-        Some(next)
+        Some((consumed, next))
     }
 
     /// New children take their parent's before-value and their own stroke

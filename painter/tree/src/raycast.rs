@@ -6,7 +6,8 @@
 //! [`RayParams::new`].
 
 use crate::brush::quat_to_rows;
-use crate::pool::{FREE, NONE, Tree};
+use crate::lattice::Lattice;
+use crate::pool::{FREE, NONE};
 use crate::trace::Camera;
 
 /// The per-frame constants of the ray caster, as the shader's uniform
@@ -30,6 +31,9 @@ pub struct RayParams {
     pub max_steps: u32,
     pub n_roots: u32,
     pub inside: bool,
+    /// Skip cells whose parent/child links disagree (spec 7). Off only for
+    /// the real-time benchmark's strategies that measure the difference.
+    pub skip_invalid: bool,
 }
 
 /// Steps before a ray gives up (a broken tree caught mid-upload).
@@ -40,8 +44,7 @@ impl RayParams {
     /// The frame constants of `camera` over `tree`'s canvas, computed in
     /// f64 on the host (spec 6, 7: the eye split into a lattice point and a
     /// fraction) and rounded once to f32.
-    pub fn new(tree: &Tree, camera: &Camera) -> Self {
-        let lat = &tree.lat;
+    pub fn new(lat: &Lattice, camera: &Camera) -> Self {
         let lu = lat.lattice_unit;
         let mut eye_cell = [0u32; 3];
         let mut eye_rel = [0f32; 3];
@@ -74,6 +77,7 @@ impl RayParams {
             max_steps: MAX_STEPS,
             n_roots: lat.n_roots,
             inside,
+            skip_invalid: true,
         }
     }
 }
@@ -103,7 +107,7 @@ impl RayInput<'_> {
 }
 
 fn consistent(inp: &RayInput, p: &RayParams, c: u32) -> bool {
-    if c < p.n_roots {
+    if c < p.n_roots || !p.skip_invalid {
         return true;
     }
     let par = inp.parent_of(c);
@@ -198,7 +202,7 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         let half = 1u32 << (dd - depth - 1);
         let bits = [0, 1, 2].map(|a| u32::from(q_lat[a] - origin[a] >= half));
         let child = fc + (bits[0] | (bits[1] << 1) | (bits[2] << 2));
-        if inp.parent_of(child) != cell {
+        if pr.skip_invalid && inp.parent_of(child) != cell {
             break;
         }
         cell = child;
@@ -300,7 +304,7 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         if visible && fc != NONE {
             let cbits = p_next.map(|v| u32::from(v >= 0.0));
             let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
-            if inp.parent_of(child) == nxt {
+            if !pr.skip_invalid || inp.parent_of(child) == nxt {
                 p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
                 origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
                 cell = child;

@@ -236,3 +236,46 @@ proptest! {
         run(&s)?;
     }
 }
+
+/// Replay a session's strokes, each sample in steps of at most `max_units`
+/// units (None: whole levels), checking the tree after every step.
+fn paint_in_steps(s: &Session, max_units: Option<usize>) -> Result<Vec<u8>, TestCaseError> {
+    let mut painting = Painting::new(&s.canvas);
+    for op in &s.ops {
+        match op {
+            Op::Stroke(st) => {
+                painting.begin_stroke(&st.brush);
+                for smp in &st.samples {
+                    painting.begin_sample(smp, 0);
+                    let mut steps = 0u32;
+                    while !painting.step(max_units) {
+                        // Every few steps: the full check is O(cells).
+                        steps += 1;
+                        if steps % 16 == 1 {
+                            let problems = check_tree(&painting.tree);
+                            prop_assert!(problems.is_empty(), "{problems:?}");
+                        }
+                    }
+                }
+                painting.end_stroke();
+            }
+            Op::Undo => {
+                painting.undo();
+            }
+            Op::Redo => {
+                painting.redo();
+            }
+        }
+    }
+    Ok(dump_bytes(&painting.tree))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, max_shrink_iters: 200, ..ProptestConfig::default() })]
+    #[test]
+    fn rounds_split_into_small_steps_paint_the_same_tree(s in session(), k in prop_oneof![Just(1usize), 2usize..40]) {
+        let whole = paint_in_steps(&s, None)?;
+        let split = paint_in_steps(&s, Some(k))?;
+        prop_assert!(whole == split, "painting in steps of {k} units changed the tree");
+    }
+}

@@ -1,0 +1,83 @@
+//! The pipeline's settings: the experiments of the paper's section 5 are
+//! reruns with different values of these.
+
+use octopaint_gpu::{Backend, Precision};
+use octopaint_tree::trace::Camera;
+
+/// How many cells one staged copy holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BlockSize {
+    /// A group of 65,536-cell blocks: `cells` must be a power of two at
+    /// least 65,536 (the unit the tree marks dirty).
+    Cells(u32),
+    /// The whole used pool, copied at once (the paper's "no block").
+    WholePool,
+}
+
+/// The neighbour mask's resolution (spec 3.5 fixes 64×32 for the tree;
+/// coarser ones widen every dirty region to its coarse cell).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaskSize {
+    /// Columns × rows, dividing 64 × 32.
+    Grid(u32, u32),
+    /// No mask: g3 over every region whenever anything is uploaded.
+    None,
+}
+
+/// How the stages hand work on (the paper's Fig. 9 strategies).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strategy {
+    /// The ray caster skips cells whose links disagree (spec 7).
+    pub skip_invalid: bool,
+    /// Publish after every `n` units of a refinement round instead of
+    /// after whole levels: staging starts sooner.
+    pub aggressive_units: Option<usize>,
+    /// Stage every pending block in one batch and upload it in one frame
+    /// (dependencies respected: no frame shows a half-uploaded level).
+    pub grouped: bool,
+}
+
+impl Default for Strategy {
+    fn default() -> Self {
+        Strategy { skip_invalid: true, aggressive_units: None, grouped: false }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub block: BlockSize,
+    /// Staged items uploaded per frame at most (K).
+    pub blocks_per_frame: usize,
+    pub mask: MaskSize,
+    /// Staging buffers in the pool.
+    pub staging_buffers: usize,
+    /// Jobs the input may queue ahead of the stroke thread.
+    pub job_queue: usize,
+    pub strategy: Strategy,
+    pub camera: Camera,
+    pub precision: Precision,
+    pub backend: Backend,
+    /// Pace frames at this rate (a headset's refresh); None: as fast as the
+    /// renderer goes.
+    pub target_hz: Option<f64>,
+    /// Read every frame's image back (corruption analysis; costs time).
+    pub capture: bool,
+}
+
+impl Settings {
+    pub fn new(camera: Camera) -> Settings {
+        Settings {
+            block: BlockSize::Cells(65536),
+            blocks_per_frame: 4,
+            mask: MaskSize::Grid(64, 32),
+            staging_buffers: 16,
+            job_queue: 4096,
+            strategy: Strategy::default(),
+            camera,
+            precision: Precision::F32,
+            backend: Backend::Auto,
+            target_hz: None,
+            capture: false,
+        }
+    }
+}
