@@ -19,7 +19,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu clean
+.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu bench-realtime clean
 
 setup: system $(VENV)/.installed
 
@@ -68,6 +68,13 @@ test: setup painter test-painter test-reference conformance
 # ms per frame at 1280x720 on the scene trace (docs/benchmarks.md).
 bench-gpu: setup painter
 	$(PAINTER) bench gpu traces/scene.jsonl
+
+# The real-time pipeline's experiments (the paper's Table 1, Fig. 8, Fig. 9,
+# latency; about 7 minutes on 2 cores): out/realtime/results.json, then the
+# plots into docs/realtime/ (docs/benchmarks.md).
+bench-realtime: setup painter
+	$(PAINTER) bench realtime traces/scene.jsonl --out $(OUT)/realtime
+	$(PY) painter/bench/plot_realtime.py $(OUT)/realtime/results.json docs/realtime
 
 # The precision study's figures and tables (about 7 minutes), docs/precision/.
 precision: setup

@@ -2,6 +2,7 @@
 //! to tree dumps, trace validation, and the tree benchmark.
 
 mod bench_gpu;
+mod bench_realtime;
 mod bench_tree;
 mod canonical;
 mod png_out;
@@ -100,6 +101,8 @@ enum Bench {
     Tree(bench_tree::Args),
     /// The GPU pipeline on a painted trace: uploads, g3 pass, ray casting.
     Gpu(bench_gpu::Args),
+    /// The real-time pipeline (the paper's Table 1, Fig. 8, Fig. 9, latency).
+    Realtime(bench_realtime::Args),
 }
 
 /// Prints warnings as they happen; shows progress on a terminal; records a
@@ -290,6 +293,13 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("octopaint: bench tree: {e:#}");
+                ExitCode::from(1)
+            }
+        },
+        Command::Bench { which: Bench::Realtime(args) } => match bench_realtime::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("octopaint: bench realtime: {e:#}");
                 ExitCode::from(1)
             }
         },

@@ -77,3 +77,63 @@ fn an_unwritable_output_folder_is_a_clear_error() {
     assert!(stderr.contains("cannot write to"), "{stderr}");
     assert_eq!(std::fs::read(&blocker).unwrap(), b"not a folder");
 }
+
+/// `bench realtime --quick` on a short live stroke: every configuration
+/// runs, every job gets a latency, the strategy runs get a corruption
+/// figure, and the results file is complete JSON.
+#[test]
+fn bench_realtime_runs_and_writes_its_results() {
+    let scratch = tempfile::tempdir().unwrap();
+    let res = octopaint()
+        .args(["bench", "realtime"])
+        .arg(repo().join("traces/scene.jsonl"))
+        .args(["--quick", "--samples", "12", "--size", "48x27", "--out"])
+        .arg(scratch.path())
+        .env("NODEVICE_SELECT", "1")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&res.stdout);
+    assert!(res.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&res.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(scratch.path().join("results.json")).unwrap()).unwrap();
+    let live = doc["live_jobs"].as_u64().unwrap();
+    assert_eq!(live, 14, "begin, 12 samples, end");
+    let runs = doc["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 5);
+    for r in runs {
+        assert_eq!(r["jobs"].as_u64(), Some(live), "{}", r["label"]);
+        assert!(r["frames"].as_u64().unwrap() > 0);
+        let lat = &r["latency_ms"];
+        assert!(lat["p50"].as_f64().unwrap() > 0.0 && lat["p50"].as_f64() <= lat["max"].as_f64());
+        assert!(r["staging_copies"].as_u64().unwrap() > 0);
+        assert_eq!(r["frame_series"].as_array().unwrap().len() as u64, r["frames"].as_u64().unwrap());
+        if r["group"] == "fig9_k4" {
+            let c = &r["corruption"];
+            assert_eq!(c["frames"], r["frames"]);
+            assert!(c["corrupted"].as_u64().unwrap() <= c["frames"].as_u64().unwrap());
+        } else {
+            assert!(r["corruption"].is_null());
+        }
+    }
+    // The grouped strategy never shows a partial batch.
+    let grouped = runs.iter().find(|r| r["grouped"] == true && r["group"] == "fig9_k4").unwrap();
+    assert_eq!(grouped["corruption"]["corrupted"].as_u64(), Some(0));
+}
+
+#[test]
+fn bench_realtime_refuses_absurd_settings() {
+    let scratch = tempfile::tempdir().unwrap();
+    for args in [["--size", "0x10"], ["--size", "99999x10"], ["--size", "wide"], ["--hz", "NaN"], ["--stroke", "99"]] {
+        let res = octopaint()
+            .args(["bench", "realtime"])
+            .arg(repo().join("traces/scene.jsonl"))
+            .args(args)
+            .arg("--out")
+            .arg(scratch.path())
+            .output()
+            .unwrap();
+        assert_eq!(res.status.code(), Some(1), "{args:?}");
+        let stderr = String::from_utf8_lossy(&res.stderr);
+        assert!(stderr.starts_with("octopaint: bench realtime: "), "{args:?}: {stderr}");
+    }
+    assert!(!scratch.path().join("results.json").exists());
+}

@@ -52,6 +52,15 @@ impl Renderer {
         Ok(Renderer { gpu, pools, g3, ray, attached: false, pending_blocks: Vec::new(), pending_mask: NeighbourMask::default() })
     }
 
+    /// Take a publication someone else took from the tree (a caller that
+    /// needs to look at it first) into the pending set.
+    pub fn apply(&mut self, publication: &octopaint_tree::dirty::Publication) {
+        self.pending_blocks.extend(publication.blocks.iter().copied());
+        self.pending_blocks.sort_unstable();
+        self.pending_blocks.dedup();
+        self.pending_mask.union(&publication.mask);
+    }
+
     /// Take the tree's new changes into the pending set.
     fn collect(&mut self, tree: &mut Tree) {
         if !self.attached {
@@ -105,7 +114,12 @@ impl Renderer {
 
     /// Cast an image of what the GPU holds now (no upload): `w·h·3` bytes.
     pub fn cast(&mut self, tree: &Tree, camera: &Camera, precision: Precision) -> Result<Vec<u8>, GpuError> {
-        let params = RayParams::new(&tree.lat, camera);
+        self.cast_params(&RayParams::new(&tree.lat, camera), precision)
+    }
+
+    /// [`Renderer::cast`] with the frame constants given.
+    pub fn cast_params(&mut self, params: &RayParams, precision: Precision) -> Result<Vec<u8>, GpuError> {
+        let params = *params;
         let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
         self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
         self.gpu.queue.submit([enc.finish()]);

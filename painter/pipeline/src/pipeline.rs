@@ -150,6 +150,14 @@ fn group_cells(block: BlockSize) -> Option<u64> {
     }
 }
 
+/// First cell and length of a group's copy.
+fn group_range(block: BlockSize, group: u32, n_used: u32) -> (u64, usize) {
+    match group_cells(block) {
+        Some(c) => (u64::from(group) * c, c as usize),
+        None => (0, (n_used as usize).div_ceil(BLOCK_CELLS as usize) * BLOCK_CELLS as usize),
+    }
+}
+
 fn group_of(block: BlockSize, b: u32) -> u32 {
     match group_cells(block) {
         Some(c) => (u64::from(b) * u64::from(BLOCK_CELLS) / c) as u32,
@@ -337,43 +345,49 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
     let mut records = Vec::new();
     let mut version = 0u64;
     loop {
-        let taken = if settings.strategy.grouped { shared.pending.take_all() } else { shared.pending.take_newest().map(|t| vec![t]) };
-        let Some(taken) = taken else { break };
-        let mut copies = Vec::with_capacity(taken.len());
-        for t in taken {
-            let mut cells: Vec<GpuCell> = if settings.strategy.grouped { Vec::new() } else { shared.staged.buffer() };
+        if settings.strategy.grouped {
+            // Grouped staging: everything pending, taken and copied under one
+            // hold of the tree's lock: one consistent state.
+            if !shared.pending.wait_for_work() {
+                break;
+            }
             let w0 = Instant::now();
             let painting = shared.painting.lock().expect("painting");
             let t0 = Instant::now();
-            let (first, len) = match group_cells(settings.block) {
-                Some(c) => (u64::from(t.group) * c, c as usize),
-                None => (0, (painting.tree.n_used() as usize).div_ceil(BLOCK_CELLS as usize) * BLOCK_CELLS as usize),
-            };
-            stage_into(&painting.tree, first, len, &mut cells);
-            // The copy holds every publication recorded so far: the stroke
-            // thread records them while it holds this lock.
+            let taken = shared.pending.take_all_now();
             let covered = shared.ledger.lock().expect("ledger").last_pub;
+            let mut copies = Vec::with_capacity(taken.len());
+            for t in taken {
+                let (first, len) = group_range(settings.block, t.group, painting.tree.n_used());
+                let mut cells = Vec::new();
+                stage_into(&painting.tree, first, len, &mut cells);
+                version += 1;
+                copies.push(StagedCopy { group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t0 });
+            }
             drop(painting);
             let t1 = Instant::now();
-            records.push(StagingRecord { cells: len as u64, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
-            version += 1;
-            copies.push(StagedCopy {
-                group: t.group,
-                first,
-                cells,
-                covered_pub: covered.max(t.newest_pub),
-                mask: t.mask,
-                blocks: t.blocks,
-                version,
-                staged_at: t1,
-            });
-        }
-        if settings.strategy.grouped {
+            let cells: u64 = copies.iter().map(|c| c.cells.len() as u64).sum();
+            records.push(StagingRecord { cells, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
             shared.staged.push(StagedItem::Batch(copies));
-        } else {
-            for c in copies {
-                shared.staged.push(StagedItem::One(c));
-            }
+            continue;
+        }
+        let Some(t) = shared.pending.take_newest() else { break };
+        let mut cells: Vec<GpuCell> = shared.staged.buffer();
+        let w0 = Instant::now();
+        let painting = shared.painting.lock().expect("painting");
+        let t0 = Instant::now();
+        let (first, len) = group_range(settings.block, t.group, painting.tree.n_used());
+        stage_into(&painting.tree, first, len, &mut cells);
+        // The copy holds every publication recorded so far: the stroke
+        // thread records them while it holds this lock.
+        let covered = shared.ledger.lock().expect("ledger").last_pub;
+        drop(painting);
+        let t1 = Instant::now();
+        records.push(StagingRecord { cells: len as u64, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
+        version += 1;
+        let copies = vec![StagedCopy { group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t1 }];
+        for c in copies {
+            shared.staged.push(StagedItem::One(c));
         }
     }
     shared.staged.close();
@@ -393,9 +407,12 @@ fn render_thread(
     let mut newest_uploaded = 0u64;
     // The g3 regions of every copy uploaded ahead of the consistent cut,
     // with the publication it covers. Copies arrive newest first, so a
-    // copy can land before an older publication's; a publication's regions
-    // were computed by the stroke thread against the tree as it was then,
-    // so they are recomputed every frame until the cut has passed them.
+    // copy can land before an older publication's; its regions are
+    // recomputed when it is uploaded (so the frame shows it) and once more
+    // in the frame the cut passes its publication, when every block that
+    // publication's g3 depends on is on the GPU at least as new. (Recomputing
+    // them every frame until then, as this once did, made a pipeline that
+    // had fallen behind spend its frames on g3 and fall further behind.)
     let mut floating: Vec<(u64, NeighbourMask)> = Vec::new();
     let mut params = RayParams::new(&lattice, &settings.camera);
     params.skip_invalid = settings.strategy.skip_invalid;
@@ -407,9 +424,14 @@ fn render_thread(
             g.pass();
         }
         let start = Instant::now();
-        let items = shared.staged.take(settings.blocks_per_frame.max(1));
+        // Grouped staging uploads every staged batch: batches are
+        // consistent states only together with the ones before them (a LIFO
+        // bounded by K would upload newer batches over older ones left out).
+        let k = if settings.strategy.grouped { usize::MAX } else { settings.blocks_per_frame.max(1) };
+        let items = shared.staged.take(k);
         let (mut uploads, mut cells_uploaded) = (0u32, 0u64);
         let mut covered: Vec<(Vec<u32>, u64)> = Vec::new();
+        let mut mask = NeighbourMask::default();
         for item in items {
             let copies = match item {
                 StagedItem::One(c) => vec![c],
@@ -428,16 +450,30 @@ fn render_thread(
                 // A copy older than one already uploaded is not written, but
                 // its regions are recomputed and its changes count as on the
                 // GPU: the newer copy holds them, not its regions.
+                mask.union(&c.mask);
                 floating.push((c.covered_pub, c.mask));
                 covered.push((c.blocks, c.covered_pub));
                 shared.staged.give_back(c.cells);
             }
         }
+        // The cut after this frame's uploads: the floating regions it
+        // passes are recomputed now, for the last time.
+        let cut = {
+            let mut l = shared.ledger.lock().expect("ledger");
+            for (blocks, pub_no) in covered {
+                for b in blocks {
+                    l.uploaded(b, pub_no);
+                }
+            }
+            l.cut()
+        };
+        floating.retain(|(p, m)| {
+            if *p <= cut {
+                mask.union(m);
+            }
+            *p > cut
+        });
         let t_up = Instant::now();
-        let mut mask = NeighbourMask::default();
-        for (_, m) in &floating {
-            mask.union(m);
-        }
         let mut enc = r.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         let regions = r.g3.encode(&r.gpu, &r.pools, &mut enc, &widen(&mask, settings.mask), capacity, lattice.roots);
         r.gpu.queue.submit([enc.finish()]);
@@ -450,17 +486,14 @@ fn render_thread(
         r.gpu.wait();
         let end = Instant::now();
         let index = frames.len() as u64 + 1;
-        let (cut, shown_jobs, unshown) = {
+        let (shown_jobs, unshown) = {
             let mut l = shared.ledger.lock().expect("ledger");
-            for (blocks, pub_no) in covered {
-                for b in blocks {
-                    l.uploaded(b, pub_no);
-                }
-            }
+            // (The cut may have moved on since the uploads, by publications
+            // that changed no block; the frame's record keeps the cut its
+            // image shows.)
             let shown = l.frame_ended(index, end);
-            (l.cut(), shown, l.unshown())
+            (shown, l.unshown())
         };
-        floating.retain(|(p, _)| *p > cut);
         frames.push(FrameRecord {
             index,
             start,

@@ -102,25 +102,30 @@ impl PendingSet {
         }
     }
 
-    /// Every pending group at once (grouped staging: one consistent batch).
-    pub fn take_all(&self) -> Option<Vec<Taken>> {
+    /// Wait until something is pending; false once closed and empty.
+    pub fn wait_for_work(&self) -> bool {
         let mut inner = self.inner.lock().expect("pending lock");
         loop {
             if !inner.groups.is_empty() {
-                inner.stack.clear();
-                let mut all: Vec<Taken> = inner
-                    .groups
-                    .drain()
-                    .map(|(g, e)| Taken { group: g, newest_pub: e.newest_pub, mask: e.mask, blocks: e.blocks })
-                    .collect();
-                all.sort_by_key(|t| t.group);
-                return Some(all);
+                return true;
             }
             if inner.closed {
-                return None;
+                return false;
             }
             inner = self.changed.wait(inner).expect("pending lock");
         }
+    }
+
+    /// Every pending group at once, without waiting (grouped staging calls
+    /// it holding the tree's lock, so that the batch is one consistent
+    /// state: no publication can slip in between taking and copying).
+    pub fn take_all_now(&self) -> Vec<Taken> {
+        let mut inner = self.inner.lock().expect("pending lock");
+        inner.stack.clear();
+        let mut all: Vec<Taken> =
+            inner.groups.drain().map(|(g, e)| Taken { group: g, newest_pub: e.newest_pub, mask: e.mask, blocks: e.blocks }).collect();
+        all.sort_by_key(|t| t.group);
+        all
     }
 
     pub fn close(&self) {

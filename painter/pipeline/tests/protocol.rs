@@ -49,6 +49,9 @@ fn run_and_check(name: &str, tweak: impl FnOnce(&mut Settings)) -> Report {
     let t = trace(name);
     let mut settings = Settings::new(camera(&t));
     settings.blocks_per_frame = 2;
+    // The paper's staging, block by block, newest first (the default,
+    // grouped, is one of the variants below): copies land out of order.
+    settings.strategy = Strategy { skip_invalid: true, aggressive_units: None, grouped: false };
     tweak(&mut settings);
     let p = Pipeline::start(Painting::new(&t.canvas), settings.clone(), Hooks::default()).unwrap();
     let jobs = from_trace(&t);

@@ -60,7 +60,7 @@ impl UndoStep {
 }
 
 /// Done and undone strokes.
-#[derive(Default)]
+#[derive(Clone, Default)]
 pub struct History {
     pub done: Vec<UndoStep>,
     pub undone: Vec<UndoStep>,

@@ -36,6 +36,7 @@ struct Slot {
 }
 
 /// The stroke in progress.
+#[derive(Clone)]
 struct StrokeState {
     brush: Brush,
     path: StrokePath,
@@ -54,6 +55,7 @@ struct StrokeState {
 }
 
 /// The segment being processed, between levels.
+#[derive(Clone)]
 struct SegmentWork {
     /// The segment's primitives are `prims[first..]`.
     first: usize,
@@ -61,6 +63,7 @@ struct SegmentWork {
     stage: Stage,
 }
 
+#[derive(Clone)]
 enum Stage {
     /// The paint pass comes next.
     PaintPass,
@@ -95,6 +98,7 @@ pub struct PaintCounters {
 }
 
 /// A tree plus the strokes painted on it.
+#[derive(Clone)]
 pub struct Painting {
     pub tree: Tree,
     pub history: History,

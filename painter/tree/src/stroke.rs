@@ -52,6 +52,7 @@ struct Previous {
 }
 
 /// Turns the samples of one stroke into segments.
+#[derive(Clone)]
 pub struct StrokePath {
     brush: Brush,
     prev: Option<Previous>,
