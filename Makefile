@@ -1,11 +1,13 @@
 # Octopaint: the two commands of the README.
 #   make demo   set up, replay the scene trace with the reference (images and
-#               tree dumps) and with the painter (tree dumps), compare them
+#               tree dumps) and with the painter (tree dumps), compare them,
+#               export the scene's detail to OpenVDB and glTF (out/export)
 #   make test   set up, run every test: the painter's (cargo), the
 #               reference's and the conformance driver's (pytest), then
 #               conformance on every trace in traces/
 # Setup is Mesa's CPU drivers for Vulkan and GL (lavapipe, llvmpipe: the GPU
-# tests and renders run on them when the machine has no GPU), a virtual
+# tests and renders run on them when the machine has no GPU), Debian's
+# OpenVDB Python module (the export tests read .vdb files with it), a virtual
 # environment in .venv with the reference package (reference/pyproject.toml)
 # installed in editable mode, and the painter built in release mode
 # (painter/target/release/octopaint). Needs python3, cargo, apt-get (as root,
@@ -19,18 +21,22 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu bench-realtime clean
+.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean
 
 setup: system $(VENV)/.installed
 
 # The Vulkan loader and Mesa's drivers; a machine with a GPU driver of its
 # own keeps it (wgpu prefers a discrete or integrated GPU to lavapipe).
+# OpenVDB's own Python module for Debian's python3: the export tests open
+# the painter's .vdb files with it (conformance/vdb_probe.py).
 MESA_PACKAGES := mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri
+SYSTEM_PACKAGES := $(MESA_PACKAGES) python3-openvdb python3-numpy
 system:
-	@if ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1 || ! ldconfig -p | grep -q libEGL_mesa; then \
-	  echo "installing $(MESA_PACKAGES)"; \
-	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MESA_PACKAGES) >/dev/null || \
-	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(MESA_PACKAGES) >/dev/null; }; \
+	@if ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1 || ! ldconfig -p | grep -q libEGL_mesa \
+	    || ! /usr/bin/python3 -c 'import pyopenvdb, numpy' >/dev/null 2>&1; then \
+	  echo "installing $(SYSTEM_PACKAGES)"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null; }; \
 	fi
 
 $(VENV)/.installed: reference/pyproject.toml
@@ -51,6 +57,12 @@ demo: setup painter
 	$(VENV)/bin/octopaint-ref check $(OUT)/reference/*.npz
 	$(PAINTER) replay traces/scene.jsonl --out $(OUT)/painter
 	$(PY) conformance/driver.py traces/scene.jsonl --painter $(PAINTER) --report $(OUT)/conformance --generated 200 --require-images
+	mkdir -p $(OUT)/export
+	$(PAINTER) export traces/scene.jsonl --region $(DETAIL) --vdb $(OUT)/export/scene_detail.vdb --gltf $(OUT)/export/scene_detail.glb
+
+# The scene's finest strokes (radius 3 to 60 mm on a 40 km canvas), in
+# canvas units: the box `make demo` exports and docs/export.md renders.
+DETAIL := 19999.6,19999.7,19999.5,20000.6,20000.5,20000.3
 
 test-painter: system
 	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml
@@ -75,6 +87,11 @@ bench-gpu: setup painter
 bench-realtime: setup painter
 	$(PAINTER) bench realtime traces/scene.jsonl --out $(OUT)/realtime
 	$(PY) painter/bench/plot_realtime.py $(OUT)/realtime/results.json docs/realtime
+
+# Export timings against OpenVDB's own writer (docs/benchmarks.md, "Exports");
+# Debian's python3 for its OpenVDB module.
+bench-export: setup painter
+	/usr/bin/python3 painter/bench/export_vs_openvdb.py
 
 # The precision study's figures and tables (about 7 minutes), docs/precision/.
 precision: setup

@@ -1,4 +1,4 @@
-"""The `octopaint-ref` command line: replay, check."""
+"""The `octopaint-ref` command line: replay, check, export."""
 
 from __future__ import annotations
 
@@ -50,6 +50,32 @@ def _cmd_check(args) -> int:
     return status
 
 
+def _cmd_export(args) -> int:
+    import time
+
+    from .export import ExportError, export_regions, load_input, summary, write_export
+
+    def warn(msg):
+        print(f"octopaint-ref: warning: {args.input}: {msg}", file=sys.stderr)
+
+    try:
+        arrays, replay_seconds = load_input(args.input, warn=warn, depth=args.depth)
+        t0 = time.perf_counter()
+        out = export_regions(arrays, args.depth, args.colour)
+        seconds = time.perf_counter() - t0
+    except (TraceError, ExportError) as e:
+        print(f"octopaint-ref: {args.input}: {e}", file=sys.stderr)
+        return 2
+    try:
+        write_export(args.voxels, out)
+    except OSError as e:
+        print(f"octopaint-ref: {args.voxels}: cannot write: {e.strerror or e}", file=sys.stderr)
+        return 1
+    if not args.quiet:
+        print(summary(out, seconds, replay_seconds), file=sys.stderr)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="octopaint-ref", description="Octopaint reference implementation")
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -61,6 +87,31 @@ def main(argv=None) -> int:
     ck = sub.add_parser("check", help="validate tree dumps: structure, balance, g3 against brute force")
     ck.add_argument("dumps", nargs="+", help=".npz tree dumps")
     ck.set_defaults(func=_cmd_check)
+    ex = sub.add_parser(
+        "export",
+        help="resample a painting at one export depth and write its regions (.npz), the oracle for the painter's OpenVDB export",
+        description="Resample the painting at export depth E, as the painter's voxel export does, and write every "
+        "active region (a leaf no deeper than E, or a cell of depth E aggregating its leaves) to an .npz: "
+        "origin int32 (N,3) voxel origins, log2_edge uint8 (N,), density f32 (N,), color f32 (N,3), "
+        "depth uint32, voxel_size f64, colour_space str.",
+    )
+    ex.add_argument("input", help="a tree dump (.npz) or a trace (.jsonl, replayed in memory; its final tree is exported)")
+    ex.add_argument("--voxels", required=True, metavar="OUT.npz", help="the .npz of regions to write (atomically, mode 0644)")
+    ex.add_argument(
+        "--depth",
+        type=int,
+        metavar="E",
+        help="export depth: a voxel is a cell of depth E (default: the deepest depth of a painted leaf, "
+        "capped at the deepest depth whose voxel indices fit 32-bit coordinates)",
+    )
+    ex.add_argument(
+        "--colour",
+        choices=("linear", "srgb"),
+        default="linear",
+        help="colour encoding written: linear (the default; what Blender and glTF expect) or srgb (as stored and blended)",
+    )
+    ex.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors (no summary line)")
+    ex.set_defaults(func=_cmd_export)
     args = ap.parse_args(argv)
     return args.func(args)
 

@@ -1,10 +1,12 @@
-//! `octopaint`: the painter's command line. Today: headless replay of traces
-//! to tree dumps, trace validation, and the tree benchmark.
+//! `octopaint`: the painter's command line: headless replay of traces to
+//! tree dumps and images, trace validation, exports to other tools, and
+//! the benchmarks.
 
 mod bench_gpu;
 mod bench_realtime;
 mod bench_tree;
 mod canonical;
+mod export;
 mod png_out;
 
 use std::path::{Path, PathBuf};
@@ -68,6 +70,13 @@ enum Command {
         #[arg(long)]
         canonical: bool,
     },
+    /// Export a painting for other tools: an OpenVDB volume (density and
+    /// colour grids) and iso-surface meshes (glTF binary, OBJ).
+    ///
+    /// Every refusal (a depth too fine for --max-mib, too many triangles,
+    /// a malformed input) happens before any file is written (exit status
+    /// 2); each file is written whole or not at all.
+    Export(export::Args),
     /// Benchmarks that print figures (docs/benchmarks.md).
     Bench {
         #[command(subcommand)]
@@ -289,6 +298,7 @@ fn main() -> ExitCode {
             cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
         }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
+        Command::Export(args) => export::run(&args),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {

@@ -1,0 +1,467 @@
+//! `octopaint export`: a painting to OpenVDB (volumes) and to glTF binary
+//! and OBJ (iso-surface meshes) for other tools (docs/export.md).
+//!
+//! Everything that can refuse the export (the depth, the size cap, the
+//! triangle cap, the options) is decided before the first file is written;
+//! each file is written to a temporary name beside it and renamed, so an
+//! interrupted or refused export leaves the previous files as they were.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use octopaint_export::voxels::{self, VoxelGrid};
+use octopaint_export::{ColourSpace, Crop, ExportError, Placement, SurfaceOptions, default_iso, mesh, surface, vdb};
+use octopaint_tree::paint::Painting;
+use octopaint_tree::replay::{ReplayObserver, replay};
+use octopaint_tree::trace::{EventKind, read_trace};
+
+#[derive(clap::Args)]
+#[command(after_long_help = "\
+Examples:
+  octopaint export traces/scene.jsonl --vdb scene.vdb
+  octopaint export traces/scene.jsonl --vdb scene.vdb --depth 9 --up z
+  octopaint export traces/scene.jsonl --gltf scene.glb --obj scene.obj --iso 2
+
+docs/export.md explains the values written and how Blender and Houdini open them.")]
+pub struct Args {
+    /// The painting: a .jsonl trace, replayed to its end (the painter's
+    /// documents will be accepted here too).
+    pub input: PathBuf,
+    /// Write an OpenVDB file with two grids sharing one topology:
+    /// `density` (a float fog volume: extinction per file unit) and
+    /// `color` (vec3, the colour space of --colour).
+    #[arg(long, value_name = "OUT.vdb")]
+    pub vdb: Option<PathBuf>,
+    /// Write the iso-surface of the density as glTF 2.0 binary: positions,
+    /// normals, linear vertex colours, +y up, metres = canvas units ×
+    /// --scale.
+    #[arg(long, value_name = "OUT.glb")]
+    pub gltf: Option<PathBuf>,
+    /// Write the same iso-surface as Wavefront OBJ with vertex colours
+    /// (`v x y z r g b`) and normals.
+    #[arg(long, value_name = "OUT.obj")]
+    pub obj: Option<PathBuf>,
+    /// Depth of the VDB's voxels: a voxel is a cell of this depth, the
+    /// canvas's root size / 2^DEPTH wide. Coarser leaves become tiles or
+    /// blocks of equal voxels; finer cells are averaged into their voxel.
+    /// Default: the deepest painted leaf's depth, or the deepest depth
+    /// that fits --max-mib.
+    #[arg(long, value_name = "DEPTH")]
+    pub depth: Option<u32>,
+    /// The largest VDB grid to build, in MiB of uncompressed voxel data
+    /// (density and colour together; the file is smaller, compressed).
+    /// An explicit --depth past it is refused with the deepest depth that
+    /// fits. The grid is built in memory: keep the cap below the RAM.
+    #[arg(long, value_name = "MIB", default_value_t = 1024)]
+    pub max_mib: u64,
+    /// Extinction (per canvas unit) at which the mesh's surface lies:
+    /// leaves at or above it are inside. Default: half the median
+    /// extinction of the painted leaves.
+    #[arg(long, value_name = "SIGMA", allow_negative_numbers = true)]
+    pub iso: Option<f64>,
+    /// Build the mesh on the tree cut at this depth (deeper cells are
+    /// averaged), for a lighter mesh of a very detailed painting. Default:
+    /// the tree's own leaves, all of them.
+    #[arg(long, value_name = "DEPTH")]
+    pub mesh_depth: Option<u32>,
+    /// Refuse the mesh past this many triangles.
+    #[arg(long, value_name = "N", default_value_t = 50_000_000)]
+    pub max_triangles: usize,
+    /// Colour space of the VDB `color` grid and of the OBJ's vertex
+    /// colours: linear (what Blender's and Houdini's volume shaders and
+    /// glTF expect) or the sRGB encoding the painter stores. glTF vertex
+    /// colours are always linear.
+    #[arg(long, value_enum, default_value_t = ColourChoice::Linear)]
+    pub colour: ColourChoice,
+    /// File units per canvas unit (e.g. metres per canvas unit). Voxel
+    /// size and positions are multiplied by it and extinction divided by
+    /// it, so the painting looks the same at any scale.
+    #[arg(long, value_name = "S", default_value_t = 1.0, allow_negative_numbers = true)]
+    pub scale: f64,
+    /// The canvas point (X,Y,Z, canvas units, on the canvas) that becomes
+    /// the files' origin. Other tools hold positions in 32-bit floats, which
+    /// near x = 20,000 are 2 mm apart: move a detailed part of a large
+    /// canvas to the origin (e.g. the centre of --region) to keep its
+    /// millimetres. Default: the canvas's corner (0,0,0).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
+    pub origin: Option<[f64; 3]>,
+    /// Which file axis the canvas's up (+y) becomes in the VDB and the
+    /// OBJ: y (Houdini, Maya, glTF) or z (Blender, which imports glTF
+    /// turned but VDB and OBJ as they are unless told).
+    #[arg(long, value_enum, default_value_t = UpChoice::Y)]
+    pub up: UpChoice,
+    /// Export the painting as it was at this snapshot event of the trace
+    /// (a stroke still open there is ended, as at the end of a trace).
+    /// Default: the end of the trace.
+    #[arg(long, value_name = "SNAPSHOT")]
+    pub at: Option<String>,
+    /// Export only this box of the canvas, in canvas units:
+    /// X0,Y0,Z0,X1,Y1,Z1 (low corner, high corner). The VDB holds the
+    /// voxels that overlap it; the mesh is closed along its faces. A 40 km
+    /// canvas painted down to millimetres needs it: a VDB has one voxel
+    /// size, and a whole canvas at its finest depth does not fit anywhere.
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_crop, allow_hyphen_values = true)]
+    pub region: Option<Crop>,
+    /// Print, for every VDB depth up to the deepest painted one, the voxel
+    /// size, the active voxels and the grid's size against --max-mib, then
+    /// stop without writing anything.
+    #[arg(long)]
+    pub plan: bool,
+    /// Print nothing but warnings and errors.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ColourChoice {
+    Linear,
+    Srgb,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum UpChoice {
+    Y,
+    Z,
+}
+
+/// Replays silently but for warnings.
+struct Quiet;
+
+impl ReplayObserver for Quiet {
+    fn warning(&mut self, msg: &str) {
+        eprintln!("octopaint: warning: {msg}");
+    }
+}
+
+fn bar(quiet: bool, len: Option<u64>, template: &str) -> ProgressBar {
+    let b = match len {
+        Some(n) => ProgressBar::new(n),
+        None => ProgressBar::new_spinner(),
+    };
+    b.set_style(ProgressStyle::with_template(template).expect("static template"));
+    if quiet {
+        b.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    b
+}
+
+/// A refusal with its exit status: 2 for bad input or options, 1 for
+/// failures to write.
+struct Refusal(u8, String);
+
+fn refuse(msg: impl Into<String>) -> Refusal {
+    Refusal(2, msg.into())
+}
+
+impl From<ExportError> for Refusal {
+    fn from(e: ExportError) -> Refusal {
+        match e {
+            ExportError::Io(e) => Refusal(1, e.to_string()),
+            e => Refusal(2, e.to_string()),
+        }
+    }
+}
+
+pub fn run(args: &Args) -> ExitCode {
+    match run_inner(args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Refusal(code, msg)) => {
+            eprintln!("octopaint: export: {msg}");
+            ExitCode::from(code)
+        }
+    }
+}
+
+fn parse_point(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        [_, _, _] => Err("the point must be finite".into()),
+        _ => Err(format!("expected 3 numbers X,Y,Z, got {}", v.len())),
+    }
+}
+
+fn parse_crop(s: &str) -> Result<Crop, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != 6 {
+        return Err(format!("expected 6 numbers X0,Y0,Z0,X1,Y1,Z1, got {}", v.len()));
+    }
+    if v.iter().any(|x| !x.is_finite()) {
+        return Err("the corners must be finite".into());
+    }
+    let (lo, hi) = ([v[0], v[1], v[2]], [v[3], v[4], v[5]]);
+    if (0..3).any(|a| lo[a] >= hi[a]) {
+        return Err("each low corner coordinate must be below the high one".into());
+    }
+    Ok(Crop { lo, hi })
+}
+
+fn check_options(args: &Args) -> Result<Vec<&Path>, Refusal> {
+    let outs: Vec<&Path> = [&args.vdb, &args.gltf, &args.obj].into_iter().flatten().map(|p| p.as_path()).collect();
+    if outs.is_empty() && !args.plan {
+        return Err(refuse("nothing to write: give --vdb, --gltf or --obj (see --help)"));
+    }
+    for (i, a) in outs.iter().enumerate() {
+        if outs[..i].contains(a) {
+            return Err(refuse(format!("{} is given as two outputs", a.display())));
+        }
+        if a.as_os_str().is_empty() || a.file_name().is_none() {
+            return Err(refuse(format!("{:?} is not a file name", a.display().to_string())));
+        }
+        if a.is_dir() {
+            return Err(refuse(format!("{} is a folder", a.display())));
+        }
+        if *a == args.input.as_path() {
+            return Err(refuse(format!("{} is the input: refusing to overwrite it", a.display())));
+        }
+    }
+    if !(args.scale.is_finite() && (1e-9..=1e9).contains(&args.scale)) {
+        return Err(refuse(format!("--scale {} is not in [1e-9, 1e9]", args.scale)));
+    }
+    if let Some(iso) = args.iso
+        && !(iso.is_finite() && iso > 0.0)
+    {
+        return Err(refuse(format!("--iso {iso} must be a positive extinction")));
+    }
+    if args.max_mib == 0 || args.max_mib > 1 << 20 {
+        return Err(refuse(format!("--max-mib {} is not in [1, 1048576]", args.max_mib)));
+    }
+    if args.max_triangles == 0 {
+        return Err(refuse("--max-triangles must be at least 1"));
+    }
+    Ok(outs)
+}
+
+fn run_inner(args: &Args) -> Result<(), Refusal> {
+    let outs = check_options(args)?;
+    let t0 = Instant::now();
+    let mut trace = read_trace(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
+    if let Some(name) = &args.at {
+        let snapshots: Vec<&str> = trace
+            .events
+            .iter()
+            .filter_map(|e| match &e.kind {
+                EventKind::Snapshot(n) => Some(n.as_str()),
+                _ => None,
+            })
+            .collect();
+        let Some(i) = trace.events.iter().position(|e| matches!(&e.kind, EventKind::Snapshot(n) if n == name)) else {
+            return Err(refuse(format!(
+                "{}: no snapshot named {name:?} (it has: {})",
+                args.input.display(),
+                if snapshots.is_empty() { "none".to_string() } else { snapshots.join(", ") }
+            )));
+        };
+        trace.events.truncate(i + 1);
+    }
+    let b = bar(args.quiet, None, "{spinner} replaying {msg} [{elapsed_precise}]");
+    b.set_message(args.input.display().to_string());
+    b.enable_steady_tick(std::time::Duration::from_millis(200));
+    let (stats, painting): (_, Painting) =
+        replay(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
+    b.finish_and_clear();
+    let tree = &painting.tree;
+    let say = |s: String| {
+        if !args.quiet {
+            eprintln!("{s}");
+        }
+    };
+    say(format!(
+        "replayed {}: {} strokes, {} cells, deepest depth {} ({:.1} s)",
+        args.input.display(),
+        stats.strokes,
+        stats.cells,
+        stats.deepest,
+        t0.elapsed().as_secs_f64()
+    ));
+    let colour = match args.colour {
+        ColourChoice::Linear => ColourSpace::Linear,
+        ColourChoice::Srgb => ColourSpace::Srgb,
+    };
+    let origin = args.origin.unwrap_or([0.0; 3]);
+    let size = tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size);
+    if (0..3).any(|a| !(0.0..=size[a]).contains(&origin[a])) {
+        return Err(refuse(format!(
+            "--origin {},{},{} is off the canvas, which spans [0, {}] x [0, {}] x [0, {}]",
+            origin[0], origin[1], origin[2], size[0], size[1], size[2]
+        )));
+    }
+    let placement = Placement { scale: args.scale, z_up: args.up == UpChoice::Z, origin };
+    let cap = args.max_mib << 20;
+    let crop = args.region;
+    if let Some(c) = crop {
+        if (0..3).any(|a| c.hi[a] <= 0.0 || c.lo[a] >= size[a]) {
+            return Err(refuse(format!(
+                "--region misses the canvas, which spans [0, {}) x [0, {}) x [0, {})",
+                size[0], size[1], size[2]
+            )));
+        }
+    }
+    if args.plan {
+        print_plan(tree, placement, crop, cap);
+        return Ok(());
+    }
+
+    // Everything that can refuse, before anything is written.
+    let vdb_depth = match &args.vdb {
+        None => None,
+        Some(_) => Some(match args.depth {
+            Some(e) => {
+                let deepest = tree.lat.max_depth.min(voxels::deepest_addressable(tree));
+                if e > deepest {
+                    return Err(ExportError::DepthOutOfRange { depth: e, deepest }.into());
+                }
+                let est = voxels::estimate(tree, e, crop, cap);
+                if est.bytes() > cap {
+                    let fits = voxels::deepest_fitting(tree, e, crop, cap);
+                    return Err(ExportError::TooLarge { depth: e, bytes: est.bytes(), cap_bytes: cap, fits }.into());
+                }
+                e
+            }
+            None => voxels::choose_depth(tree, crop, cap)?,
+        }),
+    };
+    if args.depth.is_some() && args.vdb.is_none() {
+        return Err(refuse("--depth is the VDB's voxel depth: it needs --vdb (the mesh's is --mesh-depth)"));
+    }
+    let mesh = if args.gltf.is_some() || args.obj.is_some() {
+        let iso = match args.iso.or_else(|| default_iso(tree)) {
+            Some(iso) => iso,
+            None => return Err(refuse("the painting is empty: there is no surface to mesh")),
+        };
+        let depth_cap = args.mesh_depth.unwrap_or(tree.lat.max_depth);
+        if depth_cap > tree.lat.max_depth {
+            return Err(ExportError::DepthOutOfRange { depth: depth_cap, deepest: tree.lat.max_depth }.into());
+        }
+        let t = Instant::now();
+        let b = bar(args.quiet, None, "{spinner} meshing: {pos} triangles [{elapsed_precise}]");
+        let m = surface(tree, SurfaceOptions { iso, depth_cap, max_triangles: args.max_triangles, crop }, &mut |n| b.set_position(n as u64));
+        b.finish_and_clear();
+        let m = m.ok_or(ExportError::TooManyTriangles { max: args.max_triangles })?;
+        say(format!(
+            "surface at extinction {iso}: {} vertices, {} triangles ({:.1} s)",
+            m.positions.len(),
+            m.triangles.len(),
+            t.elapsed().as_secs_f64()
+        ));
+        if m.triangles.is_empty() {
+            say(format!("warning: no leaf reaches extinction {iso}: the mesh is empty (lower --iso)"));
+        }
+        Some(m)
+    } else {
+        None
+    };
+    let glb = match (&args.gltf, &mesh) {
+        (Some(_), Some(m)) => Some(mesh::glb_bytes(m, placement, &generator())?),
+        _ => None,
+    };
+    for p in &outs {
+        check_writable(p)?;
+    }
+
+    if let (Some(path), Some(e)) = (&args.vdb, vdb_depth) {
+        let t = Instant::now();
+        let est = voxels::estimate(tree, e, crop, cap);
+        let b = bar(args.quiet, Some(est.regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
+        b.set_message(e.to_string());
+        let grid = VoxelGrid::build(tree, e, colour, placement, crop, cap, &mut |n| b.set_position(n))?;
+        b.finish_and_clear();
+        let resample_s = t.elapsed().as_secs_f64();
+        let b = bar(args.quiet, None, "{spinner} writing {msg} [{elapsed_precise}]");
+        b.set_message(path.display().to_string());
+        b.enable_steady_tick(std::time::Duration::from_millis(200));
+        let size = write_with(path, |w| vdb::write_vdb(w, &grid, &generator()))?;
+        b.finish_and_clear();
+        say(format!(
+            "{}: depth {e}, voxel {} file units, {} active voxels, {} ({:.2} s: resampling {:.2} s, writing {:.2} s)",
+            path.display(),
+            grid.voxel_size,
+            grid.active_voxels,
+            human(size),
+            t.elapsed().as_secs_f64(),
+            resample_s,
+            t.elapsed().as_secs_f64() - resample_s
+        ));
+    }
+    if let (Some(path), Some(bytes)) = (&args.gltf, &glb) {
+        write_with(path, |w| w.write_all(bytes))?;
+        say(format!("{}: {}", path.display(), human(bytes.len() as u64)));
+    }
+    if let (Some(path), Some(m)) = (&args.obj, &mesh) {
+        let size = write_with(path, |w| mesh::write_obj(w, m, placement, colour, &generator()))?;
+        say(format!("{}: {}", path.display(), human(size)));
+    }
+    Ok(())
+}
+
+/// The table of --plan. Counting stops once a depth is past the cap
+/// (those rows say "over").
+fn print_plan(tree: &octopaint_tree::Tree, placement: Placement, crop: Option<Crop>, cap: u64) {
+    let want = voxels::deepest_painted(tree, crop).min(voxels::deepest_addressable(tree));
+    let chosen = voxels::choose_depth(tree, crop, cap).ok();
+    println!("depth  voxel size      active voxels      leaves    nodes  MiB (cap {})", cap >> 20);
+    for e in 0..=want {
+        let est = voxels::estimate(tree, e, crop, cap);
+        let size = tree.lat.root_size * (2.0f64).powi(-(e as i32)) * placement.scale;
+        let over = est.bytes() > cap;
+        println!(
+            "{e:>5}  {size:<14.6e}  {:>17}  {:>8}  {:>7}  {}{}",
+            if over { "-".to_string() } else { est.active_voxels.to_string() },
+            if over { "-".to_string() } else { est.leaves.to_string() },
+            if over { "-".to_string() } else { (est.nodes4 + est.nodes5 + est.root_tiles).to_string() },
+            if over { "over".to_string() } else { format!("{:.1}", est.bytes() as f64 / f64::from(1 << 20)) },
+            if chosen == Some(e) { "  <- default" } else { "" }
+        );
+    }
+}
+
+fn generator() -> String {
+    format!("octopaint {}", env!("CARGO_PKG_VERSION"))
+}
+
+fn human(bytes: u64) -> String {
+    if bytes >= 1 << 20 { format!("{:.1} MiB", bytes as f64 / f64::from(1 << 20)) } else { format!("{:.1} KiB", bytes as f64 / 1024.0) }
+}
+
+fn parent_of(path: &Path) -> &Path {
+    path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// The folder exists and takes a new file (a temporary one, removed).
+fn check_writable(path: &Path) -> Result<(), Refusal> {
+    let dir = parent_of(path);
+    tempfile::Builder::new()
+        .prefix(".octopaint-probe-")
+        .tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| Refusal(1, format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e))))
+}
+
+/// Write `path` through a temporary file beside it, synced and renamed
+/// over it: a reader sees the old file or the whole new one. Returns the
+/// size written.
+fn write_with(path: &Path, f: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>) -> Result<u64, Refusal> {
+    use std::os::unix::fs::PermissionsExt;
+    let fail = |e: std::io::Error| Refusal(1, format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e)));
+    let tmp = tempfile::Builder::new()
+        .prefix(".tmp-")
+        .permissions(std::fs::Permissions::from_mode(0o644))
+        .tempfile_in(parent_of(path))
+        .map_err(fail)?;
+    let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.reopen().map_err(fail)?);
+    f(&mut w).map_err(fail)?;
+    let file = w.into_inner().map_err(|e| fail(e.into_error()))?;
+    file.sync_all().map_err(fail)?;
+    let size = file.metadata().map_err(fail)?.len();
+    tmp.persist(path).map_err(|e| fail(e.error))?;
+    Ok(size)
+}
