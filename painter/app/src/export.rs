@@ -27,8 +27,8 @@ Examples:
 
 docs/export.md explains the values written and how Blender and Houdini open them.")]
 pub struct Args {
-    /// The painting: a .jsonl trace, replayed to its end (the painter's
-    /// documents will be accepted here too).
+    /// The painting: a document (.octo, with any unsaved strokes of its
+    /// journal) or a .jsonl trace, replayed to its end.
     pub input: PathBuf,
     /// Write an OpenVDB file with two grids sharing one topology:
     /// `density` (a float fog volume: extinction per file unit) and
@@ -94,7 +94,8 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = UpChoice::Y)]
     pub up: UpChoice,
     /// Export the painting as it was at this snapshot event of the trace
-    /// (a stroke still open there is ended, as at the end of a trace).
+    /// or of the document's session (a stroke still open there is ended,
+    /// as at the end of a trace).
     /// Default: the end of the trace.
     #[arg(long, value_name = "SNAPSHOT")]
     pub at: Option<String>,
@@ -244,45 +245,69 @@ fn check_options(args: &Args) -> Result<Vec<&Path>, Refusal> {
 fn run_inner(args: &Args) -> Result<(), Refusal> {
     let outs = check_options(args)?;
     let t0 = Instant::now();
-    let mut trace = read_trace(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
-    if let Some(name) = &args.at {
-        let snapshots: Vec<&str> = trace
-            .events
-            .iter()
-            .filter_map(|e| match &e.kind {
-                EventKind::Snapshot(n) => Some(n.as_str()),
-                _ => None,
-            })
-            .collect();
-        let Some(i) = trace.events.iter().position(|e| matches!(&e.kind, EventKind::Snapshot(n) if n == name)) else {
-            return Err(refuse(format!(
-                "{}: no snapshot named {name:?} (it has: {})",
-                args.input.display(),
-                if snapshots.is_empty() { "none".to_string() } else { snapshots.join(", ") }
-            )));
-        };
-        trace.events.truncate(i + 1);
-    }
-    let b = bar(args.quiet, None, "{spinner} replaying {msg} [{elapsed_precise}]");
-    b.set_message(args.input.display().to_string());
-    b.enable_steady_tick(std::time::Duration::from_millis(200));
-    let (stats, painting): (_, Painting) =
-        replay(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
-    b.finish_and_clear();
-    let tree = &painting.tree;
     let say = |s: String| {
         if !args.quiet {
             eprintln!("{s}");
         }
     };
-    say(format!(
-        "replayed {}: {} strokes, {} cells, deepest depth {} ({:.1} s)",
-        args.input.display(),
-        stats.strokes,
-        stats.cells,
-        stats.deepest,
-        t0.elapsed().as_secs_f64()
-    ));
+    let is_doc = crate::document::is_document(&args.input);
+    let painting = if is_doc && args.at.is_none() {
+        // A document opens as saved, plus what its journal holds.
+        let s = octopaint_doc::Session::open(&args.input).map_err(|e| match e {
+            octopaint_doc::DocError::Io { .. } => Refusal(1, e.to_string()),
+            e => refuse(format!("{}: {e}", args.input.display())),
+        })?;
+        say(format!(
+            "opened {}: {} events, {} cells{}",
+            args.input.display(),
+            s.event_count(),
+            s.painting.tree.n_used(),
+            if s.recovered > 0 { format!(", {} unsaved stroke(s) from its journal", s.recovered) } else { String::new() }
+        ));
+        s.painting
+    } else {
+        let mut trace = if is_doc {
+            // --at in a document: its session, replayed to the snapshot.
+            let s = octopaint_doc::Session::open(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
+            octopaint_tree::trace::parse_trace(&s.trace_text()).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
+        } else {
+            read_trace(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
+        };
+        if let Some(name) = &args.at {
+            let snapshots: Vec<&str> = trace
+                .events
+                .iter()
+                .filter_map(|e| match &e.kind {
+                    EventKind::Snapshot(n) => Some(n.as_str()),
+                    _ => None,
+                })
+                .collect();
+            let Some(i) = trace.events.iter().position(|e| matches!(&e.kind, EventKind::Snapshot(n) if n == name)) else {
+                return Err(refuse(format!(
+                    "{}: no snapshot named {name:?} (it has: {})",
+                    args.input.display(),
+                    if snapshots.is_empty() { "none".to_string() } else { snapshots.join(", ") }
+                )));
+            };
+            trace.events.truncate(i + 1);
+        }
+        let b = bar(args.quiet, None, "{spinner} replaying {msg} [{elapsed_precise}]");
+        b.set_message(args.input.display().to_string());
+        b.enable_steady_tick(std::time::Duration::from_millis(200));
+        let (stats, painting): (_, Painting) =
+            replay(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
+        b.finish_and_clear();
+        say(format!(
+            "replayed {}: {} strokes, {} cells, deepest depth {} ({:.1} s)",
+            args.input.display(),
+            stats.strokes,
+            stats.cells,
+            stats.deepest,
+            t0.elapsed().as_secs_f64()
+        ));
+        painting
+    };
+    let tree = &painting.tree;
     let colour = match args.colour {
         ColourChoice::Linear => ColourSpace::Linear,
         ColourChoice::Srgb => ColourSpace::Srgb,

@@ -6,6 +6,7 @@ mod bench_gpu;
 mod bench_realtime;
 mod bench_tree;
 mod canonical;
+mod document;
 mod export;
 mod png_out;
 
@@ -77,6 +78,37 @@ enum Command {
     /// a malformed input) happens before any file is written (exit status
     /// 2); each file is written whole or not at all.
     Export(export::Args),
+    /// Create an empty document (docs/documents.md).
+    New(document::NewArgs),
+    /// Replay a trace into a new document: its whole session, undo history
+    /// included.
+    Import {
+        trace: PathBuf,
+        doc: PathBuf,
+    },
+    /// Paint on a document with the events of a trace, as a live session:
+    /// each completed stroke is journalled (synced to disk) before the next
+    /// one, and the document is saved at the end.
+    Paint(document::PaintArgs),
+    /// Describe a document: canvas, session, tree, undo history, unsaved
+    /// strokes in its journal.
+    Info { doc: PathBuf },
+    /// Open a document, replay the complete strokes its journal holds
+    /// (after a crash) and save it.
+    Recover { doc: PathBuf },
+    /// Write a document's whole session as a trace that `octopaint replay`
+    /// and `octopaint-ref replay` reproduce exactly (unsaved strokes in its
+    /// journal included).
+    Record {
+        doc: PathBuf,
+        /// The trace to write.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Undo the last strokes of a document, and save it.
+    Undo(document::StepArgs),
+    /// Redo undone strokes of a document, and save it.
+    Redo(document::StepArgs),
     /// Benchmarks that print figures (docs/benchmarks.md).
     Bench {
         #[command(subcommand)]
@@ -299,6 +331,14 @@ fn main() -> ExitCode {
         }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
+        Command::New(args) => document::new(&args),
+        Command::Import { trace, doc } => document::import(&trace, &doc),
+        Command::Paint(args) => document::paint(&args),
+        Command::Info { doc } => document::info(&doc),
+        Command::Recover { doc } => document::recover(&doc),
+        Command::Record { doc, out } => document::record(&doc, &out),
+        Command::Undo(args) => document::step(&args, false),
+        Command::Redo(args) => document::step(&args, true),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {

@@ -137,3 +137,128 @@ fn bench_realtime_refuses_absurd_settings() {
     }
     assert!(!scratch.path().join("results.json").exists());
 }
+
+/// Count the lines of a trace's text that end a stroke.
+fn stroke_ends(text: &str) -> usize {
+    text.lines().filter(|l| l.contains("\"stroke_end\"")).count()
+}
+
+/// Replay `trace_text` with a final snapshot and return the dump's bytes.
+fn final_dump(trace_text: &str, scratch: &Path, name: &str) -> Vec<u8> {
+    let path = scratch.join(format!("{name}.jsonl"));
+    let mut text = trace_text.trim_end().to_string();
+    text.push_str("\n{\"ev\": \"snapshot\", \"t\": 1e9, \"name\": \"end\"}\n");
+    std::fs::write(&path, text).unwrap();
+    let out = scratch.join(name);
+    let res = octopaint().arg("replay").arg(&path).arg("--out").arg(&out).args(["--renderer", "none", "--quiet"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    std::fs::read(out.join("end.npz")).unwrap()
+}
+
+#[test]
+fn a_session_killed_mid_stroke_recovers_every_completed_stroke() {
+    use std::io::{BufRead, BufReader};
+    let scratch = tempfile::tempdir().unwrap();
+    let s = scratch.path();
+    let input = repo().join("traces/shapes_modes.jsonl");
+    let doc = s.join("art.octo");
+    let res = octopaint().arg("new").arg(&doc).arg("--like").arg(&input).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    // A live session at an artist's pace, killed (SIGKILL: no cleanup of
+    // any kind) once a dozen strokes are journalled.
+    let mut child = octopaint()
+        .arg("paint")
+        .arg(&doc)
+        .arg("--input")
+        .arg(&input)
+        .args(["--events-per-second", "150", "--no-save"])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+    let mut journalled = 0;
+    while journalled < 12 {
+        let line = lines.next().expect("the session reports its strokes").unwrap();
+        if line.ends_with("journalled") {
+            journalled += 1;
+        }
+    }
+    child.kill().unwrap();
+    let status = child.wait().unwrap();
+    assert!(!status.success(), "killed, not finished");
+    // Reopening recovers what the journal holds: at least the 12 reported.
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    let info = String::from_utf8_lossy(&res.stdout);
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(info.contains("recovered here"), "{info}");
+    let recorded = s.join("recorded.jsonl");
+    let res = octopaint().arg("record").arg(&doc).arg("--out").arg(&recorded).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let recorded_text = std::fs::read_to_string(&recorded).unwrap();
+    let k = stroke_ends(&recorded_text);
+    assert!(k >= 12, "{k} strokes recovered");
+    // They are the input's first k strokes: same tree as replaying them.
+    let input_text = std::fs::read_to_string(&input).unwrap();
+    let mut prefix = String::new();
+    let mut ends = 0;
+    for line in input_text.lines() {
+        if ends == k {
+            break;
+        }
+        prefix.push_str(line);
+        prefix.push('\n');
+        ends += usize::from(line.contains("\"stroke_end\""));
+    }
+    assert_eq!(final_dump(&recorded_text, s, "recovered"), final_dump(&prefix, s, "expected"));
+    // `recover` saves them; the session then continues to the end, and the
+    // document is the whole trace's replay.
+    let res = octopaint().arg("recover").arg(&doc).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    assert!(String::from_utf8_lossy(&res.stdout).contains("nothing unsaved"));
+    let rest: String = input_text.lines().skip(prefix.lines().count()).map(|l| format!("{l}\n")).collect();
+    let rest_trace = s.join("rest.jsonl");
+    std::fs::write(&rest_trace, format!("{}\n{rest}", input_text.lines().next().unwrap())).unwrap();
+    let res = octopaint().arg("paint").arg(&doc).arg("--input").arg(&rest_trace).arg("--quiet").output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let res = octopaint().arg("record").arg(&doc).arg("--out").arg(&recorded).output().unwrap();
+    assert!(res.status.success());
+    let whole = std::fs::read_to_string(&recorded).unwrap();
+    assert_eq!(final_dump(&whole, s, "whole"), final_dump(&input_text, s, "input"));
+}
+
+#[test]
+fn damaged_documents_are_refused_and_left_alone() {
+    let scratch = tempfile::tempdir().unwrap();
+    let doc = scratch.path().join("d.octo");
+    let res = octopaint().arg("import").arg(repo().join("traces/undo_redo.jsonl")).arg(&doc).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let good = std::fs::read(&doc).unwrap();
+    for (what, bytes) in [("truncated", good[..good.len() / 2].to_vec()), ("flipped", {
+        let mut b = good.clone();
+        let i = b.len() / 3;
+        b[i] ^= 0x10;
+        b
+    })] {
+        std::fs::write(&doc, &bytes).unwrap();
+        for cmd in ["info", "recover"] {
+            let res = octopaint().arg(cmd).arg(&doc).output().unwrap();
+            assert_eq!(res.status.code(), Some(2), "{what} {cmd}");
+            let err = String::from_utf8_lossy(&res.stderr);
+            assert!(err.contains("the document is damaged"), "{what} {cmd}: {err}");
+            assert_eq!(std::fs::read(&doc).unwrap(), bytes, "{what} {cmd} changed the file");
+        }
+    }
+    // Undo and redo persist through saves.
+    std::fs::write(&doc, &good).unwrap();
+    let res = octopaint().arg("undo").arg(&doc).args(["--steps", "2"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    assert!(String::from_utf8_lossy(&res.stdout).contains("to redo"), "{}", String::from_utf8_lossy(&res.stdout));
+    let res = octopaint().arg("redo").arg(&doc).args(["--steps", "2"]).output().unwrap();
+    assert!(res.status.success());
+    let rec = scratch.path().join("r.jsonl");
+    assert!(octopaint().arg("record").arg(&doc).arg("--out").arg(&rec).status().unwrap().success());
+    let input = std::fs::read_to_string(repo().join("traces/undo_redo.jsonl")).unwrap();
+    assert_eq!(final_dump(&std::fs::read_to_string(&rec).unwrap(), scratch.path(), "a"), final_dump(&input, scratch.path(), "b"));
+}

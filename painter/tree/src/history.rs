@@ -70,6 +70,20 @@ impl History {
     pub fn bytes(&self) -> usize {
         self.done.iter().chain(self.undone.iter()).map(UndoStep::bytes).sum()
     }
+
+    /// Forget the oldest done strokes until the history takes at most
+    /// `max_bytes` (the newest stroke is always kept, and redo steps are
+    /// never dropped: they are the newest). Returns how many were dropped.
+    pub fn trim_to(&mut self, max_bytes: usize) -> usize {
+        let mut total = self.bytes();
+        let mut drop = 0;
+        while total > max_bytes && drop + 1 < self.done.len() {
+            total -= self.done[drop].bytes();
+            drop += 1;
+        }
+        self.done.drain(..drop);
+        drop
+    }
 }
 
 impl Tree {

@@ -21,6 +21,7 @@
 //! | [`history`] | undo and redo | history.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
 //! | [`trace`], [`json`], [`pyrepr`] | the trace reader | trace.py |
+//! | [`trace_write`] | writing traces (recorded sessions) | — |
 //! | [`replay`] | replaying a trace | replay.py |
 
 pub mod balance;
@@ -42,6 +43,7 @@ pub mod raycast;
 pub mod replay;
 pub mod stroke;
 pub mod trace;
+pub mod trace_write;
 
 pub use paint::Painting;
 pub use pool::{FREE, NONE, Tree, UNIT};

@@ -1,0 +1,329 @@
+//! The document commands: `new`, `import`, `paint`, `info`, `recover`,
+//! `record`, `undo`, `redo` (docs/documents.md). `paint` is a painting
+//! session without a window: the events of a trace applied one by one as
+//! if an artist made them (optionally at an artist's pace), each completed
+//! stroke journalled before the next, the document saved at the end.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use octopaint_doc::{DocError, Session, journal_path};
+use octopaint_tree::json;
+use octopaint_tree::trace::{Canvas, Event, EventKind, read_trace};
+
+#[derive(clap::Args)]
+pub struct NewArgs {
+    /// The document to create (refused if a file is there).
+    pub doc: PathBuf,
+    /// Take the canvas from this trace's header.
+    #[arg(long, value_name = "TRACE", conflicts_with_all = ["roots", "max_depth", "root_size", "capacity"])]
+    pub like: Option<PathBuf>,
+    /// Roots per axis, X,Y,Z (canvas = roots × root size).
+    #[arg(long, value_name = "X,Y,Z", default_value = "4,4,4")]
+    pub roots: String,
+    /// Deepest depth a cell may reach (at most 28).
+    #[arg(long, default_value_t = 24)]
+    pub max_depth: u32,
+    /// Edge of one root, in canvas units.
+    #[arg(long, default_value_t = 1.0)]
+    pub root_size: f64,
+    /// Cell budget (a multiple of 8).
+    #[arg(long, default_value_t = 16_777_216)]
+    pub capacity: u64,
+    /// A title for the document's metadata.
+    #[arg(long, default_value = "untitled")]
+    pub title: String,
+}
+
+#[derive(clap::Args)]
+pub struct PaintArgs {
+    /// The document to paint on (its journal, if any, is recovered first).
+    pub doc: PathBuf,
+    /// The events to apply: a trace with the document's canvas. Its times
+    /// are taken after the document's last event.
+    #[arg(long, value_name = "TRACE")]
+    pub input: PathBuf,
+    /// Apply at most this many events per second (an artist's pace; 0: as
+    /// fast as possible).
+    #[arg(long, value_name = "N", default_value_t = 0.0)]
+    pub events_per_second: f64,
+    /// Leave the strokes in the journal only (as a session that has not
+    /// saved yet); `octopaint recover` or the next session saves them.
+    #[arg(long)]
+    pub no_save: bool,
+    /// Undo history kept, MiB (the oldest strokes beyond it can no longer
+    /// be undone).
+    #[arg(long, value_name = "MIB", default_value_t = 1024)]
+    pub undo_mib: usize,
+    /// Print nothing but errors.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(clap::Args)]
+pub struct StepArgs {
+    pub doc: PathBuf,
+    /// How many strokes.
+    #[arg(long, default_value_t = 1)]
+    pub steps: usize,
+}
+
+fn fail(e: DocError) -> ExitCode {
+    eprintln!("octopaint: {e}");
+    match e {
+        DocError::Io { .. } => ExitCode::from(1),
+        _ => ExitCode::from(2),
+    }
+}
+
+fn py(s: &str) -> json::PyStr {
+    json::PyStr(s.chars().map(u32::from).collect())
+}
+
+fn parse_roots(s: &str) -> Option<[u32; 3]> {
+    let v: Vec<u32> = s.split(',').map(|x| x.trim().parse().ok()).collect::<Option<_>>()?;
+    v.try_into().ok()
+}
+
+pub fn new(a: &NewArgs) -> ExitCode {
+    let (canvas, meta) = match &a.like {
+        Some(t) => match read_trace(t) {
+            Ok(t) => (t.canvas, t.meta),
+            Err(e) => {
+                eprintln!("octopaint: {}: {e}", t.display());
+                return ExitCode::from(2);
+            }
+        },
+        None => {
+            let Some(roots) = parse_roots(&a.roots) else {
+                eprintln!("octopaint: --roots {:?}: expected three positive integers X,Y,Z", a.roots);
+                return ExitCode::from(2);
+            };
+            let Ok(capacity) = u32::try_from(a.capacity) else {
+                eprintln!("octopaint: --capacity {} is too large", a.capacity);
+                return ExitCode::from(2);
+            };
+            let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py(&a.title)))]);
+            (Canvas { roots, max_depth: a.max_depth, root_size: a.root_size, capacity }, meta)
+        }
+    };
+    match Session::create(&a.doc, &canvas, &meta) {
+        Ok(_) => {
+            println!("{}", a.doc.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(e),
+    }
+}
+
+pub fn import(trace: &Path, doc: &Path) -> ExitCode {
+    let t = match read_trace(trace) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("octopaint: {}: {e}", trace.display());
+            return ExitCode::from(2);
+        }
+    };
+    let result = (|| {
+        let mut s = Session::create(doc, &t.canvas, &t.meta)?;
+        for ev in &t.events {
+            s.apply(ev)?;
+        }
+        if s.in_stroke() {
+            s.apply(&Event { line: 0, t: t.events.last().map_or(0.0, |e| e.t), kind: EventKind::StrokeEnd })?;
+        }
+        s.save()?;
+        Ok::<_, DocError>(s)
+    })();
+    match result {
+        Ok(s) => {
+            eprintln!("{}: {} events, {} cells", doc.display(), s.event_count(), s.painting.tree.n_used());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            // Nothing half-made stays behind.
+            let _ = std::fs::remove_file(doc);
+            let _ = std::fs::remove_file(journal_path(doc));
+            fail(e)
+        }
+    }
+}
+
+fn say_recovered(s: &Session) {
+    if s.recovered > 0 {
+        eprintln!(
+            "octopaint: {}: recovered {} stroke(s), undo(s) and redo(s) from its journal",
+            s.path.display(),
+            s.recovered
+        );
+    }
+}
+
+pub fn paint(a: &PaintArgs) -> ExitCode {
+    let input = match read_trace(&a.input) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("octopaint: {}: {e}", a.input.display());
+            return ExitCode::from(2);
+        }
+    };
+    let mut s = match Session::open(&a.doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    let canvas = s.painting.tree.lat.roots;
+    let (dc, ic) = (
+        (canvas, s.painting.tree.lat.max_depth, s.painting.tree.lat.root_size, s.painting.tree.capacity),
+        (input.canvas.roots, input.canvas.max_depth, input.canvas.root_size, input.canvas.capacity),
+    );
+    if dc != ic {
+        eprintln!("octopaint: {}: its canvas {:?} is not the document's {:?}", a.input.display(), ic, dc);
+        return ExitCode::from(2);
+    }
+    s.undo_bytes = a.undo_mib << 20;
+    let t0 = s.last_time();
+    let pace = if a.events_per_second > 0.0 { Some(Duration::from_secs_f64(1.0 / a.events_per_second)) } else { None };
+    let start = Instant::now();
+    let mut strokes = 0;
+    for (i, ev) in input.events.iter().enumerate() {
+        if let Some(p) = pace {
+            let due = start + p * i as u32;
+            if let Some(wait) = due.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+        }
+        let ev = Event { t: t0 + ev.t, ..ev.clone() };
+        if let Err(e) = s.apply(&ev) {
+            eprintln!("octopaint: {}: line {}: {e}", a.input.display(), ev.line);
+            return fail_after(e, strokes);
+        }
+        if matches!(ev.kind, EventKind::StrokeEnd) {
+            strokes += 1;
+            if !a.quiet {
+                eprintln!("stroke {strokes} journalled");
+            }
+        }
+    }
+    if s.in_stroke() {
+        let end = Event { line: 0, t: s.last_time(), kind: EventKind::StrokeEnd };
+        if let Err(e) = s.apply(&end) {
+            return fail(e);
+        }
+        strokes += 1;
+    }
+    if !a.no_save
+        && let Err(e) = s.save()
+    {
+        return fail(e);
+    }
+    if !a.quiet {
+        eprintln!(
+            "{}: {strokes} stroke(s) painted, {} cells{}",
+            a.doc.display(),
+            s.painting.tree.n_used(),
+            if a.no_save { " (in the journal; not saved)" } else { ", saved" }
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+fn fail_after(e: DocError, strokes: usize) -> ExitCode {
+    eprintln!("octopaint: the {strokes} stroke(s) before it are in the journal");
+    fail(e)
+}
+
+pub fn info(doc: &Path) -> ExitCode {
+    let size = std::fs::metadata(doc).map(|m| m.len()).unwrap_or(0);
+    let s = match Session::open(doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    let t = &s.painting.tree;
+    let l = &t.lat;
+    println!("document   {} ({} bytes)", doc.display(), size);
+    println!(
+        "canvas     roots {}x{}x{}, root size {}, max depth {}, capacity {} cells",
+        l.roots[0], l.roots[1], l.roots[2], l.root_size, l.max_depth, t.capacity
+    );
+    println!("session    {} events", s.event_count());
+    println!("tree       {} cells in use", t.n_used());
+    println!(
+        "undo       {} stroke(s) to undo, {} to redo, {} bytes",
+        s.painting.history.done.len(),
+        s.painting.history.undone.len(),
+        s.painting.history.bytes()
+    );
+    if s.recovered > 0 {
+        println!("journal    {} stroke(s) not saved yet, recovered here (`octopaint recover` saves them)", s.recovered);
+    } else {
+        println!("journal    nothing unsaved");
+    }
+    ExitCode::SUCCESS
+}
+
+pub fn recover(doc: &Path) -> ExitCode {
+    let mut s = match Session::open(doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    match s.save() {
+        Ok(()) => {
+            eprintln!("{}: saved, {} events", doc.display(), s.event_count());
+            ExitCode::SUCCESS
+        }
+        Err(e) => fail(e),
+    }
+}
+
+pub fn record(doc: &Path, out: &Path) -> ExitCode {
+    let s = match Session::open(doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    match octopaint_tree::dump::write_atomic(out, s.trace_text().as_bytes()) {
+        Ok(()) => {
+            eprintln!("{}: {} events", out.display(), s.event_count());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("octopaint: cannot write {}: {}", out.display(), octopaint_tree::trace::io_reason(&e));
+            ExitCode::from(1)
+        }
+    }
+}
+
+pub fn step(a: &StepArgs, redo: bool) -> ExitCode {
+    let mut s = match Session::open(&a.doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    let kind = if redo { EventKind::Redo } else { EventKind::Undo };
+    let mut n = 0;
+    for _ in 0..a.steps {
+        let before = (s.painting.history.done.len(), s.painting.history.undone.len());
+        if let Err(e) = s.apply(&Event { line: 0, t: s.last_time(), kind: kind.clone() }) {
+            return fail(e);
+        }
+        if (s.painting.history.done.len(), s.painting.history.undone.len()) == before {
+            break;
+        }
+        n += 1;
+    }
+    if let Err(e) = s.save() {
+        return fail(e);
+    }
+    eprintln!("{}: {} {n} stroke(s)", a.doc.display(), if redo { "redid" } else { "undid" });
+    ExitCode::SUCCESS
+}
+
+/// Whether `path` starts like a document (the export command takes both).
+pub fn is_document(path: &Path) -> bool {
+    use std::io::Read;
+    let mut head = [0u8; 12];
+    std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok() && &head == b"OCTOPAINTDOC"
+}

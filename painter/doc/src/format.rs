@@ -1,0 +1,364 @@
+//! The document file (`.octo`), format version 1: a painting's tree, its
+//! undo history and the whole session that made it, as a trace
+//! (docs/documents.md).
+//!
+//! ```text
+//! header   16 B magic "OCTOPAINTDOC\r\n\x1a\n" | u32 version | u32 oldest
+//!          version that can read it | u32 section count | u32 CRC-32 of
+//!          the 28 bytes before
+//! section  4 B tag | u32 flags (bit 0: zlib, bit 1: optional) | u64 stored
+//!          length | u64 raw length | u32 CRC-32 of the raw bytes | u32 0
+//!          | stored bytes
+//! trailer  "END!" | u32 CRC-32 of every byte before it | u64 file length
+//! ```
+//!
+//! Sections of version 1, all zlib: `TRCE` the session as trace text
+//! (header line and one line per event), `POOL` the pools (u32 n, then the
+//! columns parent, first child, depth, rgb, sigma), `HIST` the undo and
+//! redo steps, `META` JSON about the save. A reader skips optional
+//! sections it does not know and refuses required ones: a newer writer
+//! marks what an older reader may ignore. Little-endian throughout.
+//!
+//! The magic's `\r\n\x1a\n` (PNG's trick) shows a file mangled by a text
+//! transfer; the CRCs show any other damage; the trailer's length shows a
+//! truncated file before anything is decompressed.
+
+use std::io::{Read, Write};
+
+use flate2::Compression;
+use flate2::read::ZlibDecoder;
+use flate2::write::ZlibEncoder;
+use octopaint_tree::history::{History, UndoStep};
+use octopaint_tree::pool::{CellRecord, FREE, NONE, Tree};
+use octopaint_tree::trace::{Trace, parse_trace};
+
+use crate::DocError;
+
+pub const MAGIC: &[u8; 16] = b"OCTOPAINTDOC\r\n\x1a\n";
+pub const VERSION: u32 = 1;
+const HEADER: usize = 32;
+const SECTION_HEAD: usize = 32;
+const TRAILER: usize = 16;
+const ZLIB: u32 = 1;
+const OPTIONAL: u32 = 2;
+const RECORD: usize = 16;
+
+/// Everything a document holds.
+pub struct Document {
+    /// The session so far: a valid trace (header and events).
+    pub trace_text: String,
+    pub tree: Tree,
+    pub history: History,
+    /// Free-form JSON written at save (application, time, counts).
+    pub meta: String,
+}
+
+/// What `read` found, besides the document.
+pub struct Loaded {
+    pub doc: Document,
+    /// The parsed session (its canvas is the tree's).
+    pub trace: Trace,
+    /// CRC-32 of the whole file but its trailer: the document's identity
+    /// (a journal names the document it extends by it).
+    pub crc: u32,
+}
+
+fn put_u32(out: &mut Vec<u8>, v: u32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+
+fn put_record(out: &mut Vec<u8>, r: &CellRecord) {
+    put_u32(out, r.parent);
+    put_u32(out, r.first_child);
+    out.push(r.depth);
+    out.extend_from_slice(&r.rgb);
+    out.extend_from_slice(&r.sigma.to_le_bytes());
+}
+
+fn pools_bytes(t: &Tree) -> Vec<u8> {
+    let n = t.n_used() as usize;
+    let mut out = Vec::with_capacity(4 + n * 16);
+    put_u32(&mut out, n as u32);
+    for v in &t.parent {
+        put_u32(&mut out, *v);
+    }
+    for v in &t.first_child {
+        put_u32(&mut out, *v);
+    }
+    out.extend_from_slice(&t.depth);
+    for v in &t.rgb {
+        out.extend_from_slice(v);
+    }
+    for v in &t.sigma {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+fn history_bytes(h: &History) -> Vec<u8> {
+    let mut out = Vec::new();
+    put_u32(&mut out, h.done.len() as u32);
+    put_u32(&mut out, h.undone.len() as u32);
+    for s in h.done.iter().chain(&h.undone) {
+        put_u32(&mut out, s.n_before);
+        put_u32(&mut out, s.n_after);
+        put_u32(&mut out, s.cells.len() as u32);
+        for c in &s.cells {
+            put_u32(&mut out, *c);
+        }
+        for r in s.before.iter().chain(&s.after) {
+            put_record(&mut out, r);
+        }
+    }
+    out
+}
+
+fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io::Result<()> {
+    let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::default());
+    z.write_all(raw)?;
+    let stored = z.finish()?;
+    out.extend_from_slice(tag);
+    put_u32(out, flags | ZLIB);
+    out.extend_from_slice(&(stored.len() as u64).to_le_bytes());
+    out.extend_from_slice(&(raw.len() as u64).to_le_bytes());
+    put_u32(out, crc32fast::hash(raw));
+    put_u32(out, 0);
+    out.extend_from_slice(&stored);
+    Ok(())
+}
+
+/// The document as bytes, and its CRC (the identity a journal refers to).
+pub fn write(doc: &Document) -> std::io::Result<(Vec<u8>, u32)> {
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    put_u32(&mut out, VERSION);
+    put_u32(&mut out, VERSION);
+    put_u32(&mut out, 4);
+    let crc = crc32fast::hash(&out);
+    put_u32(&mut out, crc);
+    section(&mut out, b"TRCE", doc.trace_text.as_bytes(), 0)?;
+    section(&mut out, b"POOL", &pools_bytes(&doc.tree), 0)?;
+    section(&mut out, b"HIST", &history_bytes(&doc.history), 0)?;
+    section(&mut out, b"META", doc.meta.as_bytes(), OPTIONAL)?;
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(b"END!");
+    put_u32(&mut out, crc);
+    let len = out.len() as u64 + 8;
+    out.extend_from_slice(&len.to_le_bytes());
+    Ok((out, crc))
+}
+
+/// A little-endian cursor that refuses to read past its end.
+struct Cursor<'a> {
+    data: &'a [u8],
+    at: usize,
+    what: &'static str,
+}
+
+impl<'a> Cursor<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], DocError> {
+        if self.data.len() - self.at < n {
+            return Err(DocError::Corrupt(format!("the {} section ends early", self.what)));
+        }
+        let s = &self.data[self.at..self.at + n];
+        self.at += n;
+        Ok(s)
+    }
+    fn u32(&mut self) -> Result<u32, DocError> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+    fn u32s(&mut self, n: usize) -> Result<Vec<u32>, DocError> {
+        Ok(self.take(n.checked_mul(4).ok_or_else(|| self.too_big())?)?.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().expect("4"))).collect())
+    }
+    fn record(&mut self) -> Result<CellRecord, DocError> {
+        let b = self.take(RECORD)?;
+        Ok(CellRecord {
+            parent: u32::from_le_bytes(b[0..4].try_into().expect("4")),
+            first_child: u32::from_le_bytes(b[4..8].try_into().expect("4")),
+            depth: b[8],
+            rgb: [b[9], b[10], b[11]],
+            sigma: f32::from_le_bytes(b[12..16].try_into().expect("4")),
+        })
+    }
+    fn too_big(&self) -> DocError {
+        DocError::Corrupt(format!("the {} section declares an impossible size", self.what))
+    }
+    fn done(&self) -> Result<(), DocError> {
+        if self.at != self.data.len() {
+            return Err(DocError::Corrupt(format!("the {} section has {} bytes too many", self.what, self.data.len() - self.at)));
+        }
+        Ok(())
+    }
+}
+
+fn inflate(stored: &[u8], raw_len: u64, tag: &str) -> Result<Vec<u8>, DocError> {
+    // The declared size bounds the output (no zip bomb), and the buffer
+    // grows as data really arrives (no allocation from a lying header).
+    let mut out = Vec::with_capacity(raw_len.min(stored.len() as u64 * 4) as usize);
+    ZlibDecoder::new(stored)
+        .take(raw_len + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| DocError::Corrupt(format!("the {tag} section does not decompress: {e}")))?;
+    if out.len() as u64 != raw_len {
+        return Err(DocError::Corrupt(format!("the {tag} section holds {} bytes, its header says {raw_len}", out.len())));
+    }
+    Ok(out)
+}
+
+/// Read a document, checking everything; nothing is trusted before its
+/// CRC has been checked, and nothing decoded is trusted before the tree
+/// it makes has passed every structural check.
+pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
+    if data.len() < 16 || &data[..16] != MAGIC {
+        if data.len() >= 12 && &data[..12] == b"OCTOPAINTDOC" {
+            return Err(DocError::Corrupt("the file was changed by a text-mode transfer (its line endings were rewritten)".into()));
+        }
+        return Err(DocError::NotADocument);
+    }
+    if data.len() < HEADER + TRAILER {
+        return Err(DocError::Corrupt(format!("the file is truncated ({} bytes)", data.len())));
+    }
+    let word = |at: usize| u32::from_le_bytes(data[at..at + 4].try_into().expect("4 bytes"));
+    if crc32fast::hash(&data[..28]) != word(28) {
+        return Err(DocError::Corrupt("the header is damaged (checksum mismatch)".into()));
+    }
+    let (version, oldest, sections) = (word(16), word(20), word(24));
+    if oldest > VERSION {
+        return Err(DocError::TooNew { version, reads: VERSION });
+    }
+    // Trailer: length first (a truncated file says so), then the CRC.
+    let tail = &data[data.len() - TRAILER..];
+    let declared = u64::from_le_bytes(tail[8..16].try_into().expect("8 bytes"));
+    if &tail[..4] != b"END!" {
+        return Err(DocError::Corrupt(format!("the file is truncated ({} bytes, no end marker)", data.len())));
+    }
+    if declared != data.len() as u64 {
+        return Err(DocError::Corrupt(format!("the file is {} bytes, its end marker says {declared}: truncated or extended", data.len())));
+    }
+    let body = &data[..data.len() - TRAILER];
+    let crc = crc32fast::hash(body);
+    if crc != u32::from_le_bytes(tail[4..8].try_into().expect("4 bytes")) {
+        return Err(DocError::Corrupt("the file is damaged (checksum mismatch)".into()));
+    }
+    let mut at = HEADER;
+    let (mut trace_text, mut pools, mut hist, mut meta) = (None, None, None, String::new());
+    for _ in 0..sections {
+        if body.len() - at < SECTION_HEAD {
+            return Err(DocError::Corrupt("a section header runs past the end".into()));
+        }
+        let h = &body[at..at + SECTION_HEAD];
+        let tag = String::from_utf8_lossy(&h[..4]).into_owned();
+        let flags = u32::from_le_bytes(h[4..8].try_into().expect("4"));
+        let stored_len = u64::from_le_bytes(h[8..16].try_into().expect("8"));
+        let raw_len = u64::from_le_bytes(h[16..24].try_into().expect("8"));
+        let raw_crc = u32::from_le_bytes(h[24..28].try_into().expect("4"));
+        at += SECTION_HEAD;
+        if stored_len > (body.len() - at) as u64 {
+            return Err(DocError::Corrupt(format!("the {tag} section runs past the end")));
+        }
+        let stored = &body[at..at + stored_len as usize];
+        at += stored_len as usize;
+        let known = matches!(&h[..4], b"TRCE" | b"POOL" | b"HIST" | b"META");
+        if !known {
+            if flags & OPTIONAL != 0 {
+                continue;
+            }
+            return Err(DocError::TooNew { version, reads: VERSION });
+        }
+        let raw = if flags & ZLIB != 0 { inflate(stored, raw_len, &tag)? } else { stored.to_vec() };
+        if crc32fast::hash(&raw) != raw_crc {
+            return Err(DocError::Corrupt(format!("the {tag} section is damaged (checksum mismatch)")));
+        }
+        match &h[..4] {
+            b"TRCE" => trace_text = Some(String::from_utf8(raw).map_err(|_| DocError::Corrupt("the session is not UTF-8".into()))?),
+            b"POOL" => pools = Some(raw),
+            b"HIST" => hist = Some(raw),
+            _ => meta = String::from_utf8_lossy(&raw).into_owned(),
+        }
+    }
+    if at != body.len() {
+        return Err(DocError::Corrupt("bytes between the last section and the end".into()));
+    }
+    let missing = |what: &str| DocError::Corrupt(format!("the {what} section is missing"));
+    let trace_text = trace_text.ok_or_else(|| missing("TRCE"))?;
+    let trace = parse_trace(&trace_text).map_err(|e| DocError::Corrupt(format!("its session does not read as a trace: {e}")))?;
+    let tree = decode_pools(&trace, &pools.ok_or_else(|| missing("POOL"))?)?;
+    let history = decode_history(&tree, &hist.ok_or_else(|| missing("HIST"))?)?;
+    Ok(Loaded { doc: Document { trace_text, tree, history, meta }, trace, crc })
+}
+
+fn decode_pools(trace: &Trace, raw: &[u8]) -> Result<Tree, DocError> {
+    let mut c = Cursor { data: raw, at: 0, what: "POOL" };
+    let n = c.u32()? as usize;
+    if (n as u64) > u64::from(trace.canvas.capacity) || raw.len() != 4 + n * 16 {
+        return Err(c.too_big());
+    }
+    let parent = c.u32s(n)?;
+    let first_child = c.u32s(n)?;
+    let depth = c.take(n)?.to_vec();
+    let rgb = c.take(n * 3)?.chunks_exact(3).map(|v| [v[0], v[1], v[2]]).collect();
+    let sigma = c.take(n * 4)?.chunks_exact(4).map(|v| f32::from_le_bytes(v.try_into().expect("4"))).collect();
+    c.done()?;
+    Tree::from_pools(&trace.canvas, parent, first_child, depth, rgb, sigma).map_err(|p| DocError::Corrupt(format!("its tree is not valid: {p}")))
+}
+
+/// Undo steps are checked for what `apply_step` relies on (lengths within
+/// the budget, cells within them, records that are cells) and the newest
+/// done and undone steps against the tree; a step deeper in the stacks that
+/// passed the CRC is trusted.
+fn decode_history(tree: &Tree, raw: &[u8]) -> Result<History, DocError> {
+    let mut c = Cursor { data: raw, at: 0, what: "HIST" };
+    let done = c.u32()? as usize;
+    let undone = c.u32()? as usize;
+    if done.saturating_add(undone) > raw.len() / 12 {
+        return Err(c.too_big());
+    }
+    let mut steps = Vec::with_capacity(done + undone);
+    let padded = tree.lat.padded;
+    let bad = |m: String| DocError::Corrupt(format!("its undo history is not valid: {m}"));
+    for i in 0..done + undone {
+        let n_before = c.u32()?;
+        let n_after = c.u32()?;
+        let k = c.u32()? as usize;
+        for n in [n_before, n_after] {
+            if n < padded || n % 8 != 0 || n > tree.capacity {
+                return Err(bad(format!("step {i} has a used length of {n}")));
+            }
+        }
+        let cells = c.u32s(k)?;
+        let len = n_before.max(n_after);
+        if let Some(x) = cells.iter().find(|&&x| x >= len) {
+            return Err(bad(format!("step {i} names cell {x} past its length {len}")));
+        }
+        let mut recs = Vec::with_capacity(2 * k);
+        for _ in 0..2 * k {
+            let r = c.record()?;
+            let ok = if r.depth == FREE {
+                r.parent == NONE && r.first_child == NONE
+            } else {
+                u32::from(r.depth) <= tree.lat.max_depth && r.sigma.is_finite() && r.sigma >= 0.0 && (r.parent == NONE || r.parent < len)
+            };
+            if !ok {
+                return Err(bad(format!("step {i} holds an impossible cell record")));
+            }
+            recs.push(r);
+        }
+        let after = recs.split_off(k);
+        steps.push(UndoStep { n_before, n_after, cells, before: recs, after });
+    }
+    c.done()?;
+    let undone_steps = steps.split_off(done);
+    let h = History { done: steps, undone: undone_steps };
+    let n = tree.n_used();
+    if let Some(s) = h.done.last()
+        && (s.n_after != n || s.cells.iter().zip(&s.after).any(|(&c, r)| !tree.record(c).same_bits(r)))
+    {
+        return Err(bad("its last stroke is not the tree's state".into()));
+    }
+    if let Some(s) = h.undone.last()
+        && (s.n_before != n || s.cells.iter().zip(&s.before).any(|(&c, r)| !tree.record(c).same_bits(r)))
+    {
+        return Err(bad("its last undone stroke does not start from the tree's state".into()));
+    }
+    Ok(h)
+}

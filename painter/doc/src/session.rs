@@ -1,0 +1,396 @@
+//! A painting session on a document: events applied as they come, every
+//! completed stroke journalled to disk before the next one starts, saves
+//! that replace the document atomically, and recovery of the journal after
+//! a crash (docs/documents.md).
+//!
+//! The journal `<document>.journal` is a header line naming the document it
+//! extends (the CRC of its file and its number of events), then event lines
+//! of the trace format. Lines are appended and synced when a stroke ends
+//! and at every undo and redo, so a crash loses at most the stroke in
+//! progress. Opening a document with a journal replays the journal's
+//! complete strokes onto it; saving writes the document (journal included)
+//! and starts an empty journal.
+
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use octopaint_tree::json;
+use octopaint_tree::paint::Painting;
+use octopaint_tree::trace::{
+    Brush, Canvas, Event, EventKind, Sample, Trace, parse_brush, parse_camera, parse_sample, parse_trace, segment_too_long,
+};
+use octopaint_tree::trace_write::{event_line, header_line};
+
+use crate::DocError;
+use crate::format::{self, Document};
+
+/// Undo history kept by default (the history beyond it is forgotten,
+/// oldest strokes first).
+pub const DEFAULT_UNDO_BYTES: usize = 1 << 30;
+
+pub struct Session {
+    pub path: PathBuf,
+    pub painting: Painting,
+    /// The session's trace: header and the events committed so far.
+    trace_text: String,
+    events: usize,
+    /// Lines of events since the last journal flush.
+    pending: Vec<String>,
+    journal: Option<File>,
+    base_crc: u32,
+    base_events: usize,
+    brush: Option<Brush>,
+    last_sample: Option<Sample>,
+    has_camera: bool,
+    in_stroke: bool,
+    last_t: f64,
+    /// History bound in bytes.
+    pub undo_bytes: usize,
+    /// Complete strokes (and undos, redos) the journal gave back at open.
+    pub recovered: usize,
+    /// Undo steps forgotten to stay within `undo_bytes`.
+    pub forgotten: usize,
+}
+
+pub fn journal_path(doc: &Path) -> PathBuf {
+    let mut p = doc.as_os_str().to_owned();
+    p.push(".journal");
+    PathBuf::from(p)
+}
+
+/// Write `data` to `path` through a synced temporary file renamed over it,
+/// then sync the folder: the old file or the whole new one, even across a
+/// power cut.
+pub fn write_atomic(path: &Path, data: &[u8]) -> std::io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let mut tmp = tempfile::Builder::new().prefix(".tmp-").permissions(std::fs::Permissions::from_mode(0o644)).tempfile_in(dir)?;
+    tmp.write_all(data)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    File::open(dir)?.sync_all()
+}
+
+fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
+    move |e| DocError::Io { path: path.to_path_buf(), reason: octopaint_tree::trace::io_reason(&e) }
+}
+
+impl Session {
+    /// A new, empty document at `path` (refused if a file is there).
+    pub fn create(path: &Path, canvas: &Canvas, meta: &json::Json) -> Result<Session, DocError> {
+        if path.exists() {
+            return Err(DocError::Exists(path.to_path_buf()));
+        }
+        let trace_text = header_line(canvas, meta);
+        let trace = parse_trace(&trace_text).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let mut s = Session::from_parts(path, Painting::new(&trace.canvas), trace_text, 0, 0);
+        s.save()?;
+        Ok(s)
+    }
+
+    fn from_parts(path: &Path, painting: Painting, trace_text: String, events: usize, crc: u32) -> Session {
+        Session {
+            path: path.to_path_buf(),
+            painting,
+            trace_text,
+            events,
+            pending: Vec::new(),
+            journal: None,
+            base_crc: crc,
+            base_events: events,
+            brush: None,
+            last_sample: None,
+            has_camera: false,
+            in_stroke: false,
+            last_t: 0.0,
+            undo_bytes: DEFAULT_UNDO_BYTES,
+            recovered: 0,
+            forgotten: 0,
+        }
+    }
+
+    /// Open a document, replaying the complete strokes of its journal (a
+    /// crash's leftovers) onto it. The journal is kept until the next save.
+    pub fn open(path: &Path) -> Result<Session, DocError> {
+        let data = std::fs::read(path).map_err(io(path))?;
+        let loaded = format::read(&data)?;
+        let Document { trace_text, tree, history, .. } = loaded.doc;
+        let trace = loaded.trace;
+        let painting = Painting::from_parts(tree, history);
+        let mut s = Session::from_parts(path, painting, trace_text, trace.events.len(), loaded.crc);
+        s.resume_state(&trace);
+        let jp = journal_path(path);
+        match std::fs::read(&jp) {
+            Ok(bytes) => s.recover(&jp, &bytes)?,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(io(&jp)(e)),
+        }
+        Ok(s)
+    }
+
+    /// The brush, camera and clock the session's events leave.
+    fn resume_state(&mut self, trace: &Trace) {
+        for ev in &trace.events {
+            match &ev.kind {
+                EventKind::Brush(b) => self.brush = Some(*b),
+                EventKind::Camera(_) => self.has_camera = true,
+                _ => {}
+            }
+            self.last_t = ev.t;
+        }
+    }
+
+    fn recover(&mut self, jp: &Path, bytes: &[u8]) -> Result<(), DocError> {
+        let text = String::from_utf8_lossy(bytes);
+        // A line without its newline was being written when the session
+        // died: it is not part of the journal.
+        let complete = match text.rfind('\n') {
+            Some(i) => &text[..=i],
+            None => "",
+        };
+        let mut lines = complete.lines();
+        let Some(head) = lines.next() else {
+            return Ok(()); // created, nothing written yet
+        };
+        let (crc, base) = parse_journal_header(head).ok_or_else(|| DocError::Journal { path: jp.to_path_buf(), why: "its first line is not a journal header".into() })?;
+        let body: Vec<&str> = lines.collect();
+        // Only up to the last event that ended something: a stroke in
+        // progress at the crash is not a stroke.
+        let mut keep = 0;
+        for (i, l) in body.iter().enumerate() {
+            if l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") {
+                keep = i + 1;
+            }
+        }
+        let body = &body[..keep];
+        if crc != self.base_crc || base != self.events {
+            // Saved already (the crash came between the save and the new
+            // journal)? Then the document holds these events.
+            let saved: Vec<&str> = self.trace_text.lines().skip(1).collect();
+            if base + body.len() <= saved.len() && saved[base..base + body.len()] == *body {
+                return Ok(());
+            }
+            return Err(DocError::Journal {
+                path: jp.to_path_buf(),
+                why: "it extends another version of this document; move it away to open the document as saved".into(),
+            });
+        }
+        if body.is_empty() {
+            return Ok(());
+        }
+        let mut all = self.trace_text.clone();
+        for l in body {
+            all.push('\n');
+            all.push_str(l);
+        }
+        let trace = parse_trace(&all).map_err(|e| DocError::Journal { path: jp.to_path_buf(), why: format!("its events do not read: {e}") })?;
+        for ev in &trace.events[self.events..] {
+            self.apply_parsed(ev);
+            if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo) {
+                self.recovered += 1;
+            }
+        }
+        self.trace_text = all;
+        self.events = trace.events.len();
+        // The journal stays as it is: it still extends the saved document.
+        self.pending.clear();
+        Ok(())
+    }
+
+    fn apply_parsed(&mut self, ev: &Event) {
+        match &ev.kind {
+            EventKind::Brush(b) => self.brush = Some(*b),
+            EventKind::StrokeBegin => {
+                self.painting.begin_stroke(self.brush.as_ref().expect("validated"));
+                self.in_stroke = true;
+                self.last_sample = None;
+            }
+            EventKind::Sample(s) => {
+                self.painting.add_sample(s, 0);
+                self.last_sample = Some(*s);
+            }
+            EventKind::StrokeEnd => {
+                self.painting.end_stroke();
+                self.in_stroke = false;
+                self.forgotten += self.painting.history.trim_to(self.undo_bytes);
+            }
+            EventKind::Undo => {
+                self.painting.undo();
+            }
+            EventKind::Redo => {
+                self.painting.redo();
+            }
+            EventKind::Camera(_) => self.has_camera = true,
+            EventKind::Render(_) | EventKind::Snapshot(_) => {}
+        }
+        self.last_t = ev.t;
+    }
+
+    /// The time of the last event (the next must not be earlier).
+    pub fn last_time(&self) -> f64 {
+        self.last_t
+    }
+
+    pub fn in_stroke(&self) -> bool {
+        self.in_stroke
+    }
+
+    pub fn brush(&self) -> Option<&Brush> {
+        self.brush.as_ref()
+    }
+
+    /// Events in the session, saved or not.
+    pub fn event_count(&self) -> usize {
+        self.events + self.pending.len()
+    }
+
+    /// Apply one event as the painter produces it, with the trace reader's
+    /// rules on its values and its place (a sample inside a stroke, a
+    /// brush before a stroke, time not going back). A refused event changes
+    /// nothing. Undo and redo with nothing to undo or redo are not events.
+    pub fn apply(&mut self, ev: &Event) -> Result<(), DocError> {
+        let bad = |m: String| Err(DocError::BadEvent(m));
+        if !(ev.t.is_finite() && ev.t >= self.last_t) {
+            return bad(format!("time {} goes back (last {})", ev.t, self.last_t));
+        }
+        let line = event_line(ev);
+        let obj = json::loads(&line).map_err(|_| DocError::BadEvent("unwritable event".into()))?;
+        let check = |r: Result<(), octopaint_tree::TraceError>| r.map_err(|e| DocError::BadEvent(e.to_string()));
+        match &ev.kind {
+            EventKind::Brush(_) if self.in_stroke => return bad("brush inside a stroke (brushes change between strokes)".into()),
+            EventKind::Brush(_) => check(parse_brush(0, &obj).map(drop))?,
+            EventKind::StrokeBegin if self.in_stroke => return bad("stroke_begin inside a stroke".into()),
+            EventKind::StrokeBegin if self.brush.is_none() => return bad("stroke_begin before any brush event".into()),
+            EventKind::Sample(_) if !self.in_stroke => return bad("sample outside a stroke".into()),
+            EventKind::Sample(s) => {
+                check(parse_sample(0, &obj).map(drop))?;
+                let brush = self.brush.as_ref().expect("a stroke has a brush");
+                if let Some(prev) = &self.last_sample
+                    && segment_too_long(brush, prev, s)
+                {
+                    return bad("this sample is too far from the previous one for the brush (more than 65,536 stamps)".into());
+                }
+            }
+            EventKind::StrokeEnd if !self.in_stroke => return bad("stroke_end outside a stroke".into()),
+            EventKind::Undo | EventKind::Redo if self.in_stroke => return bad("undo or redo inside a stroke".into()),
+            EventKind::Camera(_) => check(parse_camera(0, &obj).map(drop))?,
+            EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
+            EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
+            _ => {}
+        }
+        let acted = match &ev.kind {
+            EventKind::Undo => self.painting.undo(),
+            EventKind::Redo => self.painting.redo(),
+            _ => true,
+        };
+        if !acted {
+            return Ok(());
+        }
+        if !matches!(ev.kind, EventKind::Undo | EventKind::Redo) {
+            self.apply_parsed(ev);
+        } else {
+            self.last_t = ev.t;
+        }
+        self.pending.push(line);
+        if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo) {
+            self.flush()?;
+        }
+        Ok(())
+    }
+
+    /// Append the pending events to the journal and sync it.
+    fn flush(&mut self) -> Result<(), DocError> {
+        let jp = journal_path(&self.path);
+        if self.journal.is_none() {
+            let exists = jp.exists();
+            let mut f = OpenOptions::new().create(true).append(true).open(&jp).map_err(io(&jp))?;
+            if !exists || f.metadata().map_err(io(&jp))?.len() == 0 {
+                writeln!(f, "{}", journal_header(self.base_crc, self.base_events)).map_err(io(&jp))?;
+            }
+            self.journal = Some(f);
+        }
+        let f = self.journal.as_mut().expect("opened above");
+        let mut text = String::new();
+        for l in &self.pending {
+            text.push_str(l);
+            text.push('\n');
+        }
+        f.write_all(text.as_bytes()).map_err(io(&jp))?;
+        f.sync_data().map_err(io(&jp))?;
+        for l in self.pending.drain(..) {
+            self.trace_text.push('\n');
+            self.trace_text.push_str(&l);
+            self.events += 1;
+        }
+        Ok(())
+    }
+
+    /// Save the document (the session up to the last completed stroke;
+    /// a stroke in progress is saved once it ends) and start a new journal.
+    pub fn save(&mut self) -> Result<(), DocError> {
+        if self.in_stroke {
+            return Err(DocError::BadEvent("cannot save inside a stroke: end it first".into()));
+        }
+        // Brush and camera events since the last stroke go with the save.
+        for l in self.pending.drain(..) {
+            self.trace_text.push('\n');
+            self.trace_text.push_str(&l);
+            self.events += 1;
+        }
+        let meta = format!(
+            "{{\"app\": \"octopaint {}\", \"events\": {}, \"cells\": {}, \"undo_steps\": {}}}",
+            env!("CARGO_PKG_VERSION"),
+            self.events,
+            self.painting.tree.n_used(),
+            self.painting.history.done.len()
+        );
+        let doc = Document {
+            trace_text: std::mem::take(&mut self.trace_text),
+            tree: std::mem::replace(&mut self.painting.tree, octopaint_tree::Tree::new(&Canvas { roots: [1, 1, 1], max_depth: 0, root_size: 1.0, capacity: 8 })),
+            history: std::mem::take(&mut self.painting.history),
+            meta,
+        };
+        let written = format::write(&doc);
+        self.trace_text = doc.trace_text;
+        self.painting.tree = doc.tree;
+        self.painting.history = doc.history;
+        let (bytes, crc) = written.map_err(io(&self.path))?;
+        write_atomic(&self.path, &bytes).map_err(io(&self.path))?;
+        // The new journal extends the new document; until it exists, the
+        // old one's events are all in the document (recover() sees that).
+        self.journal = None;
+        self.base_crc = crc;
+        self.base_events = self.events;
+        let jp = journal_path(&self.path);
+        write_atomic(&jp, format!("{}\n", journal_header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
+        Ok(())
+    }
+
+    /// The whole session as a trace: replaying it gives this tree.
+    pub fn trace_text(&self) -> String {
+        let mut t = self.trace_text.clone();
+        for l in &self.pending {
+            t.push('\n');
+            t.push_str(l);
+        }
+        t.push('\n');
+        t
+    }
+}
+
+fn journal_header(crc: u32, events: usize) -> String {
+    format!("{{\"journal\": \"octopaint\", \"version\": 1, \"document_crc\": {crc}, \"document_events\": {events}}}")
+}
+
+fn parse_journal_header(line: &str) -> Option<(u32, usize)> {
+    let j = json::loads(line).ok()?;
+    if !matches!(j.get("journal")?, json::Json::Str(s) if s.is("octopaint")) {
+        return None;
+    }
+    let num = |k: &str| match j.get(k)? {
+        json::Json::Int(i) => num_traits::ToPrimitive::to_u64(i),
+        _ => None,
+    };
+    Some((u32::try_from(num("document_crc")?).ok()?, usize::try_from(num("document_events")?).ok()?))
+}

@@ -1,0 +1,287 @@
+//! Documents against replays: a session painted event by event, saved and
+//! opened again, is the replay's tree and history byte for byte; every
+//! truncation and many corruptions of a file are refused with a message
+//! (never a panic); a session that dies keeps every stroke its journal
+//! holds; a bounded undo history still records a trace that replays to
+//! the same tree. The process-level tests (a session killed with SIGKILL)
+//! are in app/tests/cli.rs.
+
+use std::path::{Path, PathBuf};
+
+use octopaint_doc::format::{self, MAGIC};
+use octopaint_doc::{DocError, Session, journal_path};
+use octopaint_tree::dump::dump_bytes;
+use octopaint_tree::paint::Painting;
+use octopaint_tree::replay::{ReplayObserver, replay};
+use octopaint_tree::trace::{EventKind, Trace, parse_trace};
+
+struct Silent;
+impl ReplayObserver for Silent {}
+
+fn trace(name: &str) -> Trace {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../traces").join(format!("{name}.jsonl"));
+    octopaint_tree::read_trace(&path).unwrap()
+}
+
+fn replayed(t: &Trace) -> Painting {
+    replay(t, None, &mut Silent).unwrap().1
+}
+
+/// A trace's first `n` events (an open stroke at the cut is ended, as
+/// replay does at the end of a trace).
+fn prefix(t: &Trace, n: usize) -> Trace {
+    Trace { events: t.events[..n].to_vec(), ..t.clone() }
+}
+
+fn session_from(dir: &Path, t: &Trace) -> (Session, PathBuf) {
+    let path = dir.join("painting.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    for ev in &t.events {
+        s.apply(ev).unwrap();
+    }
+    (s, path)
+}
+
+fn same_history(a: &Painting, b: &Painting) {
+    assert_eq!(a.history.done.len(), b.history.done.len());
+    assert_eq!(a.history.undone.len(), b.history.undone.len());
+    for (x, y) in a.history.done.iter().chain(&a.history.undone).zip(b.history.done.iter().chain(&b.history.undone)) {
+        assert_eq!((x.n_before, x.n_after, &x.cells), (y.n_before, y.n_after, &y.cells));
+        assert!(x.before.iter().zip(&y.before).all(|(r, s)| r.same_bits(s)));
+        assert!(x.after.iter().zip(&y.after).all(|(r, s)| r.same_bits(s)));
+    }
+}
+
+#[test]
+fn a_saved_session_opens_as_its_replay() {
+    for name in ["shapes_modes", "undo_redo", "capacity_limit", "edges"] {
+        let dir = tempfile::tempdir().unwrap();
+        let t = trace(name);
+        let (mut s, path) = session_from(dir.path(), &t);
+        s.save().unwrap();
+        let want = replayed(&t);
+        let opened = Session::open(&path).unwrap();
+        assert_eq!(opened.recovered, 0);
+        assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&want.tree), "{name}");
+        same_history(&opened.painting, &want);
+        // The session reads back as a trace that replays to the same tree.
+        let again = parse_trace(&opened.trace_text()).unwrap();
+        assert_eq!(again.events.len(), t.events.len());
+        assert_eq!(dump_bytes(&replayed(&again).tree), dump_bytes(&want.tree), "{name}");
+        // Undo and redo continue from the saved history exactly.
+        let mut a = opened.painting.clone();
+        let mut b = want.clone();
+        while a.undo() {
+            assert!(b.undo());
+            assert_eq!(dump_bytes(&a.tree), dump_bytes(&b.tree));
+        }
+        assert!(!b.undo());
+        while a.redo() {
+            assert!(b.redo());
+        }
+        assert_eq!(dump_bytes(&a.tree), dump_bytes(&want.tree));
+    }
+}
+
+fn small_document() -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut s, path) = session_from(dir.path(), &trace("single_stamp"));
+    s.save().unwrap();
+    std::fs::read(path).unwrap()
+}
+
+#[test]
+fn every_truncation_is_refused() {
+    let data = small_document();
+    assert!(format::read(&data).is_ok());
+    for n in 0..data.len() {
+        match format::read(&data[..n]) {
+            Err(DocError::NotADocument) => assert!(n < 16),
+            Err(DocError::Corrupt(m)) => assert!(n >= 12, "{n}: {m}"),
+            Err(e) => panic!("{n}: unexpected {e}"),
+            Ok(_) => panic!("a document cut at {n} of {} bytes was accepted", data.len()),
+        }
+    }
+}
+
+#[test]
+fn damage_anywhere_is_refused() {
+    let data = small_document();
+    // Every byte, one bit flipped at a time (the low and high bit).
+    for i in 0..data.len() {
+        for bit in [0, 7] {
+            let mut d = data.clone();
+            d[i] ^= 1 << bit;
+            let r = format::read(&d);
+            assert!(r.is_err(), "flipping bit {bit} of byte {i} went unnoticed");
+        }
+    }
+    // Extra bytes at the end.
+    let mut d = data.clone();
+    d.push(0);
+    assert!(matches!(format::read(&d), Err(DocError::Corrupt(_))));
+    // A text-mode transfer (\r\n -> \n).
+    let mut d = data.clone();
+    d.remove(12);
+    match format::read(&d) {
+        Err(DocError::Corrupt(m)) => assert!(m.contains("text-mode"), "{m}"),
+        other => panic!("{:?}", other.err()),
+    }
+}
+
+#[test]
+fn a_newer_format_is_refused_with_a_message() {
+    let mut d = small_document();
+    // Version 2 that version 1 cannot read: bump both fields, fix the CRC.
+    d[16..20].copy_from_slice(&2u32.to_le_bytes());
+    d[20..24].copy_from_slice(&2u32.to_le_bytes());
+    let crc = crc32(&d[..28]);
+    d[28..32].copy_from_slice(&crc.to_le_bytes());
+    let e = format::read(&d).err().expect("refused");
+    assert!(matches!(e, DocError::TooNew { version: 2, reads: 1 }), "{e}");
+    assert!(e.to_string().contains("newer octopaint"));
+    assert!(format::read(b"not a document at all").is_err());
+    assert_eq!(&MAGIC[..12], b"OCTOPAINTDOC");
+}
+
+fn crc32(b: &[u8]) -> u32 {
+    // The same CRC-32 (IEEE) the format uses, bit by bit.
+    let mut c = !0u32;
+    for &x in b {
+        c ^= u32::from(x);
+        for _ in 0..8 {
+            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+#[test]
+fn a_session_that_dies_keeps_its_completed_strokes() {
+    let t = trace("shapes_modes");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    // Paint up to the middle of the 20th stroke, then "crash" (drop the
+    // session without saving).
+    let mut strokes = 0;
+    let mut cut = 0;
+    for (i, ev) in t.events.iter().enumerate() {
+        if matches!(ev.kind, EventKind::StrokeBegin) {
+            strokes += 1;
+        }
+        if strokes == 20 && matches!(ev.kind, EventKind::Sample(_)) {
+            cut = i;
+            break;
+        }
+        s.apply(ev).unwrap();
+    }
+    // The 19 strokes before it are complete.
+    let last_end = t.events[..cut].iter().rposition(|e| matches!(e.kind, EventKind::StrokeEnd)).unwrap() + 1;
+    drop(s);
+    // A torn line at the end of the journal (a write cut by the crash).
+    let jp = journal_path(&path);
+    let mut j = std::fs::read(&jp).unwrap();
+    j.extend_from_slice(b"{\"ev\": \"sample\", \"t\": 99, \"p\": [0.");
+    std::fs::write(&jp, &j).unwrap();
+
+    let opened = Session::open(&path).unwrap();
+    assert_eq!(opened.recovered, 19);
+    let want = replayed(&prefix(&t, last_end));
+    assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&want.tree));
+    same_history(&opened.painting, &want);
+    // Saving the recovered session makes it the document; the journal
+    // starts again.
+    let mut opened = opened;
+    opened.save().unwrap();
+    let again = Session::open(&path).unwrap();
+    assert_eq!(again.recovered, 0);
+    assert_eq!(dump_bytes(&again.painting.tree), dump_bytes(&want.tree));
+    // And it continues: the rest of the trace gives the whole replay.
+    let mut again = again;
+    for ev in &t.events[last_end..] {
+        again.apply(ev).unwrap();
+    }
+    assert_eq!(dump_bytes(&again.painting.tree), dump_bytes(&replayed(&t).tree));
+}
+
+#[test]
+fn a_crash_between_save_and_new_journal_loses_nothing() {
+    let t = trace("undo_redo");
+    let dir = tempfile::tempdir().unwrap();
+    let (mut s, path) = session_from(dir.path(), &t);
+    let jp = journal_path(&path);
+    let old_journal = std::fs::read(&jp).unwrap();
+    s.save().unwrap();
+    // As if the process died after renaming the document but before the
+    // new journal replaced the old one.
+    std::fs::write(&jp, &old_journal).unwrap();
+    let opened = Session::open(&path).unwrap();
+    assert_eq!(opened.recovered, 0, "the document holds the journal's events already");
+    assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&replayed(&t).tree));
+    // A journal that belongs to nothing here is refused, not applied.
+    let other = tempfile::tempdir().unwrap();
+    let (mut s2, p2) = session_from(other.path(), &trace("single_stamp"));
+    s2.save().unwrap();
+    let mut ev = t.events.iter().find(|e| matches!(e.kind, EventKind::Brush(_))).unwrap().clone();
+    ev.t = 1e3;
+    s2.apply(&ev).unwrap();
+    std::fs::copy(&jp, journal_path(&p2)).unwrap();
+    match Session::open(&p2) {
+        Err(DocError::Journal { why, .. }) => assert!(why.contains("another version"), "{why}"),
+        other => panic!("{:?}", other.err()),
+    }
+}
+
+#[test]
+fn a_bounded_undo_history_still_records_its_tree() {
+    let t = trace("shapes_modes");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    s.undo_bytes = 200_000;
+    for ev in &t.events {
+        s.apply(ev).unwrap();
+    }
+    assert!(s.forgotten > 0);
+    assert!(s.painting.history.bytes() <= 200_000 || s.painting.history.done.len() == 1);
+    // Undo everything it still can, then more: the extra undos do nothing
+    // and are not recorded, so the trace replays to this tree.
+    let undo = octopaint_tree::trace::Event { line: 0, t: 1e6, kind: EventKind::Undo };
+    for _ in 0..100 {
+        s.apply(&undo).unwrap();
+    }
+    assert!(s.painting.history.done.is_empty());
+    let recorded = parse_trace(&s.trace_text()).unwrap();
+    assert_eq!(dump_bytes(&replayed(&recorded).tree), dump_bytes(&s.painting.tree));
+}
+
+#[test]
+fn refused_events_change_nothing() {
+    let t = trace("single_stamp");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    let sample = t.events.iter().find(|e| matches!(e.kind, EventKind::Sample(_))).unwrap().clone();
+    assert!(matches!(s.apply(&sample), Err(DocError::BadEvent(_))), "a sample outside a stroke");
+    let begin = octopaint_tree::trace::Event { line: 0, t: 0.0, kind: EventKind::StrokeBegin };
+    assert!(s.apply(&begin).is_err(), "a stroke before any brush");
+    for ev in &t.events {
+        if matches!(ev.kind, EventKind::StrokeEnd) {
+            break;
+        }
+        s.apply(ev).unwrap();
+    }
+    let before = dump_bytes(&s.painting.tree);
+    let mut nan = sample.clone();
+    if let EventKind::Sample(ref mut p) = nan.kind {
+        p.p[0] = f64::NAN;
+    }
+    assert!(s.apply(&nan).is_err());
+    let mut back = sample.clone();
+    back.t = -1.0;
+    assert!(s.apply(&back).is_err(), "time going back");
+    assert!(s.save().is_err(), "no save inside a stroke");
+    assert_eq!(dump_bytes(&s.painting.tree), before);
+    assert!(matches!(Session::create(&path, &t.canvas, &t.meta), Err(DocError::Exists(_))));
+}
