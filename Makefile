@@ -21,19 +21,22 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean
+.PHONY: demo test setup system painter paint test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean
 
 setup: system $(VENV)/.installed
 
 # The Vulkan loader and Mesa's drivers; a machine with a GPU driver of its
 # own keeps it (wgpu prefers a discrete or integrated GPU to lavapipe).
 # OpenVDB's own Python module for Debian's python3: the export tests open
-# the painter's .vdb files with it (conformance/vdb_probe.py).
+# the painter's .vdb files with it (conformance/vdb_probe.py). Xvfb and
+# xdotool: the desktop window's test runs it on a virtual X server and
+# drives it with real input events.
 MESA_PACKAGES := mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri
-SYSTEM_PACKAGES := $(MESA_PACKAGES) python3-openvdb python3-numpy
+SYSTEM_PACKAGES := $(MESA_PACKAGES) python3-openvdb python3-numpy xvfb xdotool
 system:
 	@if ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1 || ! ldconfig -p | grep -q libEGL_mesa \
-	    || ! /usr/bin/python3 -c 'import pyopenvdb, numpy' >/dev/null 2>&1; then \
+	    || ! /usr/bin/python3 -c 'import pyopenvdb, numpy' >/dev/null 2>&1 \
+	    || ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null; then \
 	  echo "installing $(SYSTEM_PACKAGES)"; \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null || \
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null; }; \
@@ -87,6 +90,14 @@ bench-gpu: setup painter
 bench-realtime: setup painter
 	$(PAINTER) bench realtime traces/scene.jsonl --out $(OUT)/realtime
 	$(PY) painter/bench/plot_realtime.py $(OUT)/realtime/results.json docs/realtime
+
+# Paint in the desktop window on the scene (imported into out/scene.octo
+# the first time); needs a display.
+paint: setup painter
+	@test -n "$$DISPLAY$$WAYLAND_DISPLAY" || { echo "make paint needs a display (DISPLAY or WAYLAND_DISPLAY); make demo runs without one"; exit 1; }
+	mkdir -p $(OUT)
+	test -e $(OUT)/scene.octo || $(PAINTER) import traces/scene.jsonl $(OUT)/scene.octo
+	$(PAINTER) window $(OUT)/scene.octo
 
 # Export timings against OpenVDB's own writer (docs/benchmarks.md, "Exports");
 # Debian's python3 for its OpenVDB module.

@@ -327,3 +327,35 @@ pub fn is_document(path: &Path) -> bool {
     let mut head = [0u8; 12];
     std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok() && &head == b"OCTOPAINTDOC"
 }
+
+pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) -> ExitCode {
+    let parsed: Option<Vec<u32>> = size.split('x').map(|v| v.trim().parse().ok()).collect();
+    let size = match parsed.as_deref() {
+        Some(&[w, h]) if (64..=16384).contains(&w) && (64..=16384).contains(&h) => [w, h],
+        _ => {
+            eprintln!("octopaint: --size {size:?}: expected WxH, each 64 to 16384");
+            return ExitCode::from(2);
+        }
+    };
+    if !doc.exists() {
+        let canvas = Canvas { roots: [4, 4, 4], max_depth: 24, root_size: 1.0, capacity: 16_777_216 };
+        let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py("untitled")))]);
+        if let Err(e) = Session::create(doc, &canvas, &meta) {
+            return fail(e);
+        }
+        eprintln!("octopaint: created {} (4x4x4 roots of 1 unit, depth 24)", doc.display());
+    }
+    let opts = octopaint_desktop::Options {
+        doc: doc.to_path_buf(),
+        size,
+        precision: if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 },
+        screenshot: screenshot.unwrap_or_else(|| doc.with_extension("png")),
+    };
+    match octopaint_desktop::run(opts) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("octopaint: {e}");
+            ExitCode::from(1)
+        }
+    }
+}

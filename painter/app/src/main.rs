@@ -78,6 +78,23 @@ enum Command {
     /// a malformed input) happens before any file is written (exit status
     /// 2); each file is written whole or not at all.
     Export(export::Args),
+    /// Paint in a desktop window on a document (created with a default
+    /// canvas if missing): the GPU ray caster, mouse painting, a brush
+    /// panel and a status line (docs/desktop.md). Closing saves.
+    Window {
+        /// The document (.octo).
+        doc: PathBuf,
+        /// Window size, WxH pixels.
+        #[arg(long, default_value = "1280x720")]
+        size: String,
+        /// Precision of the ray caster's positions.
+        #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+        precision: PrecisionChoice,
+        /// Where F12 (or the Screenshot button) writes the window's
+        /// picture. Default: DOC with .png.
+        #[arg(long)]
+        screenshot: Option<PathBuf>,
+    },
     /// Create an empty document (docs/documents.md).
     New(document::NewArgs),
     /// Replay a trace into a new document: its whole session, undo history
@@ -332,6 +349,7 @@ fn main() -> ExitCode {
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
+        Command::Window { doc, size, precision, screenshot } => document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot),
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::Paint(args) => document::paint(&args),
         Command::Info { doc } => document::info(&doc),

@@ -73,6 +73,13 @@ impl Gpu {
             Backend::Gl => "GL",
         };
         let adapter = adapters.into_iter().next().ok_or(GpuError::NoAdapter(name))?;
+        Gpu::from_adapter(&adapter)
+    }
+
+    /// A device on `adapter` (a window chooses the adapter that can
+    /// present to its surface), with the features and limits the pipeline
+    /// uses.
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Gpu, GpuError> {
         let f16 = adapter.features().contains(wgpu::Features::SHADER_F16);
         let limits = adapter.limits();
         let mut required_features = wgpu::Features::empty();

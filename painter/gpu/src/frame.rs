@@ -45,7 +45,11 @@ pub struct Renderer {
 impl Renderer {
     /// A renderer follows one tree: the first frame uploads all of it.
     pub fn new(backend: Backend) -> Result<Renderer, GpuError> {
-        let gpu = Gpu::open(backend)?;
+        Renderer::with_gpu(Gpu::open(backend)?)
+    }
+
+    /// A renderer on a device opened elsewhere (a window's).
+    pub fn with_gpu(gpu: Gpu) -> Result<Renderer, GpuError> {
         let pools = GpuPools::new(&gpu)?;
         let g3 = G3Pass::new(&gpu, &pools);
         let ray = RayCaster::new(&gpu, &pools);

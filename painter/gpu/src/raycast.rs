@@ -157,6 +157,12 @@ impl RayCaster {
         Ok(())
     }
 
+    /// The buffer the last image was cast into: one u32 per pixel, sRGB
+    /// bytes r | g << 8 | b << 16, row 0 at the top (a window draws it).
+    pub fn pixel_buffer(&self) -> Option<&wgpu::Buffer> {
+        self.pixels.as_ref().map(|(_, b)| b)
+    }
+
     /// The last image cast, `width·height·3` bytes of sRGB, row 0 at the top.
     pub fn read_image(&self, gpu: &Gpu, width: u32, height: u32) -> Result<Vec<u8>, GpuError> {
         let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;

@@ -1,0 +1,179 @@
+//! The desktop window under a real X server (Xvfb) driven by real input
+//! events (xdotool, through the XTEST extension): a mouse drag paints a
+//! stroke, F12 writes the window's picture, Ctrl+Q saves and quits. The
+//! picture must show the stroke and the panel's text, and the document
+//! must hold exactly that stroke. Needs `Xvfb` and `xdotool` (`make
+//! system` installs them); without them the test fails and says so.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn octopaint() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_octopaint"))
+}
+
+struct Xvfb(Child);
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn need(tool: &str) {
+    let found = std::env::var_os("PATH").is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(tool).is_file()));
+    assert!(found, "{tool} is missing: install xvfb and xdotool (make system does)");
+}
+
+fn wait_for(what: &str, timeout: Duration, mut ok: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !ok() {
+        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+fn xdotool(display: &str, args: &[&str]) -> String {
+    let out = Command::new("xdotool").args(args).env("DISPLAY", display).output().unwrap();
+    assert!(out.status.success(), "xdotool {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+fn start_xvfb() -> (Xvfb, String) {
+    need("Xvfb");
+    need("xdotool");
+    // A display number nobody uses.
+    let base = 90 + std::process::id() % 400;
+    for n in base..base + 50 {
+        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+            continue;
+        }
+        let child = Command::new("Xvfb")
+            .args([format!(":{n}").as_str(), "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let x = Xvfb(child);
+        let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
+        wait_for("Xvfb to start", Duration::from_secs(20), || socket.exists());
+        return (x, format!(":{n}"));
+    }
+    panic!("no free X display number");
+}
+
+#[test]
+fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
+    let (_x, display) = start_xvfb();
+    let scratch = tempfile::tempdir().unwrap();
+    let s = scratch.path();
+    let runtime = s.join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let doc = s.join("w.octo");
+    let shot = s.join("shot.png");
+    let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let mut window = octopaint()
+        .arg("window")
+        .arg(&doc)
+        .args(["--size", "800x600", "--screenshot"])
+        .arg(&shot)
+        .env("DISPLAY", &display)
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .env_remove("WAYLAND_DISPLAY")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let id = {
+        let mut id = String::new();
+        wait_for("the window", Duration::from_secs(60), || {
+            let out = Command::new("xdotool").args(["search", "--onlyvisible", "--name", "octopaint"]).env("DISPLAY", &display).output().unwrap();
+            id = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or("").to_string();
+            !id.is_empty()
+        });
+        id
+    };
+    // Let the first frames through, give the window the keyboard (there is
+    // no window manager), then drag across the middle of the canvas view.
+    std::thread::sleep(Duration::from_secs(2));
+    xdotool(&display, &["windowfocus", &id]);
+    xdotool(&display, &["mousemove", "--window", &id, "420", "330", "mousedown", "1"]);
+    for i in 1..=20 {
+        let (x, y) = (420 + i * 10, 330 - i * 4);
+        xdotool(&display, &["mousemove", "--window", &id, &x.to_string(), &y.to_string()]);
+        std::thread::sleep(Duration::from_millis(40));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&display, &["key", "F12"]);
+    wait_for("the screenshot", Duration::from_secs(60), || shot.exists());
+    xdotool(&display, &["key", "ctrl+q"]);
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(st) = window.try_wait().unwrap() {
+            break st;
+        }
+        if t0.elapsed() > Duration::from_secs(60) {
+            let _ = window.kill();
+            panic!("the window did not close on Ctrl+Q");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut log = String::new();
+    std::io::Read::read_to_string(window.stderr.as_mut().unwrap(), &mut log).unwrap();
+    assert!(status.success(), "{log}");
+    assert!(log.contains("saved"), "{log}");
+
+    // The picture: 800x600, the stroke's orange in the view, the panel's
+    // light text on its dark background.
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!((info.width, info.height), (800, 600));
+    let px = |x: usize, y: usize| &buf[(y * 800 + x) * 3..][..3];
+    let mut orange = 0;
+    let mut text = 0;
+    for y in 0..600 {
+        for x in 0..800 {
+            let p = px(x, y);
+            let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
+            if x > 300 && r > 120 && r > g + 40 && g > b + 20 {
+                orange += 1;
+            }
+            if x < 240 && y < 300 && r > 150 && (r - g).abs() < 20 && (g - b).abs() < 20 {
+                text += 1;
+            }
+        }
+    }
+    assert!(orange > 1500, "the stroke covers {orange} pixels of the view");
+    assert!(text > 300, "the panel shows {text} pixels of text");
+
+    // The document: one stroke, saved, recorded as a trace that replays.
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    let info = String::from_utf8_lossy(&res.stdout);
+    assert!(info.contains("1 stroke(s) to undo") && info.contains("nothing unsaved"), "{info}");
+    let rec = s.join("rec.jsonl");
+    assert!(octopaint().arg("record").arg(&doc).arg("--out").arg(&rec).status().unwrap().success());
+    let text = std::fs::read_to_string(&rec).unwrap();
+    assert_eq!(text.matches("\"stroke_begin\"").count(), 1);
+    assert!(text.matches("\"sample\"").count() >= 10, "{text}");
+    let res = octopaint().arg("replay").arg(&rec).arg("--out").arg(s.join("r")).args(["--renderer", "none", "--quiet"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+}
+
+#[test]
+fn without_a_display_the_window_says_so() {
+    let scratch = tempfile::tempdir().unwrap();
+    let doc = scratch.path().join("w.octo");
+    let res = octopaint().arg("window").arg(&doc).env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").output().unwrap();
+    assert_eq!(res.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(err.contains("cannot open a window") && err.contains("DISPLAY"), "{err}");
+    // The document it was asked for exists (created empty) and is intact.
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+}

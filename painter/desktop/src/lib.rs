@@ -1,0 +1,785 @@
+//! The desktop window (docs/desktop.md): the GPU ray caster drawn into a
+//! winit window, painting with the mouse on a document (every stroke
+//! journalled as it ends), an orbit and fly camera, an egui panel for the
+//! brush and a status line with frame rate, latency, cells, memory and
+//! budget.
+//!
+//! One thread: input events become document events (`Session::apply`, which
+//! paints the tree and journals each stroke), and every frame uploads the
+//! dirty blocks, runs the g3 pass, casts the image at the window's size and
+//! draws it with the panel on top.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use glam::{DQuat, DVec3, EulerRot};
+use octopaint_doc::Session;
+use octopaint_gpu::{Gpu, Precision, Renderer};
+use octopaint_tree::raycast::RayParams;
+use octopaint_tree::trace::{Brush, Camera, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
+use octopaint_tree::{NONE, Tree};
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{Key, ModifiersState, NamedKey};
+use winit::window::{Window, WindowId};
+
+/// What `octopaint window` was asked for.
+pub struct Options {
+    pub doc: PathBuf,
+    pub size: [u32; 2],
+    pub precision: Precision,
+    /// Where F12 writes the window's picture (PNG).
+    pub screenshot: PathBuf,
+}
+
+/// Open the window on `opts.doc` and run until it is closed (closing saves).
+pub fn run(opts: Options) -> Result<(), String> {
+    let session = Session::open(&opts.doc).map_err(|e| e.to_string())?;
+    if session.recovered > 0 {
+        eprintln!("octopaint: {}: recovered {} unsaved stroke(s) from its journal", opts.doc.display(), session.recovered);
+    }
+    let event_loop = EventLoop::new().map_err(|e| format!("cannot open a window ({e}); is there a display (DISPLAY or WAYLAND_DISPLAY)?"))?;
+    let t_open = session.last_time();
+    let mut app = App { opts, session, running: None, error: None, started: Instant::now(), t_open };
+    event_loop.run_app(&mut app).map_err(|e| e.to_string())?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+const BLIT: &str = r#"
+struct Blit { width: u32, height: u32, decode: u32, pad: u32 };
+@group(0) @binding(0) var<uniform> blit: Blit;
+@group(0) @binding(1) var<storage, read> pixels: array<u32>;
+
+@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
+}
+
+fn to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { return c / 12.92; }
+    return pow((c + 0.055) / 1.055, 2.4);
+}
+
+@fragment fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let x = min(u32(pos.x), blit.width - 1u);
+    let y = min(u32(pos.y), blit.height - 1u);
+    let v = pixels[y * blit.width + x];
+    var c = vec3<f32>(f32(v & 255u), f32((v >> 8u) & 255u), f32((v >> 16u) & 255u)) / 255.0;
+    if blit.decode == 1u { c = vec3<f32>(to_linear(c.r), to_linear(c.g), to_linear(c.b)); }
+    return vec4<f32>(c, 1.0);
+}
+"#;
+
+/// The brush as the panel edits it.
+struct BrushUi {
+    shape: Shape,
+    mode: Mode,
+    /// Radius in canvas units.
+    radius: f64,
+    opacity: f64,
+    hardness: f64,
+    colour: [f32; 3],
+    on_surface: bool,
+}
+
+impl BrushUi {
+    fn brush(&self) -> Brush {
+        Brush::new(self.shape, self.mode, self.radius, self.colour.map(f64::from), self.opacity, self.hardness)
+    }
+}
+
+/// An orbit camera around `target`; flying moves the target.
+struct OrbitCamera {
+    target: DVec3,
+    distance: f64,
+    yaw: f64,
+    pitch: f64,
+    fov_y: f64,
+}
+
+impl OrbitCamera {
+    fn rotation(&self) -> DQuat {
+        DQuat::from_euler(EulerRot::YXZ, self.yaw, self.pitch, 0.0)
+    }
+    fn eye(&self) -> DVec3 {
+        self.target + self.rotation() * DVec3::new(0.0, 0.0, self.distance)
+    }
+    fn camera(&self, size: [u32; 2]) -> Camera {
+        let q = self.rotation();
+        let aspect = f64::from(size[0]) / f64::from(size[1].max(1));
+        let ty = (self.fov_y / 2.0).tan();
+        let tx = ty * aspect;
+        Camera {
+            eye: self.eye().to_array(),
+            q: [q.x, q.y, q.z, q.w],
+            fov: [-tx.atan(), tx.atan(), ty.atan(), -ty.atan()],
+            size,
+            background: [0.06, 0.06, 0.08],
+        }
+    }
+    /// The ray through window pixel (x, y), as spec 7 defines it.
+    fn ray(&self, size: [u32; 2], x: f64, y: f64) -> (DVec3, DVec3) {
+        let c = self.camera(size);
+        let (l, r, u, d) = (c.fov[0].tan(), c.fov[1].tan(), c.fov[2].tan(), c.fov[3].tan());
+        let tx = l + (x + 0.5) / f64::from(size[0]) * (r - l);
+        let ty = u - (y + 0.5) / f64::from(size[1]) * (u - d);
+        (self.eye(), (self.rotation() * DVec3::new(tx, ty, -1.0)).normalize())
+    }
+}
+
+/// The first point along a ray where the paint's optical depth reaches
+/// 0.7 (what looks like its surface), marching leaf to leaf.
+pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
+    let size = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for a in 0..3 {
+        if dir[a].abs() < 1e-300 {
+            if eye[a] < 0.0 || eye[a] >= size[a] {
+                return None;
+            }
+            continue;
+        }
+        let (a0, a1) = ((0.0 - eye[a]) / dir[a], (size[a] - eye[a]) / dir[a]);
+        t0 = t0.max(a0.min(a1));
+        t1 = t1.min(a0.max(a1));
+    }
+    if t0 >= t1 {
+        return None;
+    }
+    let mut t = t0;
+    let mut tau = 0.0;
+    for _ in 0..100_000 {
+        if t >= t1 {
+            return None;
+        }
+        let p = eye + dir * t;
+        let c = tree.leaf_at(p.to_array())?;
+        let d = u32::from(tree.depth[c as usize]);
+        let s = tree.lat.size_canvas[d as usize];
+        let lo = DVec3::from_array(tree.origin(c).map(|o| f64::from(o) * tree.lat.lattice_unit));
+        let mut exit = f64::INFINITY;
+        for a in 0..3 {
+            if dir[a] > 0.0 {
+                exit = exit.min((lo[a] + s - p[a]) / dir[a]);
+            } else if dir[a] < 0.0 {
+                exit = exit.min((lo[a] - p[a]) / dir[a]);
+            }
+        }
+        let len = exit.max(0.0);
+        let sigma = f64::from(tree.sigma[c as usize]);
+        if sigma > 0.0 {
+            if tau + sigma * len >= 0.7 {
+                return Some(t + (0.7 - tau) / sigma);
+            }
+            tau += sigma * len;
+        }
+        t += len + s * 1e-6;
+    }
+    None
+}
+
+struct Stats {
+    frames: u64,
+    fps: f64,
+    fps_window: (Instant, u64),
+    latency_ms: Option<f64>,
+    pending_since: Option<Instant>,
+    busy_ms: f64,
+    message: String,
+}
+
+struct Running {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    renderer: Renderer,
+    blit: wgpu::RenderPipeline,
+    blit_layout: wgpu::BindGroupLayout,
+    blit_uniform: wgpu::Buffer,
+    egui_ctx: egui::Context,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+    camera: OrbitCamera,
+    brush: BrushUi,
+    stats: Stats,
+    modifiers: ModifiersState,
+    cursor: (f64, f64),
+    painting: bool,
+    /// Distance along the ray where a plane-mode stroke paints.
+    stroke_depth: f64,
+    orbiting: bool,
+    want_screenshot: bool,
+}
+
+struct App {
+    opts: Options,
+    session: Session,
+    running: Option<Running>,
+    error: Option<String>,
+    started: Instant,
+    t_open: f64,
+}
+
+impl App {
+    /// Event time: seconds since this window opened, after the session's
+    /// last event (the trace format's clock never goes back).
+    fn now(&self) -> f64 {
+        self.session.last_time().max(self.t_open + self.started.elapsed().as_secs_f64())
+    }
+
+    fn apply(&mut self, kind: EventKind) {
+        let t = self.now();
+        let started = Instant::now();
+        let result = self.session.apply(&Event { line: 0, t, kind });
+        if let Some(r) = self.running.as_mut() {
+            r.stats.busy_ms = started.elapsed().as_secs_f64() * 1e3;
+            r.stats.pending_since.get_or_insert(started);
+            if let Err(e) = result {
+                r.stats.message = e.to_string();
+            }
+        }
+    }
+
+    fn begin_stroke(&mut self) {
+        let Some(r) = self.running.as_mut() else { return };
+        let brush = r.brush.brush();
+        let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
+        r.stroke_depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(r.camera.distance) } else { r.camera.distance };
+        r.painting = true;
+        if self.session.brush() != Some(&brush) {
+            self.apply(EventKind::Brush(brush));
+        }
+        self.apply(EventKind::StrokeBegin);
+        self.sample();
+    }
+
+    fn sample(&mut self) {
+        let Some(r) = self.running.as_mut() else { return };
+        let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
+        let depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(r.stroke_depth) } else { r.stroke_depth };
+        let p = eye + dir * depth;
+        self.apply(EventKind::Sample(Sample::at(p.to_array())));
+    }
+
+    fn end_stroke(&mut self) {
+        if let Some(r) = self.running.as_mut() {
+            r.painting = false;
+        }
+        if self.session.in_stroke() {
+            self.apply(EventKind::StrokeEnd);
+        }
+    }
+
+    fn save(&mut self) {
+        self.end_stroke();
+        let msg = match self.session.save() {
+            Ok(()) => format!("saved {}", self.opts.doc.display()),
+            Err(e) => format!("save failed: {e}"),
+        };
+        eprintln!("octopaint: {msg}");
+        if let Some(r) = self.running.as_mut() {
+            r.stats.message = msg;
+        }
+    }
+
+    fn start(&mut self, event_loop: &ActiveEventLoop) -> Result<Running, String> {
+        let [w, h] = self.opts.size;
+        let attrs = Window::default_attributes()
+            .with_title(format!("octopaint: {}", self.opts.doc.display()))
+            .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
+        let window = Arc::new(event_loop.create_window(attrs).map_err(|e| format!("cannot create a window: {e}"))?);
+        let mut desc = wgpu::InstanceDescriptor::new_with_display_handle(Box::new(event_loop.owned_display_handle()));
+        desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
+        let instance = wgpu::Instance::new(desc);
+        let surface = instance.create_surface(window.clone()).map_err(|e| format!("cannot draw into the window: {e}"))?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: Some(&surface),
+            apply_limit_buckets: false,
+        }))
+        .map_err(|e| format!("no GPU adapter can draw into the window: {e}"))?;
+        let gpu = Gpu::from_adapter(&adapter).map_err(|e| e.to_string())?;
+        if !gpu.supports(self.opts.precision) {
+            return Err(format!("{} has no SHADER_F16 for --precision f16", gpu.describe()));
+        }
+        eprintln!("octopaint: window on {}", gpu.describe());
+        let renderer = Renderer::with_gpu(gpu).map_err(|e| e.to_string())?;
+        let caps = surface.get_capabilities(&adapter);
+        let format = caps.formats.iter().copied().find(|f| !f.is_srgb()).unwrap_or(caps.formats[0]);
+        let size = window.inner_size();
+        let mut config = surface
+            .get_default_config(&adapter, size.width.max(1), size.height.max(1))
+            .ok_or("the window's surface is not supported by the adapter")?;
+        config.format = format;
+        config.present_mode = wgpu::PresentMode::AutoVsync;
+        config.desired_maximum_frame_latency = 2;
+        let device = &renderer.gpu.device;
+        surface.configure(device, &config);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("blit"), source: wgpu::ShaderSource::Wgsl(BLIT.into()) });
+        let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("blit"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                },
+            ],
+        });
+        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("blit"), bind_group_layouts: &[Some(&blit_layout)], immediate_size: 0 });
+        let blit = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("blit"),
+            layout: Some(&pl),
+            vertex: wgpu::VertexState { module: &module, entry_point: Some("vs"), buffers: &[], compilation_options: Default::default() },
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
+                compilation_options: Default::default(),
+            }),
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            multiview_mask: None,
+            cache: None,
+        });
+        let blit_uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("blit"),
+            size: 16,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let egui_ctx = egui::Context::default();
+        let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, None);
+        let egui_renderer = egui_wgpu::Renderer::new(device, format, egui_wgpu::RendererOptions::default());
+        let camera = frame_painting(&self.session.painting.tree);
+        let brush = BrushUi {
+            shape: Shape::Sphere,
+            mode: Mode::Paint,
+            radius: camera.distance * 0.03,
+            opacity: 0.8,
+            hardness: 0.6,
+            colour: [0.9, 0.45, 0.15],
+            on_surface: true,
+        };
+        Ok(Running {
+            window,
+            surface,
+            config,
+            renderer,
+            blit,
+            blit_layout,
+            blit_uniform,
+            egui_ctx,
+            egui_state,
+            egui_renderer,
+            camera,
+            brush,
+            stats: Stats {
+                frames: 0,
+                fps: 0.0,
+                fps_window: (Instant::now(), 0),
+                latency_ms: None,
+                pending_since: None,
+                busy_ms: 0.0,
+                message: String::new(),
+            },
+            modifiers: ModifiersState::empty(),
+            cursor: (f64::from(w) / 2.0, f64::from(h) / 2.0),
+            painting: false,
+            stroke_depth: 1.0,
+            orbiting: false,
+            want_screenshot: false,
+        })
+    }
+
+    fn frame(&mut self) -> Result<(), String> {
+        let precision = self.opts.precision;
+        let screenshot_path = self.opts.screenshot.clone();
+        let Some(r) = self.running.as_mut() else { return Ok(()) };
+        let tree = &mut self.session.painting.tree;
+        r.renderer.sync(tree).map_err(|e| e.to_string())?;
+        let size = [r.config.width, r.config.height];
+        let camera = r.camera.camera(size);
+        let params = RayParams::new(&tree.lat, &camera);
+        // The panel.
+        let raw = r.egui_state.take_egui_input(&r.window);
+        let mut actions = Vec::new();
+        let info = StatusInfo {
+            fps: r.stats.fps,
+            latency_ms: r.stats.latency_ms,
+            busy_ms: r.stats.busy_ms,
+            cells: tree.n_used(),
+            capacity: tree.capacity,
+            bytes: tree.pool_bytes_allocated() + self.session.painting.history.bytes(),
+            undo: self.session.painting.history.done.len(),
+            redo: self.session.painting.history.undone.len(),
+            message: r.stats.message.clone(),
+            in_stroke: self.session.in_stroke(),
+        };
+        let out = r.egui_ctx.run_ui(raw, |ui| panel(ui, &mut r.brush, &info, &mut actions));
+        r.egui_state.handle_platform_output(&r.window, out.platform_output);
+        let jobs = r.egui_ctx.tessellate(out.shapes, out.pixels_per_point);
+        let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: size, pixels_per_point: out.pixels_per_point };
+        let gpu = &r.renderer.gpu;
+        for (id, deltas) in &out.textures_delta.set {
+            for delta in deltas {
+                r.egui_renderer.update_texture(&gpu.device, &gpu.queue, *id, delta);
+            }
+        }
+        let frame = match r.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(f) | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
+            other => {
+                r.surface.configure(&gpu.device, &r.config);
+                return if matches!(other, wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded) {
+                    Ok(())
+                } else {
+                    Err("the window's surface failed".into())
+                };
+            }
+        };
+        let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?;
+        let decode = u32::from(r.config.format.is_srgb());
+        gpu.queue.write_buffer(&r.blit_uniform, 0, bytemuck::cast_slice(&[size[0], size[1], decode, 0]));
+        let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("blit"),
+            layout: &r.blit_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: r.blit_uniform.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
+            ],
+        });
+        r.egui_renderer.update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);
+        let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let shot = r.want_screenshot.then(|| {
+            gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("screenshot"),
+                size: wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: r.config.format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        });
+        let targets: Vec<wgpu::TextureView> = std::iter::once(view).chain(shot.iter().map(|t| t.create_view(&Default::default()))).collect();
+        for target in &targets {
+            let mut pass = enc
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("window"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                })
+                .forget_lifetime();
+            pass.set_pipeline(&r.blit);
+            pass.set_bind_group(0, &group, &[]);
+            pass.draw(0..3, 0..1);
+            r.egui_renderer.render(&mut pass, &jobs, &screen);
+        }
+        let readback = shot.as_ref().map(|t| {
+            let row = (size[0] * 4).div_ceil(256) * 256;
+            let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("screenshot"),
+                size: u64::from(row) * u64::from(size[1]),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            enc.copy_texture_to_buffer(
+                t.as_image_copy(),
+                wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } },
+                wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
+            );
+            (buf, row)
+        });
+        gpu.queue.submit([enc.finish()]);
+        r.window.pre_present_notify();
+        gpu.queue.present(frame);
+        for id in &out.textures_delta.free {
+            r.egui_renderer.free_texture(id);
+        }
+        if let Some((buf, row)) = readback {
+            r.want_screenshot = false;
+            let msg = match write_screenshot(gpu, &buf, row, size, r.config.format, &screenshot_path) {
+                Ok(()) => format!("wrote {}", screenshot_path.display()),
+                Err(e) => format!("screenshot failed: {e}"),
+            };
+            eprintln!("octopaint: {msg}");
+            r.stats.message = msg;
+        }
+        // Stats: a sample's latency is from its arrival to the frame that
+        // first shows it.
+        r.stats.frames += 1;
+        if let Some(t) = r.stats.pending_since.take() {
+            r.stats.latency_ms = Some(t.elapsed().as_secs_f64() * 1e3);
+        }
+        let (t0, f0) = r.stats.fps_window;
+        if t0.elapsed() >= Duration::from_millis(500) {
+            r.stats.fps = (r.stats.frames - f0) as f64 / t0.elapsed().as_secs_f64();
+            r.stats.fps_window = (Instant::now(), r.stats.frames);
+        }
+        for a in actions {
+            match a {
+                Action::Undo => self.apply(EventKind::Undo),
+                Action::Redo => self.apply(EventKind::Redo),
+                Action::Save => self.save(),
+                Action::Screenshot => {
+                    if let Some(r) = self.running.as_mut() {
+                        r.want_screenshot = true;
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], format: wgpu::TextureFormat, path: &std::path::Path) -> Result<(), String> {
+    let raw = octopaint_gpu::pools::read_buffer(gpu, buf, u64::from(row) * u64::from(size[1])).map_err(|e| e.to_string())?;
+    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+    let mut rgb = Vec::with_capacity((size[0] * size[1] * 3) as usize);
+    for y in 0..size[1] as usize {
+        let line = &raw[y * row as usize..][..size[0] as usize * 4];
+        for p in line.chunks_exact(4) {
+            if bgra { rgb.extend_from_slice(&[p[2], p[1], p[0]]) } else { rgb.extend_from_slice(&p[..3]) }
+        }
+    }
+    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size[0], size[1]);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header().and_then(|mut w| w.write_image_data(&rgb)).map_err(|e| e.to_string())
+}
+
+/// A camera looking at everything painted (or the whole canvas).
+fn frame_painting(tree: &Tree) -> OrbitCamera {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for c in 0..tree.n_used() {
+        let i = c as usize;
+        if tree.depth[i] != octopaint_tree::FREE && tree.first_child[i] == NONE && tree.sigma[i] > 0.0 {
+            let s = tree.lat.size_canvas[tree.depth[i] as usize];
+            let o = DVec3::from_array(tree.origin(c).map(|v| f64::from(v) * tree.lat.lattice_unit));
+            lo = lo.min(o);
+            hi = hi.max(o + DVec3::splat(s));
+        }
+    }
+    if !lo.is_finite() {
+        lo = DVec3::ZERO;
+        hi = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
+    }
+    let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
+    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians() }
+}
+
+struct StatusInfo {
+    fps: f64,
+    latency_ms: Option<f64>,
+    busy_ms: f64,
+    cells: u32,
+    capacity: u32,
+    bytes: usize,
+    undo: usize,
+    redo: usize,
+    message: String,
+    in_stroke: bool,
+}
+
+enum Action {
+    Undo,
+    Redo,
+    Save,
+    Screenshot,
+}
+
+fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec<Action>) {
+    status_line(root, s);
+    egui::Panel::left("brush").resizable(false).show(root, |ui| {
+        ui.heading("Brush");
+        egui::ComboBox::from_label("shape").selected_text(SHAPES[b.shape as usize]).show_ui(ui, |ui| {
+            for (v, name) in [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise].into_iter().zip(SHAPES) {
+                ui.selectable_value(&mut b.shape, v, name);
+            }
+        });
+        egui::ComboBox::from_label("mode").selected_text(MODES[b.mode as usize]).show_ui(ui, |ui| {
+            for (v, name) in [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup].into_iter().zip(MODES) {
+                ui.selectable_value(&mut b.mode, v, name);
+            }
+        });
+        ui.add(egui::Slider::new(&mut b.radius, 1e-4..=1e4).logarithmic(true).text("radius"));
+        ui.add(egui::Slider::new(&mut b.opacity, 0.0..=1.0).text("opacity"));
+        ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"));
+        ui.horizontal(|ui| {
+            ui.label("colour");
+            ui.color_edit_button_rgb(&mut b.colour);
+        });
+        ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
+        ui.separator();
+        ui.horizontal(|ui| {
+            if ui.button("Undo").clicked() {
+                actions.push(Action::Undo);
+            }
+            if ui.button("Redo").clicked() {
+                actions.push(Action::Redo);
+            }
+            if ui.button("Save").clicked() {
+                actions.push(Action::Save);
+            }
+            if ui.button("Screenshot").clicked() {
+                actions.push(Action::Screenshot);
+            }
+        });
+        ui.separator();
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\n[ ]: brush size · Ctrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+    });
+}
+
+fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
+    egui::Panel::bottom("status").show(root, |ui| {
+        ui.horizontal(|ui| {
+            ui.label(format!("{:.0} fps", s.fps));
+            ui.separator();
+            ui.label(match s.latency_ms {
+                Some(l) => format!("latency {l:.1} ms"),
+                None => "latency -".into(),
+            });
+            ui.separator();
+            let pct = 100.0 * f64::from(s.cells) / f64::from(s.capacity.max(1));
+            ui.label(format!("{} cells, budget {pct:.1}% of {}", s.cells, s.capacity));
+            ui.separator();
+            ui.label(format!("memory {:.1} MiB", s.bytes as f64 / f64::from(1 << 20)));
+            ui.separator();
+            ui.label(format!("undo {} / redo {}", s.undo, s.redo));
+            if s.busy_ms > 50.0 || s.in_stroke {
+                ui.separator();
+                ui.colored_label(egui::Color32::YELLOW, format!("painting… {:.0} ms", s.busy_ms));
+            }
+            if pct > 90.0 {
+                ui.separator();
+                ui.colored_label(egui::Color32::RED, "cell budget nearly spent");
+            }
+            if !s.message.is_empty() {
+                ui.separator();
+                ui.label(&s.message);
+            }
+        });
+    });
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.running.is_some() {
+            return;
+        }
+        match self.start(event_loop) {
+            Ok(r) => {
+                r.window.request_redraw();
+                self.running = Some(r);
+            }
+            Err(e) => {
+                self.error = Some(e);
+                event_loop.exit();
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(r) = self.running.as_mut() else { return };
+        let consumed = r.egui_state.on_window_event(&r.window, &event).consumed;
+        match event {
+            WindowEvent::CloseRequested => {
+                self.save();
+                event_loop.exit();
+            }
+            WindowEvent::Resized(size) => {
+                r.config.width = size.width.max(1);
+                r.config.height = size.height.max(1);
+                r.surface.configure(&r.renderer.gpu.device, &r.config);
+            }
+            WindowEvent::ModifiersChanged(m) => r.modifiers = m.state(),
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.frame() {
+                    self.error = Some(e);
+                    self.save();
+                    event_loop.exit();
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let prev = r.cursor;
+                r.cursor = (position.x, position.y);
+                if r.orbiting {
+                    r.camera.yaw -= (position.x - prev.0) * 0.005;
+                    r.camera.pitch = (r.camera.pitch - (position.y - prev.1) * 0.005).clamp(-1.55, 1.55);
+                } else if r.painting && self.session.in_stroke() {
+                    self.sample();
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } if !consumed || state == ElementState::Released => match (button, state) {
+                (MouseButton::Left, ElementState::Pressed) => self.begin_stroke(),
+                (MouseButton::Left, ElementState::Released) => self.end_stroke(),
+                (MouseButton::Right, ElementState::Pressed) => r.orbiting = true,
+                (MouseButton::Right, ElementState::Released) => r.orbiting = false,
+                _ => {}
+            },
+            WindowEvent::MouseWheel { delta, .. } if !consumed => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => f64::from(y),
+                    MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
+                };
+                r.camera.distance *= 1.15f64.powf(-lines);
+            }
+            WindowEvent::KeyboardInput { event, .. } if !consumed && event.state == ElementState::Pressed => {
+                let ctrl = r.modifiers.control_key();
+                let step = r.camera.distance * 0.05;
+                let rot = r.camera.rotation();
+                match event.logical_key.as_ref() {
+                    Key::Character("s") if ctrl => self.save(),
+                    Key::Character("z") if ctrl && r.modifiers.shift_key() => self.apply(EventKind::Redo),
+                    Key::Character("z") if ctrl => self.apply(EventKind::Undo),
+                    Key::Character("y") if ctrl => self.apply(EventKind::Redo),
+                    Key::Character("q") if ctrl => {
+                        self.save();
+                        event_loop.exit();
+                    }
+                    Key::Character("w") => r.camera.target += rot * DVec3::new(0.0, 0.0, -step),
+                    Key::Character("s") => r.camera.target += rot * DVec3::new(0.0, 0.0, step),
+                    Key::Character("a") => r.camera.target += rot * DVec3::new(-step, 0.0, 0.0),
+                    Key::Character("d") => r.camera.target += rot * DVec3::new(step, 0.0, 0.0),
+                    Key::Character("e") => r.camera.target += DVec3::new(0.0, step, 0.0),
+                    Key::Character("q") => r.camera.target += DVec3::new(0.0, -step, 0.0),
+                    Key::Character("]") => r.brush.radius = (r.brush.radius * 1.25).min(1e4),
+                    Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
+                    Key::Named(NamedKey::F12) => r.want_screenshot = true,
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+        if let Some(r) = self.running.as_ref() {
+            r.window.request_redraw();
+        }
+    }
+}
