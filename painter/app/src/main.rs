@@ -95,6 +95,9 @@ enum Command {
         #[arg(long)]
         screenshot: Option<PathBuf>,
     },
+    /// Find the OpenXR runtime and headset and print what they offer, or
+    /// exactly what is missing (exit status 3 when there is no VR here).
+    XrInfo,
     /// Create an empty document (docs/documents.md).
     New(document::NewArgs),
     /// Replay a trace into a new document: its whole session, undo history
@@ -340,6 +343,36 @@ fn cmd_check(traces: &[PathBuf], canonical: bool) -> ExitCode {
     status
 }
 
+fn xr_info() -> ExitCode {
+    use octopaint_xr::XrError;
+    match octopaint_xr::probe() {
+        Ok(i) => {
+            println!("runtime    {} {}", i.runtime, i.runtime_version);
+            println!("headset    {} (vendor {:#x}), tracking: orientation {}, position {}", i.system, i.vendor_id, i.orientation_tracking, i.position_tracking);
+            for (k, v) in i.views.iter().enumerate() {
+                println!(
+                    "eye {k}      {}x{} recommended, {}x{} at most, {} sample(s)",
+                    v.recommended[0], v.recommended[1], v.max[0], v.max[1], v.samples
+                );
+            }
+            match (&i.vulkan_min, &i.vulkan_max) {
+                (Some(a), Some(b)) => println!("vulkan     XR_KHR_vulkan_enable2, Vulkan {a} to {b}"),
+                _ => println!("vulkan     no XR_KHR_vulkan_enable2: the painter cannot render to this runtime"),
+            }
+            println!("blending   {}", i.blend_modes.join(", "));
+            ExitCode::SUCCESS
+        }
+        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset)) => {
+            eprintln!("octopaint: no VR here: {e}");
+            ExitCode::from(3)
+        }
+        Err(e) => {
+            eprintln!("octopaint: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
@@ -349,6 +382,7 @@ fn main() -> ExitCode {
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
+        Command::XrInfo => xr_info(),
         Command::Window { doc, size, precision, screenshot } => document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot),
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::Paint(args) => document::paint(&args),

@@ -262,3 +262,14 @@ fn damaged_documents_are_refused_and_left_alone() {
     let input = std::fs::read_to_string(repo().join("traces/undo_redo.jsonl")).unwrap();
     assert_eq!(final_dump(&std::fs::read_to_string(&rec).unwrap(), scratch.path(), "a"), final_dump(&input, scratch.path(), "b"));
 }
+
+#[test]
+fn without_an_openxr_runtime_xr_info_says_what_is_missing() {
+    // No runtime here (CI has none; a machine with a headset would):
+    // point the loader at a runtime manifest that does not exist.
+    let scratch = tempfile::tempdir().unwrap();
+    let res = octopaint().arg("xr-info").env("XR_RUNTIME_JSON", scratch.path().join("none.json")).output().unwrap();
+    assert_eq!(res.status.code(), Some(3), "{}", String::from_utf8_lossy(&res.stderr));
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(err.contains("octopaint: no VR here: no OpenXR"), "{err}");
+}
