@@ -4,7 +4,8 @@
 #               export the scene's detail to OpenVDB and glTF (out/export)
 #   make test   set up, run every test: the painter's (cargo), the
 #               reference's and the conformance driver's (pytest), then
-#               conformance on every trace in traces/
+#               conformance on every trace, then the VR session against
+#               Monado's simulated headset (test-vr) in traces/
 # Setup is Mesa's CPU drivers for Vulkan and GL (lavapipe, llvmpipe: the GPU
 # tests and renders run on them when the machine has no GPU), Debian's
 # OpenVDB Python module (the export tests read .vdb files with it), a virtual
@@ -21,7 +22,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter paint test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean
+.PHONY: demo test setup system painter paint test-vr test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean
 
 setup: system $(VENV)/.installed
 
@@ -77,7 +78,13 @@ test-reference: setup painter
 conformance: setup painter
 	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance --require-images
 
-test: setup painter test-painter test-reference conformance
+# The VR session against Monado's simulated headset in a Debian 13 chroot
+# (docs/vr.md): needs root, and network the first time (debootstrap and
+# Monado's packages, about 2 minutes; then seconds).
+test-vr: setup painter
+	painter/xr/monado/test.sh $(PY)
+
+test: setup painter test-painter test-reference conformance test-vr
 
 # GPU pipeline figures: upload MB/s per block size, g3 pass and ray casting
 # ms per frame at 1280x720 on the scene trace (docs/benchmarks.md).

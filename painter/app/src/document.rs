@@ -359,3 +359,39 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
         }
     }
 }
+
+pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {
+    use octopaint_xr::XrError;
+    let mut s = match Session::open(doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
+    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone() };
+    match octopaint_xr::session::run(&mut s.painting.tree, &opts) {
+        Ok(r) => {
+            eprintln!(
+                "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean",
+                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_ms.1, r.render_ms
+            );
+            if let Some(p) = capture {
+                eprintln!("octopaint: wrote {}", p.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset)) => {
+            if no_fallback {
+                eprintln!("octopaint: no VR here: {e}");
+                return ExitCode::from(3);
+            }
+            eprintln!("octopaint: no VR here: {e}; opening the desktop window instead");
+            drop(s);
+            window(doc, "1280x720", f16, None)
+        }
+        Err(e) => {
+            eprintln!("octopaint: VR: {e}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -95,6 +95,27 @@ enum Command {
         #[arg(long)]
         screenshot: Option<PathBuf>,
     },
+    /// Show a document in the headset through OpenXR: each eye ray cast
+    /// with its own pose and field of view, paced by the runtime
+    /// (docs/vr.md). With no OpenXR runtime or headset it says so and
+    /// opens the desktop window instead.
+    Vr {
+        /// The document (.octo).
+        doc: PathBuf,
+        /// Stop after this many frames (scripts and tests).
+        #[arg(long)]
+        frames: Option<u64>,
+        /// Write the last frame's two eyes side by side (PNG); needs --frames.
+        #[arg(long, requires = "frames")]
+        capture: Option<PathBuf>,
+        /// Precision of the ray caster's positions.
+        #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
+        precision: PrecisionChoice,
+        /// Exit with status 3 instead of opening the desktop window when
+        /// there is no VR.
+        #[arg(long)]
+        no_fallback: bool,
+    },
     /// Find the OpenXR runtime and headset and print what they offer, or
     /// exactly what is missing (exit status 3 when there is no VR here).
     XrInfo,
@@ -383,6 +404,9 @@ fn main() -> ExitCode {
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
+        Command::Vr { doc, frames, capture, precision, no_fallback } => {
+            document::vr(&doc, frames, capture, precision == PrecisionChoice::F16, no_fallback)
+        }
         Command::Window { doc, size, precision, screenshot } => document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot),
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::Paint(args) => document::paint(&args),

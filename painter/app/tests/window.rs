@@ -13,7 +13,11 @@ fn octopaint() -> Command {
     Command::new(env!("CARGO_BIN_EXE_octopaint"))
 }
 
-struct Xvfb(Child);
+struct Xvfb(Child, #[allow(dead_code)] std::sync::MutexGuard<'static, ()>);
+
+/// One X server at a time in this process: the tests run in parallel
+/// threads and would otherwise race for the same display number.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Drop for Xvfb {
     fn drop(&mut self) {
@@ -44,6 +48,7 @@ fn xdotool(display: &str, args: &[&str]) -> String {
 fn start_xvfb() -> (Xvfb, String) {
     need("Xvfb");
     need("xdotool");
+    let guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     // A display number nobody uses.
     let base = 90 + std::process::id() % 400;
     for n in base..base + 50 {
@@ -56,7 +61,7 @@ fn start_xvfb() -> (Xvfb, String) {
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        let x = Xvfb(child);
+        let x = Xvfb(child, guard);
         let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
         wait_for("Xvfb to start", Duration::from_secs(20), || socket.exists());
         return (x, format!(":{n}"));
@@ -176,4 +181,46 @@ fn without_a_display_the_window_says_so() {
     // The document it was asked for exists (created empty) and is intact.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+}
+
+#[test]
+fn vr_without_a_runtime_says_so_and_opens_the_window() {
+    let (_x, display) = start_xvfb();
+    let scratch = tempfile::tempdir().unwrap();
+    let runtime = scratch.path().join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let doc = scratch.path().join("v.octo");
+    assert!(octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "8"]).output().unwrap().status.success());
+    let mut child = octopaint()
+        .arg("vr")
+        .arg(&doc)
+        .env("DISPLAY", &display)
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .env("XR_RUNTIME_JSON", scratch.path().join("no-runtime.json"))
+        .env_remove("WAYLAND_DISPLAY")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut id = String::new();
+    wait_for("the fallback window", Duration::from_secs(60), || {
+        let out = Command::new("xdotool").args(["search", "--onlyvisible", "--name", "octopaint"]).env("DISPLAY", &display).output().unwrap();
+        id = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or("").to_string();
+        !id.is_empty()
+    });
+    std::thread::sleep(Duration::from_secs(1));
+    xdotool(&display, &["windowfocus", &id]);
+    xdotool(&display, &["key", "ctrl+q"]);
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break st;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let mut log = String::new();
+    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut log).unwrap();
+    assert!(status.success(), "{log}");
+    assert!(log.contains("no VR here: no OpenXR") && log.contains("opening the desktop window instead"), "{log}");
 }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 
 use glam::{DQuat, DVec3, EulerRot};
 use octopaint_doc::Session;
-use octopaint_gpu::{Gpu, Precision, Renderer};
+use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Camera, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::{NONE, Tree};
@@ -49,31 +49,6 @@ pub fn run(opts: Options) -> Result<(), String> {
         None => Ok(()),
     }
 }
-
-const BLIT: &str = r#"
-struct Blit { width: u32, height: u32, decode: u32, pad: u32 };
-@group(0) @binding(0) var<uniform> blit: Blit;
-@group(0) @binding(1) var<storage, read> pixels: array<u32>;
-
-@vertex fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let p = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(p * 2.0 - 1.0, 0.0, 1.0);
-}
-
-fn to_linear(c: f32) -> f32 {
-    if c <= 0.04045 { return c / 12.92; }
-    return pow((c + 0.055) / 1.055, 2.4);
-}
-
-@fragment fn fs(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    let x = min(u32(pos.x), blit.width - 1u);
-    let y = min(u32(pos.y), blit.height - 1u);
-    let v = pixels[y * blit.width + x];
-    var c = vec3<f32>(f32(v & 255u), f32((v >> 8u) & 255u), f32((v >> 16u) & 255u)) / 255.0;
-    if blit.decode == 1u { c = vec3<f32>(to_linear(c.r), to_linear(c.g), to_linear(c.b)); }
-    return vec4<f32>(c, 1.0);
-}
-"#;
 
 /// The brush as the panel edits it.
 struct BrushUi {
@@ -198,9 +173,7 @@ struct Running {
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
     renderer: Renderer,
-    blit: wgpu::RenderPipeline,
-    blit_layout: wgpu::BindGroupLayout,
-    blit_uniform: wgpu::Buffer,
+    blit: Blit,
     egui_ctx: egui::Context,
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
@@ -321,47 +294,7 @@ impl App {
         config.desired_maximum_frame_latency = 2;
         let device = &renderer.gpu.device;
         surface.configure(device, &config);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("blit"), source: wgpu::ShaderSource::Wgsl(BLIT.into()) });
-        let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("blit"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-            ],
-        });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some("blit"), bind_group_layouts: &[Some(&blit_layout)], immediate_size: 0 });
-        let blit = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("blit"),
-            layout: Some(&pl),
-            vertex: wgpu::VertexState { module: &module, entry_point: Some("vs"), buffers: &[], compilation_options: Default::default() },
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                targets: &[Some(wgpu::ColorTargetState { format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
-                compilation_options: Default::default(),
-            }),
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
-            multisample: wgpu::MultisampleState::default(),
-            multiview_mask: None,
-            cache: None,
-        });
-        let blit_uniform = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("blit"),
-            size: 16,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let blit = Blit::new(&renderer.gpu, format);
         let egui_ctx = egui::Context::default();
         let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, None);
         let egui_renderer = egui_wgpu::Renderer::new(device, format, egui_wgpu::RendererOptions::default());
@@ -381,8 +314,6 @@ impl App {
             config,
             renderer,
             blit,
-            blit_layout,
-            blit_uniform,
             egui_ctx,
             egui_state,
             egui_renderer,
@@ -453,17 +384,8 @@ impl App {
         };
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?;
-        let decode = u32::from(r.config.format.is_srgb());
-        gpu.queue.write_buffer(&r.blit_uniform, 0, bytemuck::cast_slice(&[size[0], size[1], decode, 0]));
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
-        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("blit"),
-            layout: &r.blit_layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: r.blit_uniform.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
-            ],
-        });
+        let group = r.blit.bind(gpu, pixels, size[0], size[1]);
         r.egui_renderer.update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);
         let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
         let shot = r.want_screenshot.then(|| {
@@ -495,9 +417,7 @@ impl App {
                     multiview_mask: None,
                 })
                 .forget_lifetime();
-            pass.set_pipeline(&r.blit);
-            pass.set_bind_group(0, &group, &[]);
-            pass.draw(0..3, 0..1);
+            r.blit.draw(&mut pass, &group);
             r.egui_renderer.render(&mut pass, &jobs, &screen);
         }
         let readback = shot.as_ref().map(|t| {

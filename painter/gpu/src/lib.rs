@@ -11,6 +11,7 @@
 //! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
 //! | [`frame`] | one frame: uploads, mask, g3 pass, ray cast | | |
 
+pub mod blit;
 pub mod context;
 pub mod frame;
 pub mod g3;
@@ -21,6 +22,7 @@ pub mod shaders {
     include!("shader_source.rs");
 }
 
+pub use blit::Blit;
 pub use context::{Backend, Gpu, GpuError};
 pub use frame::Renderer;
 pub use shaders::Precision;

@@ -4,6 +4,9 @@
 #   painter/xr/monado/run.sh xr-info
 #   painter/xr/monado/run.sh ARGS...        # any `octopaint ARGS...`
 #
+# The current folder is bind-mounted at /work inside the chroot and the
+# command runs there, so relative paths in ARGS work.
+#
 # Debian 12 has no usable Monado; Debian 13 ships Monado 25. The first run
 # makes a Debian 13 chroot with debootstrap (about a minute; needs root and
 # network) with monado-service, the OpenXR loader and Mesa's Vulkan
@@ -41,6 +44,10 @@ for d in proc sys dev dev/shm; do
     fi
 done
 
+# The caller's folder is /work inside: relative paths in ARGS work.
+mkdir -p "$root/work"
+mount --bind "$PWD" "$root/work"
+mounted=("$root/work" "${mounted[@]}")
 mkdir -p "$root/opt/octopaint"
 cp "$bin" "$root/opt/octopaint/octopaint"
 run_dir=/run/octopaint-xr
@@ -56,7 +63,7 @@ for _ in $(seq 1 100); do
 done
 [ -S "$root$run_dir/monado_comp_ipc" ] || { echo "monado-service did not start:" >&2; cat "$root$run_dir/monado.log" >&2; exit 1; }
 set +e
-chroot "$root" env "${env_common[@]}" /opt/octopaint/octopaint "$@"
+chroot "$root" /bin/sh -c 'cd /work && exec env "$@"' sh "${env_common[@]}" /opt/octopaint/octopaint "$@"
 status=$?
 set -e
 exit $status

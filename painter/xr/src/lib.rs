@@ -8,6 +8,8 @@
 
 use openxr as xr;
 
+pub mod session;
+
 /// What the runtime reports about itself and its headset.
 #[derive(Debug, Clone)]
 pub struct XrInfo {
@@ -45,9 +47,11 @@ pub enum XrError {
     NoHeadset,
     #[error("OpenXR: {what}: {result}")]
     Call { what: &'static str, result: xr::sys::Result },
+    #[error("{0}")]
+    Setup(String),
 }
 
-fn call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
+pub(crate) fn call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
     r.map_err(|result| match result {
         xr::sys::Result::ERROR_RUNTIME_UNAVAILABLE | xr::sys::Result::ERROR_RUNTIME_FAILURE => XrError::NoRuntime,
         xr::sys::Result::ERROR_FORM_FACTOR_UNAVAILABLE => XrError::NoHeadset,

@@ -1,0 +1,511 @@
+//! The VR session (docs/vr.md): the painter's wgpu device created through
+//! OpenXR's Vulkan interop (XR_KHR_vulkan_enable2: the runtime creates the
+//! Vulkan instance and device, wgpu-hal adopts them), one swapchain with a
+//! layer per eye wrapped as a wgpu texture, and a frame loop paced by
+//! xrWaitFrame that ray casts each eye with its own pose and asymmetric
+//! field of view and draws it into its layer.
+//!
+//! The canvas is placed in the room by a similarity transform kept in f64
+//! (`Placement`): the runtime's poses (f32 metres) become canvas points in
+//! f64, so any zoom of the canvas keeps its precision.
+
+use std::ffi::CStr;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use ash::vk::{self, Handle};
+use glam::{DQuat, DVec3};
+use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
+use octopaint_tree::Tree;
+use octopaint_tree::raycast::RayParams;
+use octopaint_tree::trace::Camera;
+use openxr as xr;
+use wgpu::hal;
+
+use crate::XrError;
+
+const VIEW_TYPE: xr::ViewConfigurationType = xr::ViewConfigurationType::PRIMARY_STEREO;
+
+/// The canvas in the room: `room = origin + scale · rotation · (canvas − centre)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Placement {
+    pub centre: DVec3,
+    pub scale: f64,
+    pub rotation: DQuat,
+    pub origin: DVec3,
+}
+
+impl Placement {
+    /// A painting's bounding sphere shown 0.5 m wide, 1 m in front of a
+    /// head at `head` looking along `forward` (room units), the canvas's up
+    /// the room's.
+    pub fn in_front(tree: &Tree, head: DVec3, forward: DVec3) -> Placement {
+        let (lo, hi) = painted_bounds(tree);
+        let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
+        let f = DVec3::new(forward.x, 0.0, forward.z).try_normalize().unwrap_or(DVec3::NEG_Z);
+        Placement { centre: (lo + hi) / 2.0, scale: 0.25 / radius, rotation: DQuat::IDENTITY, origin: head + f }
+    }
+
+    /// The canvas point at room point `p`.
+    pub fn to_canvas(&self, p: DVec3) -> DVec3 {
+        self.centre + self.rotation.inverse() * (p - self.origin) / self.scale
+    }
+
+    /// A room orientation as a canvas orientation.
+    pub fn rotate_to_canvas(&self, q: DQuat) -> DQuat {
+        self.rotation.inverse() * q
+    }
+}
+
+fn painted_bounds(tree: &Tree) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for c in 0..tree.n_used() {
+        let i = c as usize;
+        if tree.depth[i] != octopaint_tree::FREE && tree.first_child[i] == octopaint_tree::NONE && tree.sigma[i] > 0.0 {
+            let s = tree.lat.size_canvas[tree.depth[i] as usize];
+            let o = DVec3::from_array(tree.origin(c).map(|v| f64::from(v) * tree.lat.lattice_unit));
+            lo = lo.min(o);
+            hi = hi.max(o + DVec3::splat(s));
+        }
+    }
+    if !lo.is_finite() {
+        lo = DVec3::ZERO;
+        hi = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
+    }
+    (lo, hi)
+}
+
+/// What a session did.
+#[derive(Debug, Default)]
+pub struct Report {
+    pub frames: u64,
+    pub eye_size: [u32; 2],
+    pub format: String,
+    /// Wall time between successive xrWaitFrame returns (ms): mean, max.
+    pub frame_ms: (f64, f64),
+    /// GPU work of a frame (both eyes), submit to done (ms): mean.
+    pub render_ms: f64,
+    pub adapter: String,
+}
+
+pub struct Options {
+    pub frames: Option<u64>,
+    pub precision: Precision,
+    /// Write the last frame's two eyes side by side here (PNG), read back
+    /// from the runtime's swapchain image.
+    pub capture: Option<PathBuf>,
+}
+
+fn xr_call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
+    crate::call(what, r)
+}
+
+fn other(what: &str, e: impl std::fmt::Display) -> XrError {
+    XrError::Setup(format!("{what}: {e}"))
+}
+
+/// Run a VR session showing `tree` until the runtime ends it or `frames`
+/// frames have been shown.
+pub fn run(tree: &mut Tree, opts: &Options) -> Result<Report, XrError> {
+    // SAFETY: see crate::probe.
+    let entry = unsafe { xr::Entry::load(&()) }.map_err(|e| XrError::NoLoader(e.to_string()))?;
+    let available = xr_call("enumerating extensions", entry.enumerate_extensions())?;
+    if !available.khr_vulkan_enable2 {
+        return Err(XrError::Setup("the runtime has no XR_KHR_vulkan_enable2, the only graphics binding the painter renders through".into()));
+    }
+    let mut exts = xr::ExtensionSet::default();
+    exts.khr_vulkan_enable2 = true;
+    let xr_instance = xr_call(
+        "creating an instance",
+        entry.create_instance(
+            &xr::ApplicationInfo { application_name: "octopaint", application_version: 1, engine_name: "octopaint", engine_version: 1, api_version: xr::Version::new(1, 0, 0) },
+            &exts,
+            &[],
+            &(),
+        ),
+    )?;
+    let system = xr_call("finding the headset", xr_instance.system(xr::FormFactor::HEAD_MOUNTED_DISPLAY))?;
+    let blend = xr_call("reading blend modes", xr_instance.enumerate_environment_blend_modes(system, VIEW_TYPE))?[0];
+    let reqs = xr_call("reading the Vulkan requirements", xr_instance.graphics_requirements::<xr::Vulkan>(system))?;
+    let want = xr::Version::new(1, 1, 0);
+    if want < reqs.min_api_version_supported || want.major() > reqs.max_api_version_supported.major() {
+        return Err(XrError::Setup(format!("the runtime needs Vulkan {} to {}, the painter uses 1.1", reqs.min_api_version_supported, reqs.max_api_version_supported)));
+    }
+
+    // SAFETY (this block): Vulkan objects are created by the runtime from
+    // create infos that live across each call; the raw handles are given
+    // to wgpu-hal, which owns them from then on (it destroys the device and
+    // instance when the last wgpu handle goes), and to the OpenXR session,
+    // which the runtime requires to be the same ones.
+    let (gpu, session_info) = unsafe {
+        let vk_entry = ash::Entry::load().map_err(|e| other("loading Vulkan", e))?;
+        let flags = wgpu::InstanceFlags::empty();
+        // The newest Vulkan the loader offers, up to 1.3: wgpu-hal calls
+        // 1.2 core functions (timeline semaphores) when the device has
+        // them, which the instance must then have been created for.
+        let loader = vk_entry.try_enumerate_instance_version().ok().flatten().unwrap_or(vk::make_api_version(0, 1, 0, 0));
+        let api = loader.min(vk::make_api_version(0, 1, 3, 0));
+        if api < vk::make_api_version(0, 1, 1, 0) {
+            return Err(XrError::Setup("the Vulkan loader is older than 1.1".into()));
+        }
+        let extensions = hal::vulkan::Instance::desired_extensions(&vk_entry, api, flags).map_err(|e| other("Vulkan instance extensions", e))?;
+        let ext_ptrs: Vec<*const std::ffi::c_char> = extensions.iter().map(|e| e.as_ptr()).collect();
+        let app = vk::ApplicationInfo::default().application_name(c"octopaint").api_version(api);
+        let create = vk::InstanceCreateInfo::default().application_info(&app).enabled_extension_names(&ext_ptrs);
+        #[allow(clippy::missing_transmute_annotations)]
+        let raw_instance = xr_call(
+            "creating the Vulkan instance",
+            xr_instance.create_vulkan_instance(system, std::mem::transmute(vk_entry.static_fn().get_instance_proc_addr), &create as *const _ as *const _),
+        )?
+        .map_err(|e| other("creating the Vulkan instance", vk::Result::from_raw(e)))?;
+        let ash_instance = ash::Instance::load(vk_entry.static_fn(), vk::Instance::from_raw(raw_instance as _));
+        let hal_instance = hal::vulkan::Instance::from_raw(
+            vk_entry.clone(),
+            ash_instance.clone(),
+            api,
+            0,
+            None,
+            extensions,
+            flags,
+            wgpu::MemoryBudgetThresholds::default(),
+            false,
+            None,
+        )
+        .map_err(|e| other("adopting the Vulkan instance", e))?;
+        let phys = vk::PhysicalDevice::from_raw(
+            xr_call("finding the headset's GPU", xr_instance.vulkan_graphics_device(system, ash_instance.handle().as_raw() as _))? as _,
+        );
+        let exposed = hal_instance.expose_adapter(phys).ok_or_else(|| XrError::Setup("the headset's GPU cannot run wgpu".into()))?;
+        let mut features = wgpu::Features::empty();
+        if opts.precision == Precision::F16 {
+            if !exposed.features.contains(wgpu::Features::SHADER_F16) {
+                return Err(XrError::Setup("the headset's GPU has no SHADER_F16 for --precision f16".into()));
+            }
+            features |= wgpu::Features::SHADER_F16;
+        }
+        let limits = exposed.capabilities.limits.clone();
+        let dev_exts = exposed.adapter.required_device_extensions(features);
+        let dev_ext_ptrs: Vec<*const std::ffi::c_char> = dev_exts.iter().map(|e: &&CStr| e.as_ptr()).collect();
+        let mut phd_features = exposed.adapter.physical_device_features(&dev_exts, features);
+        let family = ash_instance
+            .get_physical_device_queue_family_properties(phys)
+            .iter()
+            .position(|f| f.queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE))
+            .ok_or_else(|| XrError::Setup("the headset's GPU has no graphics and compute queue".into()))? as u32;
+        let priorities = [1.0f32];
+        let queues = [vk::DeviceQueueCreateInfo::default().queue_family_index(family).queue_priorities(&priorities)];
+        let create = vk::DeviceCreateInfo::default().queue_create_infos(&queues).enabled_extension_names(&dev_ext_ptrs);
+        let create = phd_features.add_to_device_create(create);
+        #[allow(clippy::missing_transmute_annotations)]
+        let raw_device = xr_call(
+            "creating the Vulkan device",
+            xr_instance.create_vulkan_device(system, std::mem::transmute(vk_entry.static_fn().get_instance_proc_addr), phys.as_raw() as _, &create as *const _ as *const _),
+        )?
+        .map_err(|e| other("creating the Vulkan device", vk::Result::from_raw(e)))?;
+        let ash_device = ash::Device::load(ash_instance.fp_v1_0(), vk::Device::from_raw(raw_device as _));
+        let device_handle = ash_device.handle();
+        let open = exposed
+            .adapter
+            .device_from_raw(ash_device, None, &dev_exts, features, &limits, &wgpu::MemoryHints::Performance, family, 0)
+            .map_err(|e| other("adopting the Vulkan device", e))?;
+        let session_info = xr::vulkan::SessionCreateInfo {
+            instance: ash_instance.handle().as_raw() as _,
+            physical_device: phys.as_raw() as _,
+            device: device_handle.as_raw() as _,
+            queue_family_index: family,
+            queue_index: 0,
+        };
+        let instance = wgpu::Instance::from_hal::<hal::api::Vulkan>(hal_instance);
+        let adapter = instance.create_adapter_from_hal(exposed);
+        let (device, queue) = adapter
+            .create_device_from_hal(open, &wgpu::DeviceDescriptor { label: Some("octopaint vr"), required_features: features, required_limits: limits.clone(), ..Default::default() })
+            .map_err(|e| other("opening the wgpu device", e))?;
+        let f16 = features.contains(wgpu::Features::SHADER_F16);
+        (Gpu { device, queue, info: adapter.get_info(), limits, f16 }, session_info)
+    };
+    let adapter_name = gpu.describe();
+    let mut renderer = Renderer::with_gpu(gpu).map_err(|e| other("the renderer", e))?;
+
+    // SAFETY: the session is made with the instance and device created
+    // above for this system, which outlive it (the renderer holds them).
+    let (session, mut waiter, mut stream) = unsafe { xr_call("creating the session", xr_instance.create_session::<xr::Vulkan>(system, &session_info))? };
+    let stage = xr_call("creating the reference space", session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY))?;
+    let views = xr_call("reading the views", xr_instance.enumerate_view_configuration_views(system, VIEW_TYPE))?;
+    let size = [views[0].recommended_image_rect_width, views[0].recommended_image_rect_height];
+    let formats = xr_call("reading swapchain formats", session.enumerate_swapchain_formats())?;
+    // Unorm first (the cast bytes are sRGB already), sRGB next (decoded
+    // in the blit, encoded again by the hardware).
+    let choice = [
+        (vk::Format::R8G8B8A8_UNORM, wgpu::TextureFormat::Rgba8Unorm),
+        (vk::Format::B8G8R8A8_UNORM, wgpu::TextureFormat::Bgra8Unorm),
+        (vk::Format::R8G8B8A8_SRGB, wgpu::TextureFormat::Rgba8UnormSrgb),
+        (vk::Format::B8G8R8A8_SRGB, wgpu::TextureFormat::Bgra8UnormSrgb),
+    ]
+    .into_iter()
+    .find(|(vkf, _)| formats.contains(&(vkf.as_raw() as u32)))
+    .ok_or_else(|| XrError::Setup(format!("no 8-bit RGBA swapchain format among the runtime's {formats:?}")))?;
+    let (vk_format, format) = choice;
+    let mut swapchain = xr_call(
+        "creating the swapchain",
+        session.create_swapchain(&xr::SwapchainCreateInfo {
+            create_flags: xr::SwapchainCreateFlags::EMPTY,
+            usage_flags: xr::SwapchainUsageFlags::COLOR_ATTACHMENT | xr::SwapchainUsageFlags::TRANSFER_SRC,
+            format: vk_format.as_raw() as _,
+            sample_count: 1,
+            width: size[0],
+            height: size[1],
+            face_count: 1,
+            array_size: 2,
+            mip_count: 1,
+        }),
+    )?;
+    let images = xr_call("reading the swapchain images", swapchain.enumerate_images())?;
+    let desc = wgpu::TextureDescriptor {
+        label: Some("xr swapchain"),
+        size: wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 2 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    };
+    let textures: Vec<wgpu::Texture> = images
+        .iter()
+        .map(|&img| {
+            // SAFETY: the image belongs to the runtime's swapchain, lives as
+            // long as it, and is only drawn between acquire and release. It
+            // is not wgpu's: External memory, and a drop callback, which
+            // tells wgpu-hal not to destroy the image (without one it does,
+            // and the runtime's own destroy is then a double free).
+            unsafe {
+                let hal_dev = renderer.gpu.device.as_hal::<hal::api::Vulkan>().expect("a Vulkan device");
+                let hal_tex = hal_dev.texture_from_raw(
+                    vk::Image::from_raw(img),
+                    &hal::TextureDescriptor {
+                        label: Some("xr swapchain"),
+                        size: desc.size,
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format,
+                        usage: wgpu::TextureUses::COLOR_TARGET | wgpu::TextureUses::COPY_SRC,
+                        memory_flags: hal::MemoryFlags::empty(),
+                        view_formats: vec![],
+                    },
+                    Some(Box::new(|| {})),
+                    hal::vulkan::TextureMemory::External,
+                );
+                drop(hal_dev);
+                renderer.gpu.device.create_texture_from_hal::<hal::api::Vulkan>(hal_tex, &desc, wgpu::TextureUses::COLOR_TARGET)
+            }
+        })
+        .collect();
+    let blit = Blit::new(&renderer.gpu, format);
+    let mut placement: Option<Placement> = None;
+
+    let mut report = Report { eye_size: size, format: format!("{format:?}"), adapter: adapter_name, ..Default::default() };
+    let mut events = xr::EventDataBuffer::new();
+    let mut running = false;
+    let mut exit_requested = false;
+    let mut last_wait: Option<Instant> = None;
+    let (mut frame_sum, mut frame_max, mut render_sum) = (0.0f64, 0.0f64, 0.0f64);
+    'frames: loop {
+        while let Some(ev) = xr_call("polling events", xr_instance.poll_event(&mut events))? {
+            if let xr::Event::SessionStateChanged(e) = ev {
+                match e.state() {
+                    xr::SessionState::READY => {
+                        xr_call("beginning the session", session.begin(VIEW_TYPE))?;
+                        running = true;
+                    }
+                    xr::SessionState::STOPPING => {
+                        xr_call("ending the session", session.end())?;
+                        running = false;
+                    }
+                    xr::SessionState::EXITING | xr::SessionState::LOSS_PENDING => break 'frames,
+                    _ => {}
+                }
+            } else if let xr::Event::InstanceLossPending(_) = ev {
+                break 'frames;
+            }
+        }
+        if !running {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+            continue;
+        }
+        if opts.frames.is_some_and(|n| report.frames >= n) && !exit_requested {
+            xr_call("requesting the end", session.request_exit())?;
+            exit_requested = true;
+        }
+        let state = xr_call("waiting for the frame", waiter.wait())?;
+        if let Some(t) = last_wait {
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            frame_sum += ms;
+            frame_max = frame_max.max(ms);
+        }
+        last_wait = Some(Instant::now());
+        xr_call("beginning the frame", stream.begin())?;
+        if !state.should_render || exit_requested {
+            xr_call("ending the frame", stream.end(state.predicted_display_time, blend, &[]))?;
+            continue;
+        }
+        let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
+        // The canvas is placed in front of the head where it first is.
+        let placement = *placement.get_or_insert_with(|| {
+            let p = |v: &xr::View| DVec3::new(f64::from(v.pose.position.x), f64::from(v.pose.position.y), f64::from(v.pose.position.z));
+            let o = views[0].pose.orientation;
+            let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
+            Placement::in_front(tree, (p(&views[0]) + p(&views[1])) / 2.0, q * DVec3::NEG_Z)
+        });
+        let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
+        xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
+        let t0 = Instant::now();
+        let mut captured = Vec::new();
+        {
+        renderer.sync(tree).map_err(|e| other("uploading", e))?;
+        let gpu = &renderer.gpu;
+        let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
+        for (eye, view) in views.iter().enumerate() {
+            let camera = eye_camera(&placement, view, size);
+            let params = RayParams::new(&tree.lat, &camera);
+            let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("eye") });
+            renderer.ray.encode(gpu, &renderer.pools, &mut enc, &params, opts.precision).map_err(|e| other("ray casting", e))?;
+            let group = blit.bind(gpu, renderer.ray.pixel_buffer().expect("cast above"), size[0], size[1]);
+            let target = textures[image].create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2),
+                base_array_layer: eye as u32,
+                array_layer_count: Some(1),
+                ..Default::default()
+            });
+            {
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("eye"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                blit.draw(&mut pass, &group);
+            }
+            if capture_now {
+                // The eye's layer of the runtime's image as drawn, then the
+                // layer back in the colour-attachment layout the runtime
+                // expects at release (an empty pass that loads and stores).
+                let row = (size[0] * 4).div_ceil(256) * 256;
+                let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("capture"),
+                    size: u64::from(row) * u64::from(size[1]),
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                enc.copy_texture_to_buffer(
+                    wgpu::TexelCopyTextureInfo { texture: &textures[image], mip_level: 0, origin: wgpu::Origin3d { x: 0, y: 0, z: eye as u32 }, aspect: wgpu::TextureAspect::All },
+                    wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } },
+                    wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
+                );
+                enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("back to attachment"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &target,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                gpu.queue.submit([enc.finish()]);
+                let raw = octopaint_gpu::pools::read_buffer(gpu, &buf, u64::from(row) * u64::from(size[1])).map_err(|e| other("reading back", e))?;
+                captured.push(to_rgb(&raw, row, size, format));
+            } else {
+                gpu.queue.submit([enc.finish()]);
+            }
+        }
+        gpu.wait();
+        }
+        render_sum += t0.elapsed().as_secs_f64() * 1e3;
+        xr_call("releasing the image", swapchain.release_image())?;
+        let rect = xr::Rect2Di { offset: xr::Offset2Di { x: 0, y: 0 }, extent: xr::Extent2Di { width: size[0] as i32, height: size[1] as i32 } };
+        let proj: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = (0..2)
+            .map(|eye| {
+                xr::CompositionLayerProjectionView::new()
+                    .pose(views[eye].pose)
+                    .fov(views[eye].fov)
+                    .sub_image(xr::SwapchainSubImage::new().swapchain(&swapchain).image_array_index(eye as u32).image_rect(rect))
+            })
+            .collect();
+        xr_call(
+            "ending the frame",
+            stream.end(state.predicted_display_time, blend, &[&xr::CompositionLayerProjection::new().space(&stage).views(&proj)]),
+        )?;
+        report.frames += 1;
+        if let (Some(path), true) = (&opts.capture, captured.len() == 2) {
+            write_side_by_side(path, &captured, size).map_err(|e| other("writing the capture", e))?;
+        }
+    }
+    if report.frames > 1 {
+        report.frame_ms = (frame_sum / (report.frames - 1) as f64, frame_max);
+    }
+    if report.frames > 0 {
+        report.render_ms = render_sum / report.frames as f64;
+    }
+    drop(textures);
+    drop(swapchain);
+    drop(stage);
+    drop((session, waiter, stream));
+    Ok(report)
+}
+
+/// One eye's camera in canvas units: its pose from the runtime (room,
+/// metres) through the placement, its asymmetric field of view as is.
+pub fn eye_camera(p: &Placement, view: &xr::View, size: [u32; 2]) -> Camera {
+    let pos = view.pose.position;
+    let o = view.pose.orientation;
+    let eye = p.to_canvas(DVec3::new(f64::from(pos.x), f64::from(pos.y), f64::from(pos.z)));
+    let q = p.rotate_to_canvas(DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize());
+    let f = view.fov;
+    Camera {
+        eye: eye.to_array(),
+        q: [q.x, q.y, q.z, q.w],
+        fov: [f64::from(f.angle_left), f64::from(f.angle_right), f64::from(f.angle_up), f64::from(f.angle_down)],
+        size,
+        background: [0.05, 0.05, 0.07],
+    }
+}
+
+/// Rows of 4-byte texels (padded to `row` bytes) as packed RGB, sRGB bytes
+/// (an sRGB texture stores them so; a unorm one holds the cast's bytes).
+fn to_rgb(raw: &[u8], row: u32, size: [u32; 2], format: wgpu::TextureFormat) -> Vec<u8> {
+    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+    let mut out = Vec::with_capacity((size[0] * size[1] * 3) as usize);
+    for y in 0..size[1] as usize {
+        for p in raw[y * row as usize..][..size[0] as usize * 4].chunks_exact(4) {
+            out.extend_from_slice(&if bgra { [p[2], p[1], p[0]] } else { [p[0], p[1], p[2]] });
+        }
+    }
+    out
+}
+
+fn write_side_by_side(path: &std::path::Path, eyes: &[Vec<u8>], size: [u32; 2]) -> std::io::Result<()> {
+    let (w, h) = (size[0] as usize, size[1] as usize);
+    let mut rgb = vec![0u8; 2 * w * h * 3];
+    for (e, img) in eyes.iter().enumerate() {
+        for y in 0..h {
+            rgb[(y * 2 * w + e * w) * 3..][..w * 3].copy_from_slice(&img[y * w * 3..][..w * 3]);
+        }
+    }
+    let file = std::fs::File::create(path)?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), (2 * w) as u32, h as u32);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header().and_then(|mut wr| wr.write_image_data(&rgb)).map_err(std::io::Error::other)
+}
