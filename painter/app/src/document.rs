@@ -360,7 +360,7 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
     }
 }
 
-pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {
+pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {
     use octopaint_xr::XrError;
     let mut s = match Session::open(doc) {
         Ok(s) => s,
@@ -368,12 +368,19 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, f16: bool, 
     };
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
-    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone() };
-    match octopaint_xr::session::run(&mut s.painting.tree, &opts) {
+    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script };
+    let result = octopaint_xr::session::run(&mut s, &opts);
+    // Whatever happened in the headset is saved (the journal has it too).
+    if !s.in_stroke()
+        && let Err(e) = s.save()
+    {
+        eprintln!("octopaint: {e}");
+    }
+    match result {
         Ok(r) => {
             eprintln!(
-                "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean",
-                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_ms.1, r.render_ms
+                "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
+                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_ms.1, r.render_ms, r.strokes
             );
             if let Some(p) = capture {
                 eprintln!("octopaint: wrote {}", p.display());
@@ -391,6 +398,22 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, f16: bool, 
         }
         Err(e) => {
             eprintln!("octopaint: VR: {e}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+pub fn dump(doc: &Path, out: &Path) -> ExitCode {
+    let s = match Session::open(doc) {
+        Ok(s) => s,
+        Err(e) => return fail(e),
+    };
+    say_recovered(&s);
+    let bytes = octopaint_tree::dump::dump_bytes(&s.painting.tree);
+    match octopaint_tree::dump::write_atomic(out, &bytes) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("octopaint: cannot write {}: {}", out.display(), octopaint_tree::trace::io_reason(&e));
             ExitCode::from(1)
         }
     }

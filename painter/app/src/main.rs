@@ -115,6 +115,10 @@ enum Command {
         /// there is no VR.
         #[arg(long)]
         no_fallback: bool,
+        /// Scripted controller states to use instead of the controllers'
+        /// (JSON lines; docs/vr.md): a headset without hands, a test.
+        #[arg(long, value_name = "SCRIPT.jsonl")]
+        script: Option<PathBuf>,
     },
     /// Find the OpenXR runtime and headset and print what they offer, or
     /// exactly what is missing (exit status 3 when there is no VR here).
@@ -144,6 +148,13 @@ enum Command {
         doc: PathBuf,
         /// The trace to write.
         #[arg(long)]
+        out: PathBuf,
+    },
+    /// Write a document's tree as a dump (.npz, spec 11: what `replay`
+    /// writes at snapshots; `octopaint-ref check` reads it).
+    Dump {
+        doc: PathBuf,
+        /// The .npz to write.
         out: PathBuf,
     },
     /// Undo the last strokes of a document, and save it.
@@ -404,8 +415,8 @@ fn main() -> ExitCode {
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
-        Command::Vr { doc, frames, capture, precision, no_fallback } => {
-            document::vr(&doc, frames, capture, precision == PrecisionChoice::F16, no_fallback)
+        Command::Vr { doc, frames, capture, precision, no_fallback, script } => {
+            document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback)
         }
         Command::Window { doc, size, precision, screenshot } => document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot),
         Command::Import { trace, doc } => document::import(&trace, &doc),
@@ -413,6 +424,7 @@ fn main() -> ExitCode {
         Command::Info { doc } => document::info(&doc),
         Command::Recover { doc } => document::recover(&doc),
         Command::Record { doc, out } => document::record(&doc, &out),
+        Command::Dump { doc, out } => document::dump(&doc, &out),
         Command::Undo(args) => document::step(&args, false),
         Command::Redo(args) => document::step(&args, true),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {

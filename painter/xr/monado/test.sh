@@ -3,8 +3,10 @@
 # `octopaint xr-info` must find Monado's runtime and headset; `octopaint vr`
 # must show a painted document for 30 frames paced by the runtime, and the
 # last frame, read back from the runtime's swapchain, must show the
-# painting in both eyes with the parallax of two eyes. Needs root and, the
-# first time, network (run.sh makes the Debian 13 chroot).
+# painting in both eyes with the parallax of two eyes; a stroke painted
+# from scripted controller input must reach the document, and the recorded
+# session must replay to the same tree. Needs root and, the first time,
+# network (run.sh makes the Debian 13 chroot).
 #
 #   painter/xr/monado/test.sh [PYTHON]     # PYTHON: one with Pillow (default .venv/bin/python)
 set -euo pipefail
@@ -51,4 +53,27 @@ assert 0.5 < nl / nr < 2.0, "the eyes disagree on the painting's size"
 assert cl > cr + 0.5, "no parallax between the eyes"
 print("ok")
 EOF
+# Painting from scripted controller input: the right hand sweeps 30 cm
+# across the painting with the trigger held (frames 3 to 23), then lets go.
+"$py" - > stroke.jsonl <<'EOF'
+print('{"frame": 0, "hand": "right", "pose": [-0.15, 0.0, -0.9, 0, 0, 0, 1], "trigger": 0}')
+for i in range(3, 24):
+    x, y = -0.15 + 0.3 * (i - 3) / 20, 0.05 * (i - 3) / 20
+    print('{"frame": %d, "hand": "right", "pose": [%.4f, %.4f, -0.9, 0, 0, 0, 1], "trigger": 0.9}' % (i, x, y))
+print('{"frame": 25, "hand": "right", "trigger": 0}')
+EOF
+before="$("$octopaint" info painting.octo | grep '^undo')"
+"$here/run.sh" vr painting.octo --frames 30 --script stroke.jsonl --no-fallback 2> vr2.log || { grep -v '^LOG\|^	' vr2.log >&2; echo "FAIL: octopaint vr --script" >&2; exit 1; }
+grep '^octopaint:' vr2.log
+grep -q '1 stroke(s) painted, saved' vr2.log || { echo "FAIL: the scripted stroke was not painted" >&2; exit 1; }
+after="$("$octopaint" info painting.octo | grep '^undo')"
+echo "before: $before"; echo "after:  $after"
+[ "$before" != "$after" ] || { echo "FAIL: the document did not change" >&2; exit 1; }
+# The session, recorded as a trace, replays to the document's tree.
+"$octopaint" record painting.octo --out session.jsonl 2>/dev/null
+printf '{"ev": "snapshot", "t": 1e9, "name": "end"}\n' >> session.jsonl
+"$octopaint" replay session.jsonl --out replayed --renderer none --quiet 2>/dev/null
+"$octopaint" dump painting.octo document.npz
+cmp replayed/end.npz document.npz || { echo "FAIL: the recorded session does not replay to the document's tree" >&2; exit 1; }
+echo "the recorded session replays to the document's tree, byte for byte"
 echo "VR test passed"

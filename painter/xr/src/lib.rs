@@ -8,6 +8,8 @@
 
 use openxr as xr;
 
+pub mod input;
+pub mod paint;
 pub mod session;
 
 /// What the runtime reports about itself and its headset.

@@ -86,6 +86,8 @@ pub struct Report {
     pub frame_ms: (f64, f64),
     /// GPU work of a frame (both eyes), submit to done (ms): mean.
     pub render_ms: f64,
+    /// Strokes painted with the controllers.
+    pub strokes: u64,
     pub adapter: String,
 }
 
@@ -95,6 +97,9 @@ pub struct Options {
     /// Write the last frame's two eyes side by side here (PNG), read back
     /// from the runtime's swapchain image.
     pub capture: Option<PathBuf>,
+    /// Scripted controller states that replace the controllers'
+    /// (`input::Script`).
+    pub script: Option<PathBuf>,
 }
 
 fn xr_call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
@@ -107,7 +112,11 @@ fn other(what: &str, e: impl std::fmt::Display) -> XrError {
 
 /// Run a VR session showing `tree` until the runtime ends it or `frames`
 /// frames have been shown.
-pub fn run(tree: &mut Tree, opts: &Options) -> Result<Report, XrError> {
+pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, XrError> {
+    let mut script = match &opts.script {
+        Some(p) => Some(crate::input::Script::load(p)?),
+        None => None,
+    };
     // SAFETY: see crate::probe.
     let entry = unsafe { xr::Entry::load(&()) }.map_err(|e| XrError::NoLoader(e.to_string()))?;
     let available = xr_call("enumerating extensions", entry.enumerate_extensions())?;
@@ -231,6 +240,12 @@ pub fn run(tree: &mut Tree, opts: &Options) -> Result<Report, XrError> {
     // above for this system, which outlive it (the renderer holds them).
     let (session, mut waiter, mut stream) = unsafe { xr_call("creating the session", xr_instance.create_session::<xr::Vulkan>(system, &session_info))? };
     let stage = xr_call("creating the reference space", session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY))?;
+    let controls = crate::input::Controls::new(&xr_instance, &session)?;
+    let mut painter = crate::paint::Painter::default();
+    let started = Instant::now();
+    let t_open = doc.last_time();
+    let mut last_input = Instant::now();
+    let mut head0 = DVec3::ZERO;
     let views = xr_call("reading the views", xr_instance.enumerate_view_configuration_views(system, VIEW_TYPE))?;
     let size = [views[0].recommended_image_rect_width, views[0].recommended_image_rect_height];
     let formats = xr_call("reading swapchain formats", session.enumerate_swapchain_formats())?;
@@ -352,12 +367,30 @@ pub fn run(tree: &mut Tree, opts: &Options) -> Result<Report, XrError> {
         }
         let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
         // The canvas is placed in front of the head where it first is.
-        let placement = *placement.get_or_insert_with(|| {
+        if placement.is_none() {
             let p = |v: &xr::View| DVec3::new(f64::from(v.pose.position.x), f64::from(v.pose.position.y), f64::from(v.pose.position.z));
             let o = views[0].pose.orientation;
             let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
-            Placement::in_front(tree, (p(&views[0]) + p(&views[1])) / 2.0, q * DVec3::NEG_Z)
-        });
+            head0 = (p(&views[0]) + p(&views[1])) / 2.0;
+            placement = Some(Placement::in_front(&doc.painting.tree, head0, q * DVec3::NEG_Z));
+        }
+        let place = placement.as_mut().expect("set above");
+        // The controllers (or the script) change the painting and the
+        // canvas's place before the frame is drawn.
+        let hands = match script.as_mut() {
+            Some(s) => {
+                // Real actions are still synced: the runtime sees an
+                // application that reads its controllers.
+                controls.read(&session, &stage, state.predicted_display_time)?;
+                s.at(report.frames, head0)
+            }
+            None => controls.read(&session, &stage, state.predicted_display_time)?,
+        };
+        let dt = last_input.elapsed().as_secs_f64();
+        last_input = Instant::now();
+        painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
+        let placement = *place;
+        let tree = &mut doc.painting.tree;
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
         let t0 = Instant::now();
@@ -451,6 +484,11 @@ pub fn run(tree: &mut Tree, opts: &Options) -> Result<Report, XrError> {
         if let (Some(path), true) = (&opts.capture, captured.len() == 2) {
             write_side_by_side(path, &captured, size).map_err(|e| other("writing the capture", e))?;
         }
+    }
+    painter.finish(doc, t_open + started.elapsed().as_secs_f64());
+    report.strokes = painter.strokes;
+    if let Some(e) = &painter.last_error {
+        eprintln!("octopaint: vr: an input event was refused: {e}");
     }
     if report.frames > 1 {
         report.frame_ms = (frame_sum / (report.frames - 1) as f64, frame_max);

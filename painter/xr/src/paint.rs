@@ -1,0 +1,191 @@
+//! Painting with the controllers (docs/vr.md, "Controllers"): the right
+//! trigger paints at the right controller's tip with the trigger's value as
+//! pressure; a grip grabs the canvas and moves it with the hand, two grips
+//! scale and turn it about the vertical; the right thumbstick changes the
+//! brush size; the right primary and secondary buttons undo and redo; the
+//! left hand holds the palette (thumbstick left/right: colour, up/down:
+//! mode, primary button: shape). Every change of the painting is a document
+//! event (`octopaint_doc::Session::apply`), so each stroke is journalled
+//! as it ends and the session records as a trace.
+
+use glam::{DQuat, DVec3};
+use octopaint_doc::Session;
+use octopaint_tree::trace::{Brush, Event, EventKind, Mode, Sample, Shape};
+
+use crate::input::{Hand, LEFT, RIGHT};
+use crate::session::Placement;
+
+/// Colours of the palette (sRGB).
+pub const PALETTE: [[f64; 3]; 8] = [
+    [0.92, 0.45, 0.15],
+    [0.85, 0.15, 0.15],
+    [0.95, 0.85, 0.25],
+    [0.25, 0.65, 0.3],
+    [0.2, 0.45, 0.9],
+    [0.55, 0.3, 0.75],
+    [0.95, 0.95, 0.95],
+    [0.08, 0.08, 0.1],
+];
+const SHAPES: [Shape; 5] = [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise];
+const MODES: [Mode; 5] = [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup];
+
+/// What the controllers are doing to the painting and the canvas.
+pub struct Painter {
+    /// Brush radius in the room, metres (the canvas radius follows the zoom).
+    pub room_radius: f64,
+    pub colour: usize,
+    pub shape: usize,
+    pub mode: usize,
+    pub opacity: f64,
+    pub hardness: f64,
+    prev: [Hand; 2],
+    last_tip: Option<DVec3>,
+    grab: Grab,
+    /// Events refused by the document (shown, never fatal).
+    pub last_error: Option<String>,
+    pub strokes: u64,
+}
+
+#[derive(Clone, Copy)]
+enum Grab {
+    None,
+    /// One hand: its pose and the placement when the grab began.
+    One { hand: usize, p0: DVec3, q0: DQuat, start: Placement },
+    /// Both hands: their positions and the placement when it began.
+    Two { a0: DVec3, b0: DVec3, start: Placement },
+}
+
+impl Default for Painter {
+    fn default() -> Self {
+        Painter {
+            room_radius: 0.01,
+            colour: 0,
+            shape: 0,
+            mode: 0,
+            opacity: 0.8,
+            hardness: 0.6,
+            prev: [Hand::default(); 2],
+            last_tip: None,
+            grab: Grab::None,
+            last_error: None,
+            strokes: 0,
+        }
+    }
+}
+
+fn yaw(v: DVec3) -> f64 {
+    v.x.atan2(-v.z)
+}
+
+impl Painter {
+    /// The brush as the canvas sees it at `placement`'s zoom.
+    pub fn brush(&self, placement: &Placement) -> Brush {
+        Brush::new(SHAPES[self.shape], MODES[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
+    }
+
+    fn apply(&mut self, doc: &mut Session, t: f64, kind: EventKind) {
+        let t = t.max(doc.last_time());
+        if let Err(e) = doc.apply(&Event { line: 0, t, kind }) {
+            self.last_error = Some(e.to_string());
+        }
+    }
+
+    /// One frame of input: `dt` seconds since the last, `t` the session's
+    /// clock.
+    pub fn update(&mut self, hands: &[Hand; 2], placement: &mut Placement, doc: &mut Session, t: f64, dt: f64) {
+        let (l, r) = (&hands[LEFT], &hands[RIGHT]);
+        let rose = |now: bool, before: bool| now && !before;
+        // Grabbing: the canvas follows one hand, or two.
+        let holding = |h: &Hand| h.grip > 0.5 && h.pose.is_some();
+        self.grab = match (holding(l), holding(r), self.grab) {
+            (true, true, Grab::Two { a0, b0, start }) => {
+                let (a, b) = (l.pose.expect("held").0, r.pose.expect("held").0);
+                let s = ((b - a).length() / (b0 - a0).length().max(1e-6)).clamp(1e-3, 1e3);
+                let turn = DQuat::from_rotation_y(yaw(b - a) - yaw(b0 - a0));
+                let (m0, m) = ((a0 + b0) / 2.0, (a + b) / 2.0);
+                let pivot = start.to_canvas(m0);
+                let rotation = turn * start.rotation;
+                let scale = start.scale * s;
+                *placement = Placement { centre: start.centre, scale, rotation, origin: m - scale * (rotation * (pivot - start.centre)) };
+                self.grab
+            }
+            (true, true, _) => Grab::Two { a0: l.pose.expect("held").0, b0: r.pose.expect("held").0, start: *placement },
+            (gl, gr, g) if gl || gr => {
+                let hand = if gl { LEFT } else { RIGHT };
+                let (p, q) = hands[hand].pose.expect("held");
+                match g {
+                    Grab::One { hand: h0, p0, q0, start } if h0 == hand => {
+                        let d = q * q0.inverse();
+                        *placement = Placement { rotation: d * start.rotation, origin: p + d * (start.origin - p0), ..start };
+                        g
+                    }
+                    _ => Grab::One { hand, p0: p, q0: q, start: *placement },
+                }
+            }
+            _ => Grab::None,
+        };
+        // Brush size on the right stick (doubling per second at full tilt).
+        if r.stick[1].abs() > 0.2 && !doc.in_stroke() {
+            self.room_radius = (self.room_radius * 2f64.powf(f64::from(r.stick[1]) * dt)).clamp(0.001, 0.5);
+        }
+        // The palette on the left hand.
+        let (pl, now_x, now_y) = (&self.prev[LEFT], l.stick[0], l.stick[1]);
+        if now_x > 0.7 && pl.stick[0] <= 0.7 {
+            self.colour = (self.colour + 1) % PALETTE.len();
+        }
+        if now_x < -0.7 && pl.stick[0] >= -0.7 {
+            self.colour = (self.colour + PALETTE.len() - 1) % PALETTE.len();
+        }
+        if now_y > 0.7 && pl.stick[1] <= 0.7 {
+            self.mode = (self.mode + 1) % MODES.len();
+        }
+        if now_y < -0.7 && pl.stick[1] >= -0.7 {
+            self.mode = (self.mode + MODES.len() - 1) % MODES.len();
+        }
+        if rose(l.primary, pl.primary) {
+            self.shape = (self.shape + 1) % SHAPES.len();
+        }
+        // Undo and redo on the right hand, between strokes.
+        if !doc.in_stroke() {
+            if rose(r.primary, self.prev[RIGHT].primary) {
+                self.apply(doc, t, EventKind::Undo);
+            }
+            if rose(r.secondary, self.prev[RIGHT].secondary) {
+                self.apply(doc, t, EventKind::Redo);
+            }
+        }
+        // Painting with the right trigger.
+        let painting = r.trigger > 0.05 && r.pose.is_some() && !matches!(self.grab, Grab::One { hand: RIGHT, .. } | Grab::Two { .. });
+        if painting {
+            let tip = r.pose.expect("checked").0;
+            if !doc.in_stroke() {
+                let brush = self.brush(placement);
+                if doc.brush() != Some(&brush) {
+                    self.apply(doc, t, EventKind::Brush(brush));
+                }
+                self.apply(doc, t, EventKind::StrokeBegin);
+                self.last_tip = None;
+            }
+            // A sample when the tip has moved a quarter radius (or first).
+            let moved = self.last_tip.is_none_or(|p| (tip - p).length() >= 0.25 * self.room_radius);
+            if doc.in_stroke() && moved {
+                let p = placement.to_canvas(tip);
+                let sample = Sample { p: p.to_array(), pressure: f64::from(r.trigger).clamp(0.0, 1.0), q: [0.0, 0.0, 0.0, 1.0] };
+                self.apply(doc, t, EventKind::Sample(sample));
+                self.last_tip = Some(tip);
+            }
+        } else if doc.in_stroke() {
+            self.apply(doc, t, EventKind::StrokeEnd);
+            self.strokes += 1;
+        }
+        self.prev = *hands;
+    }
+
+    /// End a stroke left open (the session is ending).
+    pub fn finish(&mut self, doc: &mut Session, t: f64) {
+        if doc.in_stroke() {
+            self.apply(doc, t, EventKind::StrokeEnd);
+            self.strokes += 1;
+        }
+    }
+}
