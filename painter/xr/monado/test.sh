@@ -40,6 +40,8 @@ def painted(x0):
     n, sx = 0, 0
     for y in range(h):
         for x in range(x0, x0 + w // 2):
+            if y < h // 6 and x - x0 < w // 4:
+                continue  # the HUD (indicators and palette), the same in both eyes
             p = im.getpixel((x, y))
             if sum(abs(a - b) for a, b in zip(p, bg)) > 60:
                 n += 1

@@ -8,6 +8,7 @@
 
 use openxr as xr;
 
+pub mod hud;
 pub mod input;
 pub mod paint;
 pub mod session;

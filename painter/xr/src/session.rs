@@ -318,6 +318,8 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         })
         .collect();
     let blit = Blit::new(&renderer.gpu, format);
+    let hud_ctx = egui::Context::default();
+    let mut hud = egui_wgpu::Renderer::new(&renderer.gpu.device, format, egui_wgpu::RendererOptions::default());
     let mut placement: Option<Placement> = None;
 
     let mut report = Report { eye_size: size, format: format!("{format:?}"), adapter: adapter_name, ..Default::default() };
@@ -388,7 +390,9 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         };
         let dt = last_input.elapsed().as_secs_f64();
         last_input = Instant::now();
+        let busy = Instant::now();
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
+        let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
         let tree = &mut doc.painting.tree;
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
@@ -398,6 +402,16 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         {
         renderer.sync(tree).map_err(|e| other("uploading", e))?;
         let gpu = &renderer.gpu;
+        // The indicators and the palette, head-locked in both eyes.
+        let status = crate::hud::Status {
+            busy_ms,
+            in_stroke: doc_in_stroke(&painter, &hands),
+            cells: tree.n_used(),
+            capacity: tree.capacity,
+            bytes: tree.pool_bytes_allocated(),
+            painter: &painter,
+        };
+        let (hud_jobs, hud_screen, hud_free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status);
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
         for (eye, view) in views.iter().enumerate() {
             let camera = eye_camera(&placement, view, size);
@@ -426,6 +440,28 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                     multiview_mask: None,
                 });
                 blit.draw(&mut pass, &group);
+            }
+            {
+                // One upload of the HUD's buffers serves both eyes.
+                if eye == 0 {
+                    hud.update_buffers(&gpu.device, &gpu.queue, &mut enc, &hud_jobs, &hud_screen);
+                }
+                let mut pass = enc
+                    .begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("hud"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &target,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                        })],
+                        depth_stencil_attachment: None,
+                        timestamp_writes: None,
+                        occlusion_query_set: None,
+                        multiview_mask: None,
+                    })
+                    .forget_lifetime();
+                hud.render(&mut pass, &hud_jobs, &hud_screen);
             }
             if capture_now {
                 // The eye's layer of the runtime's image as drawn, then the
@@ -464,6 +500,9 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             }
         }
         gpu.wait();
+        for id in &hud_free {
+            hud.free_texture(id);
+        }
         }
         render_sum += t0.elapsed().as_secs_f64() * 1e3;
         xr_call("releasing the image", swapchain.release_image())?;
@@ -501,6 +540,11 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     drop(stage);
     drop((session, waiter, stream));
     Ok(report)
+}
+
+/// Whether a stroke is being painted (the right trigger is down).
+fn doc_in_stroke(_p: &crate::paint::Painter, hands: &[crate::input::Hand; 2]) -> bool {
+    hands[crate::input::RIGHT].trigger > 0.05
 }
 
 /// One eye's camera in canvas units: its pose from the runtime (room,

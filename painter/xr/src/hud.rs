@@ -1,0 +1,69 @@
+//! The headset's indicators and palette (the paper's §8.3 asks for a
+//! heavy-operation indicator and a memory-budget indicator): an egui panel
+//! drawn over both eyes' images at the same place (head-locked).
+
+use crate::paint::{PALETTE, Painter};
+
+pub struct Status<'a> {
+    pub busy_ms: f64,
+    pub in_stroke: bool,
+    pub cells: u32,
+    pub capacity: u32,
+    pub bytes: usize,
+    pub painter: &'a Painter,
+}
+
+const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
+const MODES: [&str; 5] = ["paint", "erase", "recolor", "mix", "pickup"];
+
+/// Lay the panel out for a `size` eye image and upload its textures;
+/// returns what `egui_wgpu::Renderer::render` draws and the textures to
+/// free after the frame.
+pub fn prepare(
+    ctx: &egui::Context,
+    renderer: &mut egui_wgpu::Renderer,
+    gpu: &octopaint_gpu::Gpu,
+    size: [u32; 2],
+    s: &Status,
+) -> (Vec<egui::ClippedPrimitive>, egui_wgpu::ScreenDescriptor, Vec<egui::TextureId>) {
+    // About 1/4 of the eye's width for the panel whatever its resolution.
+    let ppp = (size[0] as f32 / 900.0).max(0.3);
+    let raw = egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(size[0] as f32 / ppp, size[1] as f32 / ppp))),
+        ..Default::default()
+    };
+    ctx.set_pixels_per_point(ppp);
+    let p = s.painter;
+    let out = ctx.run_ui(raw, |ui| {
+        egui::Area::new(egui::Id::unique("hud")).fixed_pos(egui::pos2(12.0, 12.0)).show(ui.ctx(), |ui| {
+            egui::Frame::popup(ui.style()).show(ui, |ui| {
+                ui.horizontal(|ui| {
+                    let c = PALETTE[p.colour].map(|v| (v * 255.0) as u8);
+                    let (rect, _) = ui.allocate_exact_size(egui::vec2(18.0, 18.0), egui::Sense::hover());
+                    ui.painter().rect_filled(rect, 3.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
+                    ui.label(format!("{} · {} · {:.1} cm", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
+                });
+                let pct = 100.0 * f64::from(s.cells) / f64::from(s.capacity.max(1));
+                let budget = format!("cells {pct:.1}% of budget · {:.0} MiB", s.bytes as f64 / f64::from(1 << 20));
+                if pct > 90.0 {
+                    ui.colored_label(egui::Color32::RED, budget);
+                } else {
+                    ui.label(budget);
+                }
+                if s.in_stroke || s.busy_ms > 11.0 {
+                    ui.colored_label(egui::Color32::YELLOW, format!("painting… {:.0} ms", s.busy_ms));
+                }
+                if let Some(e) = &p.last_error {
+                    ui.colored_label(egui::Color32::RED, e);
+                }
+            });
+        });
+    });
+    for (id, deltas) in &out.textures_delta.set {
+        for d in deltas {
+            renderer.update_texture(&gpu.device, &gpu.queue, *id, d);
+        }
+    }
+    let jobs = ctx.tessellate(out.shapes, out.pixels_per_point);
+    (jobs, egui_wgpu::ScreenDescriptor { size_in_pixels: size, pixels_per_point: out.pixels_per_point }, out.textures_delta.free.iter().copied().collect())
+}
