@@ -18,7 +18,7 @@ use octopaint_doc::Session;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Camera, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
-use octopaint_tree::{NONE, Tree};
+use octopaint_tree::Tree;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -496,21 +496,7 @@ fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], for
 
 /// A camera looking at everything painted (or the whole canvas).
 fn frame_painting(tree: &Tree) -> OrbitCamera {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for c in 0..tree.n_used() {
-        let i = c as usize;
-        if tree.depth[i] != octopaint_tree::FREE && tree.first_child[i] == NONE && tree.sigma[i] > 0.0 {
-            let s = tree.lat.size_canvas[tree.depth[i] as usize];
-            let o = DVec3::from_array(tree.origin(c).map(|v| f64::from(v) * tree.lat.lattice_unit));
-            lo = lo.min(o);
-            hi = hi.max(o + DVec3::splat(s));
-        }
-    }
-    if !lo.is_finite() {
-        lo = DVec3::ZERO;
-        hi = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
-    }
+    let (lo, hi) = tree.painted_bounds();
     let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians() }
 }

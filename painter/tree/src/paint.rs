@@ -117,30 +117,15 @@ pub struct Painting {
 
 impl Painting {
     pub fn new(canvas: &Canvas) -> Self {
-        Painting {
-            tree: Tree::new(canvas),
-            history: History::default(),
-            counters: PaintCounters::default(),
-            warnings: Vec::new(),
-            stroke: None,
-            work: None,
-            slot_of: Vec::new(),
-            spare_slots: Vec::new(),
-            spare_slot_a: Vec::new(),
-            spare_stack: Vec::new(),
-        }
+        Painting::from_parts(Tree::new(canvas), History::default())
     }
 
     /// A painting resumed from a saved tree and its undo history (a
     /// document); no stroke open.
     pub fn from_parts(tree: Tree, history: History) -> Self {
-        Painting { tree, history, ..Painting::new_empty_like() }
-    }
-
-    fn new_empty_like() -> Self {
         Painting {
-            tree: Tree::new(&crate::trace::Canvas { roots: [1, 1, 1], max_depth: 0, root_size: 1.0, capacity: 8 }),
-            history: History::default(),
+            tree,
+            history,
             counters: PaintCounters::default(),
             warnings: Vec::new(),
             stroke: None,

@@ -140,6 +140,27 @@ impl Tree {
         }
     }
 
+    /// The box (canvas units) around every painted leaf, or the whole
+    /// canvas when nothing is painted: what a view frames first.
+    pub fn painted_bounds(&self) -> (glam::DVec3, glam::DVec3) {
+        let mut lo = glam::DVec3::splat(f64::INFINITY);
+        let mut hi = glam::DVec3::splat(f64::NEG_INFINITY);
+        for c in 0..self.n_used() {
+            let i = c as usize;
+            if self.depth[i] != FREE && self.first_child[i] == NONE && self.sigma[i] > 0.0 {
+                let s = self.lat.size_canvas[self.depth[i] as usize];
+                let o = glam::DVec3::from_array(self.origin(c).map(|v| f64::from(v) * self.lat.lattice_unit));
+                lo = lo.min(o);
+                hi = hi.max(o + glam::DVec3::splat(s));
+            }
+        }
+        if !lo.is_finite() {
+            lo = glam::DVec3::ZERO;
+            hi = glam::DVec3::from_array(self.lat.roots.map(|r| f64::from(r) * self.lat.root_size));
+        }
+        (lo, hi)
+    }
+
     /// The used length N (spec 2.3).
     #[inline]
     pub fn n_used(&self) -> u32 {

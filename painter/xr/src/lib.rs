@@ -66,6 +66,12 @@ fn version(v: xr::Version) -> String {
     format!("{}.{}.{}", v.major(), v.minor(), v.patch())
 }
 
+/// An instance for the painter with `extensions`.
+pub(crate) fn create_instance(entry: &xr::Entry, extensions: &xr::ExtensionSet) -> Result<xr::Instance, XrError> {
+    let app = xr::ApplicationInfo { application_name: "octopaint", application_version: 1, engine_name: "octopaint", engine_version: 1, api_version: xr::Version::new(1, 0, 0) };
+    call("creating an instance", entry.create_instance(&app, extensions, &[], &()))
+}
+
 /// Load the loader, create an instance and find the headset.
 pub fn probe() -> Result<XrInfo, XrError> {
     // SAFETY: loading the system's OpenXR loader runs its initialisers;
@@ -75,15 +81,7 @@ pub fn probe() -> Result<XrInfo, XrError> {
     let available = call("enumerating extensions", entry.enumerate_extensions())?;
     let mut wanted = xr::ExtensionSet::default();
     wanted.khr_vulkan_enable2 = available.khr_vulkan_enable2;
-    let instance = call(
-        "creating an instance",
-        entry.create_instance(
-            &xr::ApplicationInfo { application_name: "octopaint", application_version: 1, engine_name: "octopaint", engine_version: 1, api_version: xr::Version::new(1, 0, 0) },
-            &wanted,
-            &[],
-            &(),
-        ),
-    )?;
+    let instance = create_instance(&entry, &wanted)?;
     let props = call("reading the runtime's properties", instance.properties())?;
     let system = call("finding the headset", instance.system(xr::FormFactor::HEAD_MOUNTED_DISPLAY))?;
     let sp = call("reading the headset's properties", instance.system_properties(system))?;

@@ -40,7 +40,7 @@ impl Placement {
     /// head at `head` looking along `forward` (room units), the canvas's up
     /// the room's.
     pub fn in_front(tree: &Tree, head: DVec3, forward: DVec3) -> Placement {
-        let (lo, hi) = painted_bounds(tree);
+        let (lo, hi) = tree.painted_bounds();
         let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
         let f = DVec3::new(forward.x, 0.0, forward.z).try_normalize().unwrap_or(DVec3::NEG_Z);
         Placement { centre: (lo + hi) / 2.0, scale: 0.25 / radius, rotation: DQuat::IDENTITY, origin: head + f }
@@ -55,25 +55,6 @@ impl Placement {
     pub fn rotate_to_canvas(&self, q: DQuat) -> DQuat {
         self.rotation.inverse() * q
     }
-}
-
-fn painted_bounds(tree: &Tree) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for c in 0..tree.n_used() {
-        let i = c as usize;
-        if tree.depth[i] != octopaint_tree::FREE && tree.first_child[i] == octopaint_tree::NONE && tree.sigma[i] > 0.0 {
-            let s = tree.lat.size_canvas[tree.depth[i] as usize];
-            let o = DVec3::from_array(tree.origin(c).map(|v| f64::from(v) * tree.lat.lattice_unit));
-            lo = lo.min(o);
-            hi = hi.max(o + DVec3::splat(s));
-        }
-    }
-    if !lo.is_finite() {
-        lo = DVec3::ZERO;
-        hi = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
-    }
-    (lo, hi)
 }
 
 /// What a session did.
@@ -125,15 +106,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     }
     let mut exts = xr::ExtensionSet::default();
     exts.khr_vulkan_enable2 = true;
-    let xr_instance = xr_call(
-        "creating an instance",
-        entry.create_instance(
-            &xr::ApplicationInfo { application_name: "octopaint", application_version: 1, engine_name: "octopaint", engine_version: 1, api_version: xr::Version::new(1, 0, 0) },
-            &exts,
-            &[],
-            &(),
-        ),
-    )?;
+    let xr_instance = crate::create_instance(&entry, &exts)?;
     let system = xr_call("finding the headset", xr_instance.system(xr::FormFactor::HEAD_MOUNTED_DISPLAY))?;
     let blend = xr_call("reading blend modes", xr_instance.enumerate_environment_blend_modes(system, VIEW_TYPE))?[0];
     let reqs = xr_call("reading the Vulkan requirements", xr_instance.graphics_requirements::<xr::Vulkan>(system))?;
@@ -426,19 +399,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 ..Default::default()
             });
             {
-                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("eye"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &target,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::BLACK), store: wgpu::StoreOp::Store },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                let mut pass = pass_on(&mut enc, &target, wgpu::LoadOp::Clear(wgpu::Color::BLACK));
                 blit.draw(&mut pass, &group);
             }
             {
@@ -446,21 +407,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 if eye == 0 {
                     hud.update_buffers(&gpu.device, &gpu.queue, &mut enc, &hud_jobs, &hud_screen);
                 }
-                let mut pass = enc
-                    .begin_render_pass(&wgpu::RenderPassDescriptor {
-                        label: Some("hud"),
-                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                            view: &target,
-                            depth_slice: None,
-                            resolve_target: None,
-                            ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                        })],
-                        depth_stencil_attachment: None,
-                        timestamp_writes: None,
-                        occlusion_query_set: None,
-                        multiview_mask: None,
-                    })
-                    .forget_lifetime();
+                let mut pass = pass_on(&mut enc, &target, wgpu::LoadOp::Load).forget_lifetime();
                 hud.render(&mut pass, &hud_jobs, &hud_screen);
             }
             if capture_now {
@@ -479,19 +426,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                     wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } },
                     wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
                 );
-                enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("back to attachment"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &target,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                });
+                drop(pass_on(&mut enc, &target, wgpu::LoadOp::Load));
                 gpu.queue.submit([enc.finish()]);
                 let raw = octopaint_gpu::pools::read_buffer(gpu, &buf, u64::from(row) * u64::from(size[1])).map_err(|e| other("reading back", e))?;
                 captured.push(to_rgb(&raw, row, size, format));
@@ -540,6 +475,23 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     drop(stage);
     drop((session, waiter, stream));
     Ok(report)
+}
+
+/// A render pass drawing into one eye's layer.
+fn pass_on<'a>(enc: &'a mut wgpu::CommandEncoder, target: &wgpu::TextureView, load: wgpu::LoadOp<wgpu::Color>) -> wgpu::RenderPass<'a> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("eye"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: target,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load, store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
 }
 
 /// Whether a stroke is being painted (the right trigger is down).
