@@ -12,7 +12,7 @@
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(dirname "$(dirname "$(dirname "$here")")")"
-py="${1:-$repo/.venv/bin/python}"
+py="$(realpath -s "${1:-$repo/.venv/bin/python}")"   # absolute: the test runs elsewhere
 octopaint="$repo/painter/target/release/octopaint"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
