@@ -60,6 +60,10 @@ struct BrushUi {
     hardness: f64,
     colour: [f32; 3],
     on_surface: bool,
+    /// Distance of the painting plane from the eye along the view axis,
+    /// canvas units (strokes off the surface, or with surface painting
+    /// off, lie on that plane).
+    plane_depth: f64,
 }
 
 impl BrushUi {
@@ -183,8 +187,6 @@ struct Running {
     modifiers: ModifiersState,
     cursor: (f64, f64),
     painting: bool,
-    /// Distance along the ray where a plane-mode stroke paints.
-    stroke_depth: f64,
     orbiting: bool,
     want_screenshot: bool,
 }
@@ -221,8 +223,6 @@ impl App {
     fn begin_stroke(&mut self) {
         let Some(r) = self.running.as_mut() else { return };
         let brush = r.brush.brush();
-        let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
-        r.stroke_depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(r.camera.distance) } else { r.camera.distance };
         r.painting = true;
         if self.session.brush() != Some(&brush) {
             self.apply(EventKind::Brush(brush));
@@ -234,7 +234,10 @@ impl App {
     fn sample(&mut self) {
         let Some(r) = self.running.as_mut() else { return };
         let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
-        let depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(r.stroke_depth) } else { r.stroke_depth };
+        // The plane perpendicular to the view axis at the chosen depth.
+        let forward = r.camera.rotation() * DVec3::NEG_Z;
+        let on_plane = r.brush.plane_depth / dir.dot(forward).max(1e-6);
+        let depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(on_plane) } else { on_plane };
         let p = eye + dir * depth;
         self.apply(EventKind::Sample(Sample::at(p.to_array())));
     }
@@ -307,6 +310,7 @@ impl App {
             hardness: 0.6,
             colour: [0.9, 0.45, 0.15],
             on_surface: true,
+            plane_depth: camera.distance,
         };
         Ok(Running {
             window,
@@ -331,7 +335,6 @@ impl App {
             modifiers: ModifiersState::empty(),
             cursor: (f64::from(w) / 2.0, f64::from(h) / 2.0),
             painting: false,
-            stroke_depth: 1.0,
             orbiting: false,
             want_screenshot: false,
         })
@@ -543,6 +546,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec
             ui.color_edit_button_rgb(&mut b.colour);
         });
         ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
+        ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
         ui.separator();
         ui.horizontal(|ui| {
             if ui.button("Undo").clicked() {
