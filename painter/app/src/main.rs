@@ -2,6 +2,7 @@
 //! tree dumps and images, trace validation, exports to other tools, and
 //! the benchmarks.
 
+mod bench_doc;
 mod bench_gpu;
 mod bench_realtime;
 mod bench_tree;
@@ -196,6 +197,8 @@ enum Bench {
     Gpu(bench_gpu::Args),
     /// The real-time pipeline (the paper's Table 1, Fig. 8, Fig. 9, latency).
     Realtime(bench_realtime::Args),
+    /// Documents: save and open against a tree dump of the same painting.
+    Doc(bench_doc::Args),
 }
 
 /// Prints warnings as they happen; shows progress on a terminal; records a
@@ -438,6 +441,13 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("octopaint: bench realtime: {e:#}");
+                ExitCode::from(1)
+            }
+        },
+        Command::Bench { which: Bench::Doc(args) } => match bench_doc::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("octopaint: bench doc: {e:#}");
                 ExitCode::from(1)
             }
         },

@@ -114,7 +114,7 @@ fn history_bytes(h: &History) -> Vec<u8> {
 }
 
 fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io::Result<()> {
-    let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::default());
+    let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::fast());
     z.write_all(raw)?;
     let stored = z.finish()?;
     out.extend_from_slice(tag);
