@@ -273,3 +273,14 @@ fn without_an_openxr_runtime_xr_info_says_what_is_missing() {
     let err = String::from_utf8_lossy(&res.stderr);
     assert!(err.contains("octopaint: no VR here: no OpenXR"), "{err}");
 }
+
+#[test]
+fn bench_doc_prints_its_table() {
+    let res = octopaint().args(["bench", "doc"]).arg(repo().join("traces/undo_redo.jsonl")).args(["--runs", "1"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let out = String::from_utf8_lossy(&res.stdout);
+    assert!(out.contains("| document (tree, history, session; zlib, CRCs) |") && out.contains("| tree dump (.npz"), "{out}");
+    assert!(out.contains("ratios, document / dump"), "{out}");
+    let res = octopaint().args(["bench", "doc"]).arg(repo().join("traces/undo_redo.jsonl")).args(["--runs", "0"]).output().unwrap();
+    assert_eq!(res.status.code(), Some(1));
+}
