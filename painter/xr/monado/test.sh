@@ -78,4 +78,30 @@ printf '{"ev": "snapshot", "t": 1e9, "name": "end"}\n' >> session.jsonl
 "$octopaint" dump painting.octo document.npz
 cmp replayed/end.npz document.npz || { echo "FAIL: the recorded session does not replay to the document's tree" >&2; exit 1; }
 echo "the recorded session replays to the document's tree, byte for byte"
+# The palette: the left hand held in view, its thumbstick flicked right
+# (next colour); the palette must be drawn at the hand in both eyes, with
+# the parallax of a hand half a metre away.
+cat > palette.jsonl <<'EOF'
+{"frame": 0, "hand": "left", "pose": [-0.12, -0.08, -0.5, 0, 0, 0, 1]}
+{"frame": 4, "hand": "left", "stick": [1, 0]}
+{"frame": 6, "hand": "left", "stick": [0, 0]}
+EOF
+"$here/run.sh" vr painting.octo --frames 10 --capture palette.png --script palette.jsonl --no-fallback 2> vr3.log || { grep -v '^LOG\|^	' vr3.log >&2; echo "FAIL: octopaint vr (palette)" >&2; exit 1; }
+"$py" - palette.png <<'EOF'
+import sys
+from PIL import Image
+im = Image.open(sys.argv[1]).convert("RGB")
+w, h = im.size
+# The purple swatch (0.55, 0.3, 0.75) of the palette, in each eye.
+want = (140, 76, 191)
+def swatch(x0):
+    xs = [x - x0 for y in range(h) for x in range(x0, x0 + w // 2)
+          if sum(abs(a - b) for a, b in zip(im.getpixel((x, y)), want)) < 30]
+    return len(xs), (sum(xs) / len(xs) if xs else None)
+(nl, cl), (nr, cr) = swatch(0), swatch(w // 2)
+print(f"palette swatch pixels: left eye {nl}, right eye {nr}; mean column {cl} vs {cr}")
+assert nl > 8 and nr > 8, "the palette is not at the hand in both eyes"  # a swatch is about 5x5 px at 320x240
+assert cl > cr + 5, "the palette has no parallax: it is not at the hand's depth"
+print("ok")
+EOF
 echo "VR test passed"

@@ -1,6 +1,8 @@
 //! The headset's indicators and palette (the paper's §8.3 asks for a
 //! heavy-operation indicator and a memory-budget indicator): an egui panel
-//! drawn over both eyes' images at the same place (head-locked).
+//! drawn over both eyes' images at the same place (head-locked), and the
+//! palette drawn where each eye sees the left controller (so it sits at
+//! the controller's depth).
 
 use crate::paint::{PALETTE, Painter};
 
@@ -25,6 +27,7 @@ pub fn prepare(
     gpu: &octopaint_gpu::Gpu,
     size: [u32; 2],
     s: &Status,
+    palette_at: Option<[f32; 2]>,
 ) -> (Vec<egui::ClippedPrimitive>, egui_wgpu::ScreenDescriptor, Vec<egui::TextureId>) {
     // About 1/4 of the eye's width for the panel whatever its resolution.
     let ppp = (size[0] as f32 / 900.0).max(0.3);
@@ -35,6 +38,25 @@ pub fn prepare(
     ctx.set_pixels_per_point(ppp);
     let p = s.painter;
     let out = ctx.run_ui(raw, |ui| {
+        if let Some([x, y]) = palette_at {
+            // The palette beside the left controller: every colour, the
+            // chosen one framed, and the mode and shape.
+            egui::Area::new(egui::Id::unique("palette")).fixed_pos(egui::pos2(x / ppp + 8.0, y / ppp - 20.0)).show(ui.ctx(), |ui| {
+                egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    ui.horizontal(|ui| {
+                        for (k, c) in PALETTE.iter().enumerate() {
+                            let c = c.map(|v| (v * 255.0) as u8);
+                            let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
+                            ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
+                            if k == p.colour {
+                                ui.painter().rect_stroke(rect.expand(2.0), 2.0, egui::Stroke::new(2.0, egui::Color32::WHITE), egui::StrokeKind::Outside);
+                            }
+                        }
+                    });
+                    ui.label(format!("{} · {}", MODES[p.mode], SHAPES[p.shape]));
+                });
+            });
+        }
         egui::Area::new(egui::Id::unique("hud")).fixed_pos(egui::pos2(12.0, 12.0)).show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {
                 ui.horizontal(|ui| {

@@ -375,7 +375,8 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         {
         renderer.sync(tree).map_err(|e| other("uploading", e))?;
         let gpu = &renderer.gpu;
-        // The indicators and the palette, head-locked in both eyes.
+        // The indicators, head-locked; the palette at the left hand,
+        // where each eye sees it.
         let status = crate::hud::Status {
             busy_ms,
             in_stroke: doc_in_stroke(&painter, &hands),
@@ -384,7 +385,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             bytes: tree.pool_bytes_allocated(),
             painter: &painter,
         };
-        let (hud_jobs, hud_screen, hud_free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status);
+        let mut hud_free = Vec::new();
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
         for (eye, view) in views.iter().enumerate() {
             let camera = eye_camera(&placement, view, size);
@@ -403,10 +404,10 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 blit.draw(&mut pass, &group);
             }
             {
-                // One upload of the HUD's buffers serves both eyes.
-                if eye == 0 {
-                    hud.update_buffers(&gpu.device, &gpu.queue, &mut enc, &hud_jobs, &hud_screen);
-                }
+                let palette_at = hands[crate::input::LEFT].pose.and_then(|(p, _)| project(view, size, p));
+                let (hud_jobs, hud_screen, free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status, palette_at);
+                hud_free.extend(free);
+                hud.update_buffers(&gpu.device, &gpu.queue, &mut enc, &hud_jobs, &hud_screen);
                 let mut pass = pass_on(&mut enc, &target, wgpu::LoadOp::Load).forget_lifetime();
                 hud.render(&mut pass, &hud_jobs, &hud_screen);
             }
@@ -475,6 +476,20 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     drop(stage);
     drop((session, waiter, stream));
     Ok(report)
+}
+
+/// Where room point `p` appears in an eye's image (pixels), if in front.
+fn project(view: &xr::View, size: [u32; 2], p: DVec3) -> Option<[f32; 2]> {
+    let (e, o) = (view.pose.position, view.pose.orientation);
+    let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
+    let v = q.inverse() * (p - DVec3::new(f64::from(e.x), f64::from(e.y), f64::from(e.z)));
+    if v.z >= -1e-3 {
+        return None;
+    }
+    let (tx, ty) = (v.x / -v.z, v.y / -v.z);
+    let f = view.fov;
+    let (l, r, u, d) = (f64::from(f.angle_left).tan(), f64::from(f.angle_right).tan(), f64::from(f.angle_up).tan(), f64::from(f.angle_down).tan());
+    Some([((tx - l) / (r - l) * f64::from(size[0])) as f32, ((u - ty) / (u - d) * f64::from(size[1])) as f32])
 }
 
 /// A render pass drawing into one eye's layer.
