@@ -337,23 +337,9 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     }
 
     // Everything that can refuse, before anything is written.
-    let vdb_depth = match &args.vdb {
+    let vdb_plan = match &args.vdb {
         None => None,
-        Some(_) => Some(match args.depth {
-            Some(e) => {
-                let deepest = tree.lat.max_depth.min(voxels::deepest_addressable(tree));
-                if e > deepest {
-                    return Err(ExportError::DepthOutOfRange { depth: e, deepest }.into());
-                }
-                let est = voxels::estimate(tree, e, crop, cap);
-                if est.bytes() > cap {
-                    let fits = voxels::deepest_fitting(tree, e, crop, cap);
-                    return Err(ExportError::TooLarge { depth: e, bytes: est.bytes(), cap_bytes: cap, fits }.into());
-                }
-                e
-            }
-            None => voxels::choose_depth(tree, crop, cap)?,
-        }),
+        Some(_) => Some(voxels::plan(tree, args.depth, crop, cap)?),
     };
     if args.depth.is_some() && args.vdb.is_none() {
         return Err(refuse("--depth is the VDB's voxel depth: it needs --vdb (the mesh's is --mesh-depth)"));
@@ -393,12 +379,12 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         check_writable(p)?;
     }
 
-    if let (Some(path), Some(e)) = (&args.vdb, vdb_depth) {
+    if let (Some(path), Some(plan)) = (&args.vdb, vdb_plan) {
         let t = Instant::now();
-        let est = voxels::estimate(tree, e, crop, cap);
-        let b = bar(args.quiet, Some(est.regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
+        let e = plan.depth();
+        let b = bar(args.quiet, Some(plan.estimate().regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
         b.set_message(e.to_string());
-        let grid = VoxelGrid::build(tree, e, colour, placement, crop, cap, &mut |n| b.set_position(n))?;
+        let grid = VoxelGrid::build(tree, &plan, colour, placement, &mut |n| b.set_position(n));
         b.finish_and_clear();
         let resample_s = t.elapsed().as_secs_f64();
         let b = bar(args.quiet, None, "{spinner} writing {msg} [{elapsed_precise}]");

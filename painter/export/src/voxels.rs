@@ -269,30 +269,15 @@ fn sub_cubes(o: [i32; 3], k: u32, step: u32, mut f: impl FnMut([i32; 3])) {
 }
 
 impl VoxelGrid {
-    /// Resample `tree` at export depth `e`, refusing when the grid would
-    /// take more than `cap_bytes` (the message says which depth fits).
+    /// Resample `tree` as `plan` says (its depth and crop, checked
+    /// against the canvas and the size cap when the plan was made).
     /// `placement` scales the voxel size; moves the indices by whole root
     /// nodes (4096 voxels, so every tile stays aligned) toward its origin,
     /// the rest going into `translation`; and, with `z_up`, turns the grid
     /// so that the canvas's +y points along the file's +z: voxel (i, j, k)
     /// becomes (i, −1−k, j).
-    pub fn build(
-        tree: &Tree,
-        e: u32,
-        colour: ColourSpace,
-        placement: Placement,
-        crop: Option<Crop>,
-        cap_bytes: u64,
-        progress: &mut dyn FnMut(u64),
-    ) -> Result<VoxelGrid, ExportError> {
-        let addressable = deepest_addressable(tree);
-        if e > tree.lat.max_depth || e > addressable {
-            return Err(ExportError::DepthOutOfRange { depth: e, deepest: tree.lat.max_depth.min(addressable) });
-        }
-        let est = estimate(tree, e, crop, cap_bytes);
-        if est.bytes() > cap_bytes {
-            return Err(ExportError::TooLarge { depth: e, bytes: est.bytes(), cap_bytes, fits: deepest_fitting(tree, e, crop, cap_bytes) });
-        }
+    pub fn build(tree: &Tree, plan: &Plan, colour: ColourSpace, placement: Placement, progress: &mut dyn FnMut(u64)) -> VoxelGrid {
+        let (e, crop) = (plan.depth, plan.crop);
         let h = tree.lat.root_size * (2.0f64).powi(-(e as i32));
         let node = 1i64 << NODE5_LOG2;
         let shift = placement.origin.map(|o| ((o / h / node as f64).floor() as i64).clamp(-(1 << 20), 1 << 20) * node);
@@ -325,7 +310,7 @@ impl VoxelGrid {
             true
         });
         progress(regions);
-        Ok(g)
+        g
     }
 
     fn fill(&mut self, o: [i32; 3], k: u32, v: Voxel) {
@@ -397,12 +382,50 @@ pub fn deepest_fitting(tree: &Tree, from: u32, crop: Option<Crop>, cap_bytes: u6
     (0..from).rev().find(|&e| estimate(tree, e, crop, cap_bytes).bytes() <= cap_bytes)
 }
 
-/// The export depth to use when none is asked for: the deepest that holds
-/// every painted detail, or failing that the deepest that fits the cap.
-pub fn choose_depth(tree: &Tree, crop: Option<Crop>, cap_bytes: u64) -> Result<u32, ExportError> {
-    let want = deepest_painted(tree, crop).min(deepest_addressable(tree));
-    if estimate(tree, want, crop, cap_bytes).bytes() <= cap_bytes {
-        return Ok(want);
+/// A voxel depth checked against the canvas and the size cap, with what
+/// its grid will hold: the only way to a `VoxelGrid`.
+#[derive(Clone, Copy, Debug)]
+pub struct Plan {
+    depth: u32,
+    crop: Option<Crop>,
+    estimate: Estimate,
+}
+
+impl Plan {
+    pub fn depth(&self) -> u32 {
+        self.depth
     }
-    deepest_fitting(tree, want, crop, cap_bytes).ok_or(ExportError::NothingFits { cap_bytes })
+
+    pub fn estimate(&self) -> &Estimate {
+        &self.estimate
+    }
+}
+
+/// Plan an export at `depth`, or when None at the deepest depth that holds
+/// every painted detail, failing that the deepest that fits `cap_bytes`.
+/// Refused when the depth is off the canvas or the grid would take more
+/// than `cap_bytes` (the message says which depth fits).
+pub fn plan(tree: &Tree, depth: Option<u32>, crop: Option<Crop>, cap_bytes: u64) -> Result<Plan, ExportError> {
+    let deepest = tree.lat.max_depth.min(deepest_addressable(tree));
+    let at = |depth| Plan { depth, crop, estimate: estimate(tree, depth, crop, cap_bytes) };
+    match depth {
+        Some(e) if e > deepest => Err(ExportError::DepthOutOfRange { depth: e, deepest }),
+        Some(e) => {
+            let p = at(e);
+            if p.estimate.bytes() > cap_bytes {
+                let fits = deepest_fitting(tree, e, crop, cap_bytes);
+                return Err(ExportError::TooLarge { depth: e, bytes: p.estimate.bytes(), cap_bytes, fits });
+            }
+            Ok(p)
+        }
+        None => {
+            let want = deepest_painted(tree, crop).min(deepest);
+            (0..=want).rev().map(at).find(|p| p.estimate.bytes() <= cap_bytes).ok_or(ExportError::NothingFits { cap_bytes })
+        }
+    }
+}
+
+/// The export depth to use when none is asked for (see [`plan`]).
+pub fn choose_depth(tree: &Tree, crop: Option<Crop>, cap_bytes: u64) -> Result<u32, ExportError> {
+    plan(tree, None, crop, cap_bytes).map(|p| p.depth)
 }

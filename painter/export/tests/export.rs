@@ -98,7 +98,7 @@ fn voxels_hold_the_leaves_values_at_every_depth() {
         let origins = octopaint_tree::dump::origins(tree);
         let dmax = tree.lat.max_depth;
         for e in [dmax.saturating_sub(4), dmax - 1, dmax] {
-            let g = VoxelGrid::build(tree, e, ColourSpace::Linear, Placement::default(), None, BIG, &mut |_| {}).unwrap();
+            let g = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
             assert_eq!(g.depth, e);
             assert_eq!(g.voxel_size, tree.lat.root_size / f64::from(1u32 << e));
             let sums = sums_by_voxel(tree, &origins, e);
@@ -157,9 +157,9 @@ fn a_crop_is_the_whole_grid_cut_to_its_box() {
     let p = painted("shapes_modes");
     let tree = &p.tree;
     let e = tree.lat.max_depth - 1;
-    let full = VoxelGrid::build(tree, e, ColourSpace::Srgb, Placement::default(), None, BIG, &mut |_| {}).unwrap();
+    let full = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Srgb, Placement::default(), &mut |_| {});
     let crop = Crop { lo: [0.3, 0.55, 0.1], hi: [1.7, 1.2, 0.77] };
-    let cut = VoxelGrid::build(tree, e, ColourSpace::Srgb, Placement::default(), Some(crop), BIG, &mut |_| {}).unwrap();
+    let cut = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), Some(crop), BIG).unwrap(), ColourSpace::Srgb, Placement::default(), &mut |_| {});
     let h = full.voxel_size;
     let lo = crop.lo.map(|v| (v / h).floor() as i32);
     let hi = crop.hi.map(|v| (v / h).ceil() as i32);
@@ -188,8 +188,8 @@ fn z_up_turns_the_grid_and_scale_keeps_optical_depth() {
     let p = painted("edges");
     let tree = &p.tree;
     let e = tree.lat.max_depth - 2;
-    let plain = VoxelGrid::build(tree, e, ColourSpace::Linear, Placement::default(), None, BIG, &mut |_| {}).unwrap();
-    let turned = VoxelGrid::build(tree, e, ColourSpace::Linear, Placement { scale: 2.0, z_up: true, origin: [0.0; 3] }, None, BIG, &mut |_| {}).unwrap();
+    let plain = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
+    let turned = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Linear, Placement { scale: 2.0, z_up: true, origin: [0.0; 3] }, &mut |_| {});
     assert_eq!(turned.voxel_size, 2.0 * plain.voxel_size);
     assert_eq!(turned.active_voxels, plain.active_voxels);
     let (lo, hi) = plain.bbox.unwrap();
@@ -219,9 +219,9 @@ fn an_origin_far_out_moves_the_indices_by_whole_nodes() {
     let crop = Some(Crop { lo: [20000.0, 20000.0, 19999.8], hi: [20000.3, 20000.2, 20000.0] });
     let e = 20;
     let origin = [20000.1, 20000.05, 19999.9];
-    let plain = VoxelGrid::build(tree, e, ColourSpace::Linear, Placement::default(), crop, BIG, &mut |_| {}).unwrap();
+    let plain = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), crop, BIG).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
     for z_up in [false, true] {
-        let moved = VoxelGrid::build(tree, e, ColourSpace::Linear, Placement { scale: 1.0, z_up, origin }, crop, BIG, &mut |_| {}).unwrap();
+        let moved = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), crop, BIG).unwrap(), ColourSpace::Linear, Placement { scale: 1.0, z_up, origin }, &mut |_| {});
         assert_eq!(moved.active_voxels, plain.active_voxels);
         let h = plain.voxel_size;
         // Indices moved by whole 4096-voxel nodes; the rest is translation,
@@ -260,13 +260,13 @@ fn depth_and_size_refusals_say_what_fits() {
     let p = painted("shapes_modes");
     let tree = &p.tree;
     let dmax = tree.lat.max_depth;
-    match VoxelGrid::build(tree, dmax + 1, ColourSpace::Linear, Placement::default(), None, BIG, &mut |_| {}) {
+    match voxels::plan(tree, Some(dmax + 1), None, BIG) {
         Err(ExportError::DepthOutOfRange { depth, deepest }) => assert_eq!((depth, deepest), (dmax + 1, dmax)),
         other => panic!("expected DepthOutOfRange, got {:?}", other.err()),
     }
     let at_max = voxels::estimate(tree, dmax, None, BIG).bytes();
     let cap = at_max - 1;
-    match VoxelGrid::build(tree, dmax, ColourSpace::Linear, Placement::default(), None, cap, &mut |_| {}) {
+    match voxels::plan(tree, Some(dmax), None, cap) {
         Err(ExportError::TooLarge { depth, bytes, cap_bytes, fits }) => {
             assert_eq!((depth, cap_bytes), (dmax, cap));
             assert!(bytes > cap);
@@ -283,7 +283,7 @@ fn depth_and_size_refusals_say_what_fits() {
     assert!(chosen < dmax);
     assert!(matches!(voxels::choose_depth(tree, None, 1), Err(ExportError::NothingFits { .. })));
     // The estimate is the grid's real size: count the built grid's nodes.
-    let g = VoxelGrid::build(tree, chosen, ColourSpace::Linear, Placement::default(), None, cap, &mut |_| {}).unwrap();
+    let g = VoxelGrid::build(tree, &voxels::plan(tree, Some(chosen), None, cap).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
     let est = voxels::estimate(tree, chosen, None, BIG);
     assert_eq!(est.nodes5, g.nodes.len() as u64);
     assert_eq!(est.nodes4, g.nodes.values().map(|n| n.children.len() as u64).sum::<u64>());
