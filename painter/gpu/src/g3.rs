@@ -36,27 +36,7 @@ impl G3Pass {
             label: Some("g3.wgsl"),
             source: wgpu::ShaderSource::Wgsl(g3_source().into()),
         });
-        let layout_params = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("g3 params"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-            ],
-        });
+        let layout_params = gpu.params_layout("g3 params", wgpu::ShaderStages::COMPUTE, true);
         let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("g3 pass"),
             bind_group_layouts: &[Some(&pools.layout_cells), Some(&pools.layout_g3_rw), Some(&layout_params)],

@@ -59,27 +59,7 @@ pub struct RayCaster {
 
 impl RayCaster {
     pub fn new(gpu: &Gpu, pools: &GpuPools) -> RayCaster {
-        let layout_params = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("ray params"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-            ],
-        });
+        let layout_params = gpu.params_layout("ray params", wgpu::ShaderStages::COMPUTE, false);
         let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ray caster"),
             bind_group_layouts: &[Some(&pools.layout_cells), Some(&pools.layout_g3_ro), Some(&layout_params)],
