@@ -9,7 +9,6 @@ mod bench_tree;
 mod canonical;
 mod document;
 mod export;
-mod png_out;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -266,7 +265,7 @@ impl ReplayObserver for Reporter<'_> {
         };
         let Some(dir) = out_dir else { return Ok(None) };
         let path = dir.join(format!("{name}.png"));
-        png_out::write_png(&path, &rgb, w, h)?;
+        octopaint_gpu::image::write_png(&path, &rgb, w, h)?;
         Ok(Some(path))
     }
 

@@ -482,19 +482,8 @@ impl App {
 
 fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], format: wgpu::TextureFormat, path: &std::path::Path) -> Result<(), String> {
     let raw = octopaint_gpu::pools::read_buffer(gpu, buf, u64::from(row) * u64::from(size[1])).map_err(|e| e.to_string())?;
-    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
-    let mut rgb = Vec::with_capacity((size[0] * size[1] * 3) as usize);
-    for y in 0..size[1] as usize {
-        let line = &raw[y * row as usize..][..size[0] as usize * 4];
-        for p in line.chunks_exact(4) {
-            if bgra { rgb.extend_from_slice(&[p[2], p[1], p[0]]) } else { rgb.extend_from_slice(&p[..3]) }
-        }
-    }
-    let file = std::fs::File::create(path).map_err(|e| e.to_string())?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size[0], size[1]);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    enc.write_header().and_then(|mut w| w.write_image_data(&rgb)).map_err(|e| e.to_string())
+    let rgb = octopaint_gpu::image::texels_to_rgb(&raw, row, size, format);
+    octopaint_gpu::image::write_png(path, &rgb, size[0], size[1]).map_err(|e| e.to_string())
 }
 
 /// A camera looking at everything painted (or the whole canvas).

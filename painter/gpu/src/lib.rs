@@ -10,11 +10,14 @@
 //! | [`g3`] | the g3 pass | g3.wgsl | tree/src/g3.rs |
 //! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
 //! | [`frame`] | one frame: uploads, mask, g3 pass, ray cast | | |
+//! | [`blit`] | a cast image drawn into a colour target | (in blit.rs) | |
+//! | [`image`] | PNG files, texels read back as RGB | | |
 
 pub mod blit;
 pub mod context;
 pub mod frame;
 pub mod g3;
+pub mod image;
 pub mod pools;
 pub mod raycast;
 pub mod shaders {

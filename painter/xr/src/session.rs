@@ -430,7 +430,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 drop(pass_on(&mut enc, &target, wgpu::LoadOp::Load));
                 gpu.queue.submit([enc.finish()]);
                 let raw = octopaint_gpu::pools::read_buffer(gpu, &buf, u64::from(row) * u64::from(size[1])).map_err(|e| other("reading back", e))?;
-                captured.push(to_rgb(&raw, row, size, format));
+                captured.push(octopaint_gpu::image::texels_to_rgb(&raw, row, size, format));
             } else {
                 gpu.queue.submit([enc.finish()]);
             }
@@ -531,19 +531,6 @@ pub fn eye_camera(p: &Placement, view: &xr::View, size: [u32; 2]) -> Camera {
     }
 }
 
-/// Rows of 4-byte texels (padded to `row` bytes) as packed RGB, sRGB bytes
-/// (an sRGB texture stores them so; a unorm one holds the cast's bytes).
-fn to_rgb(raw: &[u8], row: u32, size: [u32; 2], format: wgpu::TextureFormat) -> Vec<u8> {
-    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
-    let mut out = Vec::with_capacity((size[0] * size[1] * 3) as usize);
-    for y in 0..size[1] as usize {
-        for p in raw[y * row as usize..][..size[0] as usize * 4].chunks_exact(4) {
-            out.extend_from_slice(&if bgra { [p[2], p[1], p[0]] } else { [p[0], p[1], p[2]] });
-        }
-    }
-    out
-}
-
 fn write_side_by_side(path: &std::path::Path, eyes: &[Vec<u8>], size: [u32; 2]) -> std::io::Result<()> {
     let (w, h) = (size[0] as usize, size[1] as usize);
     let mut rgb = vec![0u8; 2 * w * h * 3];
@@ -552,9 +539,5 @@ fn write_side_by_side(path: &std::path::Path, eyes: &[Vec<u8>], size: [u32; 2]) 
             rgb[(y * 2 * w + e * w) * 3..][..w * 3].copy_from_slice(&img[y * w * 3..][..w * 3]);
         }
     }
-    let file = std::fs::File::create(path)?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), (2 * w) as u32, h as u32);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    enc.write_header().and_then(|mut wr| wr.write_image_data(&rgb)).map_err(std::io::Error::other)
+    octopaint_gpu::image::write_png(path, &rgb, (2 * w) as u32, h as u32)
 }
