@@ -13,6 +13,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
+
+use crate::bench_gpu::median;
 use octopaint_doc::format;
 use octopaint_doc::session::write_atomic;
 use octopaint_doc::{Session, format::Document};
@@ -25,11 +27,6 @@ pub struct Args {
     /// Runs per figure (the median is printed).
     #[arg(long, default_value_t = 5)]
     runs: usize,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    v[v.len() / 2]
 }
 
 pub fn run(a: &Args) -> anyhow::Result<()> {

@@ -28,7 +28,8 @@ pub struct Args {
     runs: usize,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+/// The median of some timings (benchmarks print it).
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
 }

@@ -3,31 +3,8 @@
 //! the reference reader's (conformance/readers.py `canonical`).
 
 use octopaint_tree::pyrepr::py_float_repr as f;
-use octopaint_tree::trace::{EventKind, Mode, Shape, Trace, TraceError};
-
-fn v(xs: &[f64]) -> String {
-    format!("[{}]", xs.iter().map(|x| f(*x)).collect::<Vec<_>>().join(", "))
-}
-
-fn shape(s: Shape) -> &'static str {
-    match s {
-        Shape::Sphere => "sphere",
-        Shape::Cylinder => "cylinder",
-        Shape::Box => "box",
-        Shape::Cone => "cone",
-        Shape::Noise => "noise",
-    }
-}
-
-fn mode(m: Mode) -> &'static str {
-    match m {
-        Mode::Paint => "paint",
-        Mode::Erase => "erase",
-        Mode::Recolor => "recolor",
-        Mode::Mix => "mix",
-        Mode::Pickup => "pickup",
-    }
-}
+use octopaint_tree::trace::{EventKind, MODES, SHAPES, Trace, TraceError};
+use octopaint_tree::trace_write::float_list;
 
 pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
     let t = match result {
@@ -51,31 +28,31 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
             EventKind::Brush(b) => format!(
                 "{} {} {} {} {} {} {} {} {} {} {} {} {} {} {}",
                 head("brush"),
-                shape(b.shape),
-                mode(b.mode),
+                SHAPES[b.shape as usize],
+                MODES[b.mode as usize],
                 f(b.radius),
-                v(&b.color),
+                float_list(&b.color),
                 f(b.opacity),
                 f(b.hardness),
                 f(b.spacing),
                 f(b.mix_ratio),
                 f(b.pickup_rate),
-                v(&b.aspect),
+                float_list(&b.aspect),
                 f(b.noise.frequency),
                 b.noise.octaves,
                 b.noise.seed,
                 f(b.noise.gain)
             ),
-            EventKind::Sample(s) => format!("{} {} {} {}", head("sample"), v(&s.p), f(s.pressure), v(&s.q)),
+            EventKind::Sample(s) => format!("{} {} {} {}", head("sample"), float_list(&s.p), f(s.pressure), float_list(&s.q)),
             EventKind::Camera(c) => format!(
                 "{} {} {} {} [{}, {}] {}",
                 head("camera"),
-                v(&c.eye),
-                v(&c.q),
-                v(&c.fov),
+                float_list(&c.eye),
+                float_list(&c.q),
+                float_list(&c.fov),
                 c.size[0],
                 c.size[1],
-                v(&c.background)
+                float_list(&c.background)
             ),
             EventKind::Render(n) => format!("{} {n}", head("render")),
             EventKind::Snapshot(n) => format!("{} {n}", head("snapshot")),

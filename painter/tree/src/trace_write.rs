@@ -7,7 +7,8 @@ use crate::json::Json;
 use crate::pyrepr::py_float_repr as f;
 use crate::trace::{Brush, Canvas, Event, EventKind, MODES, SHAPES};
 
-fn v(xs: &[f64]) -> String {
+/// A list of numbers as Python writes it: `[1.0, 0.5]`.
+pub fn float_list(xs: &[f64]) -> String {
     format!("[{}]", xs.iter().map(|x| f(*x)).collect::<Vec<_>>().join(", "))
 }
 
@@ -31,13 +32,13 @@ fn brush_fields(b: &Brush) -> String {
         SHAPES[b.shape as usize],
         MODES[b.mode as usize],
         f(b.radius),
-        v(&b.color),
+        float_list(&b.color),
         f(b.opacity),
         f(b.hardness),
         f(b.spacing),
         f(b.mix_ratio),
         f(b.pickup_rate),
-        v(&b.aspect),
+        float_list(&b.aspect),
         f(b.noise.frequency),
         b.noise.octaves,
         b.noise.seed,
@@ -54,19 +55,19 @@ pub fn event_line(ev: &Event) -> String {
         EventKind::StrokeBegin => format!("{{\"ev\": \"stroke_begin\", \"t\": {t}}}"),
         EventKind::Sample(s) => format!(
             "{{\"ev\": \"sample\", \"t\": {t}, \"p\": {}, \"pressure\": {}, \"q\": {}}}",
-            v(&s.p),
+            float_list(&s.p),
             f(s.pressure),
-            v(&s.q)
+            float_list(&s.q)
         ),
         EventKind::StrokeEnd => format!("{{\"ev\": \"stroke_end\", \"t\": {t}}}"),
         EventKind::Camera(c) => format!(
             "{{\"ev\": \"camera\", \"t\": {t}, \"eye\": {}, \"q\": {}, \"fov\": {}, \"size\": [{}, {}], \"background\": {}}}",
-            v(&c.eye),
-            v(&c.q),
-            v(&c.fov),
+            float_list(&c.eye),
+            float_list(&c.q),
+            float_list(&c.fov),
             c.size[0],
             c.size[1],
-            v(&c.background)
+            float_list(&c.background)
         ),
         EventKind::Render(name) => format!("{{\"ev\": \"render\", \"t\": {t}, \"name\": \"{name}\"}}"),
         EventKind::Snapshot(name) => format!("{{\"ev\": \"snapshot\", \"t\": {t}, \"name\": \"{name}\"}}"),
