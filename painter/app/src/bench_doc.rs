@@ -17,7 +17,7 @@ use anyhow::Context;
 use crate::bench_gpu::median;
 use octopaint_doc::format;
 use octopaint_doc::session::write_atomic;
-use octopaint_doc::{Session, format::Document};
+use octopaint_doc::Session;
 use octopaint_tree::trace::{EventKind, read_trace};
 
 #[derive(clap::Args)]
@@ -43,18 +43,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let session_s = t.elapsed().as_secs_f64();
     let text = s.trace_text();
-    let doc = Document {
-        trace_text: text.trim_end().to_string(),
-        tree: s.painting.tree.clone(),
-        history: s.painting.history.clone(),
-        meta: String::from("{}"),
-    };
+    let (tree, history) = (&s.painting.tree, &s.painting.history);
     let (mut enc, mut save, mut dec, mut dump, mut dump_save, mut dump_read) = (vec![], vec![], vec![], vec![], vec![], vec![]);
     let (mut doc_bytes, mut dump_bytes) = (0, 0);
     let peer = dir.path().join("bench.npz");
     for _ in 0..a.runs {
         let t = Instant::now();
-        let (bytes, _) = format::write(&doc).context("encoding")?;
+        let (bytes, _) = format::write(text.trim_end(), tree, history, "{}").context("encoding")?;
         enc.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         write_atomic(&path, &bytes).context("saving")?;
@@ -64,9 +59,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let data = std::fs::read(&path).context("reading")?;
         let loaded = format::read(&data).map_err(|e| anyhow::anyhow!("{e}"))?;
         dec.push(t.elapsed().as_secs_f64());
-        anyhow::ensure!(loaded.doc.tree.n_used() == doc.tree.n_used(), "the document read back differs");
+        anyhow::ensure!(loaded.doc.tree.n_used() == tree.n_used(), "the document read back differs");
         let t = Instant::now();
-        let npz = octopaint_tree::dump::dump_bytes(&doc.tree);
+        let npz = octopaint_tree::dump::dump_bytes(tree);
         dump.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         write_atomic(&peer, &npz).context("writing the dump")?;
@@ -77,7 +72,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         dump_bytes = back.len();
     }
     let (enc, save, dec, dump, dump_save, dump_read) = (median(enc), median(save), median(dec), median(dump), median(dump_save), median(dump_read));
-    println!("{}: {} events, {} strokes, {} cells, undo history {:.1} MiB", a.trace.display(), trace.events.len(), strokes, doc.tree.n_used(), doc.history.bytes() as f64 / 1048576.0);
+    println!("{}: {} events, {} strokes, {} cells, undo history {:.1} MiB", a.trace.display(), trace.events.len(), strokes, tree.n_used(), history.bytes() as f64 / 1048576.0);
     println!("live session (paint + journal, fdatasync per stroke): {session_s:.2} s");
     println!("| | encode s | write (atomic) s | read + check s | MiB |");
     println!("| --- | ---: | ---: | ---: | ---: |");

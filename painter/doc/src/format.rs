@@ -127,8 +127,9 @@ fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io:
     Ok(())
 }
 
-/// The document as bytes, and its CRC (the identity a journal refers to).
-pub fn write(doc: &Document) -> std::io::Result<(Vec<u8>, u32)> {
+/// A document's parts as bytes, and the file's CRC (the identity a
+/// journal refers to).
+pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
     let mut out = Vec::new();
     out.extend_from_slice(MAGIC);
     put_u32(&mut out, VERSION);
@@ -136,10 +137,10 @@ pub fn write(doc: &Document) -> std::io::Result<(Vec<u8>, u32)> {
     put_u32(&mut out, 4);
     let crc = crc32fast::hash(&out);
     put_u32(&mut out, crc);
-    section(&mut out, b"TRCE", doc.trace_text.as_bytes(), 0)?;
-    section(&mut out, b"POOL", &pools_bytes(&doc.tree), 0)?;
-    section(&mut out, b"HIST", &history_bytes(&doc.history), 0)?;
-    section(&mut out, b"META", doc.meta.as_bytes(), OPTIONAL)?;
+    section(&mut out, b"TRCE", trace_text.as_bytes(), 0)?;
+    section(&mut out, b"POOL", &pools_bytes(tree), 0)?;
+    section(&mut out, b"HIST", &history_bytes(history), 0)?;
+    section(&mut out, b"META", meta.as_bytes(), OPTIONAL)?;
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(b"END!");
     put_u32(&mut out, crc);

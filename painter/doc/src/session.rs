@@ -345,16 +345,7 @@ impl Session {
             self.painting.tree.n_used(),
             self.painting.history.done.len()
         );
-        let doc = Document {
-            trace_text: std::mem::take(&mut self.trace_text),
-            tree: std::mem::replace(&mut self.painting.tree, octopaint_tree::Tree::new(&Canvas { roots: [1, 1, 1], max_depth: 0, root_size: 1.0, capacity: 8 })),
-            history: std::mem::take(&mut self.painting.history),
-            meta,
-        };
-        let written = format::write(&doc);
-        self.trace_text = doc.trace_text;
-        self.painting.tree = doc.tree;
-        self.painting.history = doc.history;
+        let written = format::write(&self.trace_text, &self.painting.tree, &self.painting.history, &meta);
         let (bytes, crc) = written.map_err(io(&self.path))?;
         write_atomic(&self.path, &bytes).map_err(io(&self.path))?;
         // The new journal extends the new document; until it exists, the
