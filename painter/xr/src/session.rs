@@ -367,6 +367,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
         let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
+        let in_stroke = doc.in_stroke();
         let tree = &mut doc.painting.tree;
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
@@ -379,7 +380,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         // where each eye sees it.
         let status = crate::hud::Status {
             busy_ms,
-            in_stroke: doc_in_stroke(&painter, &hands),
+            in_stroke,
             cells: tree.n_used(),
             capacity: tree.capacity,
             bytes: tree.pool_bytes_allocated(),
@@ -507,11 +508,6 @@ fn pass_on<'a>(enc: &'a mut wgpu::CommandEncoder, target: &wgpu::TextureView, lo
         occlusion_query_set: None,
         multiview_mask: None,
     })
-}
-
-/// Whether a stroke is being painted (the right trigger is down).
-fn doc_in_stroke(_p: &crate::paint::Painter, hands: &[crate::input::Hand; 2]) -> bool {
-    hands[crate::input::RIGHT].trigger > 0.05
 }
 
 /// One eye's camera in canvas units: its pose from the runtime (room,
