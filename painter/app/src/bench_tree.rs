@@ -105,11 +105,6 @@ fn write_strokes(set: &StrokeSet, path: &std::path::Path) -> anyhow::Result<()> 
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
-fn peak_rss_kib() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
 
 fn count_cells(t: &Tree) -> (u64, u64) {
     let live = t.depth.iter().filter(|&&d| d != FREE).count() as u64;
@@ -170,7 +165,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         Tree::BYTES_PER_CELL,
         t.pool_bytes_allocated() as f64 / n,
         history / n,
-        peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
+        octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
     );
     println!("{json}");
     Ok(())

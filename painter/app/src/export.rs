@@ -443,13 +443,10 @@ fn human(bytes: u64) -> String {
     if bytes >= 1 << 20 { format!("{:.1} MiB", bytes as f64 / f64::from(1 << 20)) } else { format!("{:.1} KiB", bytes as f64 / 1024.0) }
 }
 
-fn parent_of(path: &Path) -> &Path {
-    path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."))
-}
 
 /// The folder exists and takes a new file (a temporary one, removed).
 fn check_writable(path: &Path) -> Result<(), Refusal> {
-    let dir = parent_of(path);
+    let dir = octopaint_platform::durable::folder_of(path);
     tempfile::Builder::new()
         .prefix(".octopaint-probe-")
         .tempfile_in(dir)
@@ -458,21 +455,9 @@ fn check_writable(path: &Path) -> Result<(), Refusal> {
 }
 
 /// Write `path` through a temporary file beside it, synced and renamed
-/// over it: a reader sees the old file or the whole new one. Returns the
-/// size written.
+/// over it (octopaint_platform::durable): a reader sees the old file or
+/// the whole new one. Returns the size written.
 fn write_with(path: &Path, f: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>) -> Result<u64, Refusal> {
-    use std::os::unix::fs::PermissionsExt;
-    let fail = |e: std::io::Error| Refusal(1, format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e)));
-    let tmp = tempfile::Builder::new()
-        .prefix(".tmp-")
-        .permissions(std::fs::Permissions::from_mode(0o644))
-        .tempfile_in(parent_of(path))
-        .map_err(fail)?;
-    let mut w = std::io::BufWriter::with_capacity(1 << 20, tmp.reopen().map_err(fail)?);
-    f(&mut w).map_err(fail)?;
-    let file = w.into_inner().map_err(|e| fail(e.into_error()))?;
-    file.sync_all().map_err(fail)?;
-    let size = file.metadata().map_err(fail)?.len();
-    tmp.persist(path).map_err(|e| fail(e.error))?;
-    Ok(size)
+    octopaint_platform::durable::write_with(path, f)
+        .map_err(|e| Refusal(1, format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e))))
 }

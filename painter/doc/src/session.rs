@@ -59,18 +59,10 @@ pub fn journal_path(doc: &Path) -> PathBuf {
     PathBuf::from(p)
 }
 
-/// Write `data` to `path` through a synced temporary file renamed over it,
-/// then sync the folder: the old file or the whole new one, even across a
-/// power cut.
-pub fn write_atomic(path: &Path, data: &[u8]) -> std::io::Result<()> {
-    use std::os::unix::fs::PermissionsExt;
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp = tempfile::Builder::new().prefix(".tmp-").permissions(std::fs::Permissions::from_mode(0o644)).tempfile_in(dir)?;
-    tmp.write_all(data)?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| e.error)?;
-    File::open(dir)?.sync_all()
-}
+/// Write `data` to `path` through a synced temporary file renamed over it
+/// (octopaint_platform::durable): the old file or the whole new one, even
+/// across a power cut.
+pub use octopaint_platform::durable::write as write_atomic;
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
     move |e| DocError::Io { path: path.to_path_buf(), reason: octopaint_tree::trace::io_reason(&e) }

@@ -15,9 +15,7 @@ pub enum Backend {
 
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
-    #[error(
-        "no {0} adapter found (on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL)"
-    )]
+    #[error("no {0} adapter found ({ADAPTER_HELP})")]
     NoAdapter(&'static str),
     #[error("the GPU refused a device: {0}")]
     Device(#[from] wgpu::RequestDeviceError),
@@ -30,6 +28,13 @@ pub enum GpuError {
     #[error("reading back from the GPU failed: {0}")]
     Readback(String),
 }
+
+/// What to install when no adapter is found.
+#[cfg(windows)]
+const ADAPTER_HELP: &str = "install or update the GPU vendor's driver (NVIDIA, AMD, Intel): it brings Vulkan";
+#[cfg(not(windows))]
+const ADAPTER_HELP: &str =
+    "on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL";
 
 /// A device and its queue, with what the pipeline needs to know of the
 /// adapter.

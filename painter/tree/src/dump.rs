@@ -239,19 +239,9 @@ pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
     out
 }
 
-/// Write `data` to `path` atomically: a temporary file in the same folder,
-/// fsync, rename. A reader never sees a half-written file, and a failure
-/// leaves any earlier file in place. The file is readable by all (0644).
-pub fn write_atomic(path: &Path, data: &[u8]) -> std::io::Result<()> {
-    use std::os::unix::fs::PermissionsExt;
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut tmp =
-        tempfile::Builder::new().prefix(".tmp-").permissions(std::fs::Permissions::from_mode(0o644)).tempfile_in(dir)?;
-    tmp.write_all(data)?;
-    tmp.as_file().sync_all()?;
-    tmp.persist(path).map_err(|e| e.error)?;
-    Ok(())
-}
+/// Write `data` to `path` atomically and durably (a reader never sees a
+/// half-written file; a failure leaves any earlier file in place).
+pub use octopaint_platform::durable::write as write_atomic;
 
 #[cfg(test)]
 mod tests {

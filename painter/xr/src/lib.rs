@@ -2,13 +2,16 @@
 //! headset, and saying exactly what is missing when there is none, which
 //! `octopaint xr-info` prints and the VR session will start from.
 //!
-//! The OpenXR loader (`libopenxr_loader.so.1`, Debian's
-//! `libopenxr-loader1`) is loaded at run time, so the painter runs, and
-//! says why VR is unavailable, on machines without it.
+//! The OpenXR loader (`libopenxr_loader.so.1` on Linux, Debian's
+//! `libopenxr-loader1`; `openxr_loader.dll` on Windows, shipped beside
+//! `octopaint.exe` in the Windows package) is loaded at run time, so the
+//! painter runs, and says why VR is unavailable, on machines without it.
+//! [`platform`] holds what an artist is told to install on each system.
 
 use openxr as xr;
 
 pub mod hud;
+pub mod platform;
 pub mod input;
 pub mod paint;
 pub mod session;
@@ -42,9 +45,9 @@ pub struct ViewInfo {
 /// Why there is no VR here.
 #[derive(Debug, thiserror::Error)]
 pub enum XrError {
-    #[error("no OpenXR loader (libopenxr_loader.so.1; Debian: apt-get install libopenxr-loader1): {0}")]
+    #[error("no OpenXR loader ({help}): {0}", help = platform::LOADER_HELP)]
     NoLoader(String),
-    #[error("no OpenXR runtime is running or installed (install and start one: Monado's monado-service, SteamVR, ...; XR_RUNTIME_JSON names one explicitly)")]
+    #[error("no OpenXR runtime is running or installed ({help}; XR_RUNTIME_JSON names one explicitly)", help = platform::RUNTIME_HELP)]
     NoRuntime,
     #[error("the OpenXR runtime has no headset connected (XR_ERROR_FORM_FACTOR_UNAVAILABLE)")]
     NoHeadset,

@@ -1,0 +1,13 @@
+//! What differs between the operating systems the painter runs on (Linux,
+//! Windows, and macOS for the desktop window), one module per concern, so
+//! the rest of the painter has no `cfg(unix)` or `cfg(windows)` of its own:
+//!
+//! | module | concern | Linux and macOS | Windows |
+//! | --- | --- | --- | --- |
+//! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`; the folder's ACL |
+//! | [`memory`] | the process's peak resident memory | `getrusage` (`ru_maxrss`) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
+//!
+//! docs/documents.md says what each platform guarantees a save.
+
+pub mod durable;
+pub mod memory;

@@ -1,0 +1,15 @@
+//! What an artist needs for VR on each system, in the words the painter's
+//! messages use (`octopaint xr-info`, `octopaint vr`; docs/vr.md).
+
+/// Where the OpenXR loader comes from.
+#[cfg(windows)]
+pub const LOADER_HELP: &str =
+    "openxr_loader.dll, which the Windows package ships beside octopaint.exe: unpack the whole zip, or put the Khronos loader DLL next to the executable or on the PATH";
+#[cfg(not(windows))]
+pub const LOADER_HELP: &str = "libopenxr_loader.so.1; Debian and Ubuntu: apt-get install libopenxr-loader1";
+
+/// Where an OpenXR runtime comes from.
+#[cfg(windows)]
+pub const RUNTIME_HELP: &str = "start SteamVR, the Meta Quest Link app or the Windows Mixed Reality portal, and set it as the active OpenXR runtime in its settings";
+#[cfg(not(windows))]
+pub const RUNTIME_HELP: &str = "install and start one: Monado's monado-service, SteamVR, ...";
