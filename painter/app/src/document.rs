@@ -387,7 +387,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
             }
             ExitCode::SUCCESS
         }
-        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset)) => {
+        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset | XrError::Unsupported(_))) => {
             if no_fallback {
                 eprintln!("octopaint: no VR here: {e}");
                 return ExitCode::from(3);

@@ -396,7 +396,7 @@ fn xr_info() -> ExitCode {
             println!("blending   {}", i.blend_modes.join(", "));
             ExitCode::SUCCESS
         }
-        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset)) => {
+        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset | XrError::Unsupported(_))) => {
             eprintln!("octopaint: no VR here: {e}");
             ExitCode::from(3)
         }

@@ -19,7 +19,7 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The folder `path` is in ("." for a bare file name).
 pub fn folder_of(path: &Path) -> &Path {
@@ -72,7 +72,7 @@ fn replace(tmp: tempfile::TempPath, path: &Path) -> std::io::Result<()> {
     }
     // keep() clears the temporary attribute and stops the drop from
     // deleting the file; from here a failure removes it by hand.
-    let from: PathBuf = tmp.keep().map_err(|e| e.error)?;
+    let from: std::path::PathBuf = tmp.keep().map_err(|e| e.error)?;
     let (from_w, to_w) = (wide(&from), wide(path));
     // SAFETY: both arguments are NUL-terminated UTF-16 strings that live
     // until the call returns; MoveFileExW keeps no pointer to them.

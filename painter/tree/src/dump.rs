@@ -23,7 +23,6 @@
 //! ```
 
 use std::io::Write;
-use std::path::Path;
 
 use crate::g3::g3_table;
 use crate::pool::{FREE, NONE, Tree};

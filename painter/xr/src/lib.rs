@@ -55,6 +55,9 @@ pub enum XrError {
     Call { what: &'static str, result: xr::sys::Result },
     #[error("{0}")]
     Setup(String),
+    /// VR is not built for this system (macOS).
+    #[error("{0}")]
+    Unsupported(&'static str),
 }
 
 pub(crate) fn call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {

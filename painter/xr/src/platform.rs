@@ -5,7 +5,9 @@
 #[cfg(windows)]
 pub const LOADER_HELP: &str =
     "openxr_loader.dll, which the Windows package ships beside octopaint.exe: unpack the whole zip, or put the Khronos loader DLL next to the executable or on the PATH";
-#[cfg(not(windows))]
+#[cfg(target_os = "macos")]
+pub const LOADER_HELP: &str = NO_VR_HERE;
+#[cfg(not(any(windows, target_os = "macos")))]
 pub const LOADER_HELP: &str = "libopenxr_loader.so.1; Debian and Ubuntu: apt-get install libopenxr-loader1";
 
 /// Where an OpenXR runtime comes from.
@@ -13,3 +15,8 @@ pub const LOADER_HELP: &str = "libopenxr_loader.so.1; Debian and Ubuntu: apt-get
 pub const RUNTIME_HELP: &str = "start SteamVR, the Meta Quest Link app or the Windows Mixed Reality portal, and set it as the active OpenXR runtime in its settings";
 #[cfg(not(windows))]
 pub const RUNTIME_HELP: &str = "install and start one: Monado's monado-service, SteamVR, ...";
+
+/// macOS: no OpenXR runtime exists for it and wgpu has no Vulkan there, so
+/// the painter is the desktop window only.
+#[cfg(target_os = "macos")]
+pub const NO_VR_HERE: &str = "VR is not available on macOS (no OpenXR runtime exists for it): octopaint window paints on the desktop";

@@ -8,6 +8,10 @@
 //! The canvas is placed in the room by a similarity transform kept in f64
 //! (`Placement`): the runtime's poses (f32 metres) become canvas points in
 //! f64, so any zoom of the canvas keeps its precision.
+//!
+//! macOS has no OpenXR runtime and wgpu has no Vulkan there: the session is
+//! not built for it (`run` says so) and the rest is kept type-checked.
+#![cfg_attr(target_os = "macos", allow(dead_code, unused_imports))]
 
 use std::ffi::CStr;
 use std::path::PathBuf;
@@ -91,8 +95,15 @@ fn other(what: &str, e: impl std::fmt::Display) -> XrError {
     XrError::Setup(format!("{what}: {e}"))
 }
 
+/// macOS: no VR (crate::platform::NO_VR_HERE says why).
+#[cfg(target_os = "macos")]
+pub fn run(_doc: &mut octopaint_doc::Session, _opts: &Options) -> Result<Report, XrError> {
+    Err(XrError::Unsupported(crate::platform::NO_VR_HERE))
+}
+
 /// Run a VR session showing `tree` until the runtime ends it or `frames`
 /// frames have been shown.
+#[cfg(not(target_os = "macos"))]
 pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, XrError> {
     let mut script = match &opts.script {
         Some(p) => Some(crate::input::Script::load(p)?),

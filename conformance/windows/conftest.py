@@ -1,0 +1,108 @@
+"""The Windows painter under Wine, against the Linux painter (docs/windows.md).
+
+`make test-windows` builds both and runs these; nothing here skips: a
+missing binary, Wine or display is an error that says what to run.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+CONFORMANCE = os.path.dirname(HERE)
+REPO = os.path.dirname(CONFORMANCE)
+sys.path.insert(0, CONFORMANCE)
+LINUX = os.path.join(REPO, "painter", "target", "release", "octopaint")
+WINDOWS = os.environ.get("OCTOPAINT_WINDOWS_EXE") or os.path.join(
+    REPO, "painter", "target", "x86_64-pc-windows-gnu", "release", "octopaint.exe"
+)
+WINE = os.path.join(REPO, "painter", "packaging", "wine", "run.sh")
+
+
+class Program:
+    """One build of the painter, run with the repository as its working
+    folder (traces are passed as relative paths, so both builds print the
+    same names)."""
+
+    def __init__(self, argv: list[str], env: dict[str, str]):
+        self.argv = argv
+        self.env = env
+
+    def run(self, *args, ok: bool = True, timeout: float = 600, cwd: str = REPO) -> subprocess.CompletedProcess:
+        r = subprocess.run(
+            self.argv + [str(a) for a in args],
+            cwd=cwd,
+            env=self.env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+        if ok:
+            assert r.returncode == 0, (self.argv[-1:], args, r.returncode, r.stdout, r.stderr)
+        return r
+
+    def popen(self, *args, **kw) -> subprocess.Popen:
+        return subprocess.Popen(self.argv + [str(a) for a in args], cwd=REPO, env=self.env, **kw)
+
+
+def _free_display() -> int:
+    for n in range(70, 200):
+        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
+            return n
+    raise RuntimeError("no free X display number in 70..199")
+
+
+@pytest.fixture(scope="session")
+def display():
+    """An X display for Wine. Wine 8 reaches Vulkan only through its X11
+    driver (winevulkan asks the graphics driver for its Vulkan functions),
+    so the GPU under Wine needs a display even to render off screen; Xvfb
+    gives it one."""
+    if shutil.which("Xvfb") is None:
+        raise FileNotFoundError("Xvfb is missing (apt-get install xvfb; make system installs it)")
+    n = _free_display()
+    proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"], stderr=subprocess.DEVNULL)
+    for _ in range(100):
+        if os.path.exists(f"/tmp/.X11-unix/X{n}"):
+            break
+        time.sleep(0.05)
+    else:
+        proc.kill()
+        raise RuntimeError(f"Xvfb :{n} did not start")
+    yield f":{n}"
+    proc.kill()
+    proc.wait()
+
+
+@pytest.fixture(scope="session")
+def linux():
+    if not os.path.exists(LINUX):
+        raise FileNotFoundError(f"{LINUX} is not built: run `make painter`")
+    env = dict(os.environ)
+    env.setdefault("NODEVICE_SELECT", "1")
+    return Program([LINUX], env)
+
+
+@pytest.fixture(scope="session")
+def windows(display):
+    if not os.path.exists(WINDOWS):
+        raise FileNotFoundError(f"{WINDOWS} is not built: run `make painter-windows`")
+    env = dict(os.environ)
+    env["DISPLAY"] = display
+    env.pop("XR_RUNTIME_JSON", None)
+    program = Program([WINE, WINDOWS], env)
+    # The first start makes the Wine prefix (about 15 s); do it here, once.
+    r = program.run("--version", timeout=300)
+    assert r.stdout.startswith("octopaint "), r.stdout
+    return program
+
+
+def windows_path(path) -> str:
+    """How a Windows program prints a path it built from a Unix one."""
+    return str(path).replace("/", "\\")
