@@ -337,13 +337,10 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
             return ExitCode::from(2);
         }
     };
-    if !doc.exists() {
-        let canvas = Canvas { roots: [4, 4, 4], max_depth: 24, root_size: 1.0, capacity: 16_777_216 };
-        let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py("untitled")))]);
-        if let Err(e) = Session::create(doc, &canvas, &meta) {
-            return fail(e);
-        }
-        eprintln!("octopaint: created {} (4x4x4 roots of 1 unit, depth 24)", doc.display());
+    if !doc.exists()
+        && let Err(e) = create_default(doc)
+    {
+        return fail(e);
     }
     let opts = octopaint_desktop::Options {
         doc: doc.to_path_buf(),
@@ -358,6 +355,37 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
             ExitCode::from(1)
         }
     }
+}
+
+/// `octopaint` with no command, what a double-click runs: the headset (or
+/// the desktop window without one) on the artist's default document,
+/// created on first use.
+pub fn start() -> ExitCode {
+    let Some(home) = octopaint_platform::folders::octopaint_home() else {
+        eprintln!("octopaint: no Documents folder is known here (set OCTOPAINT_HOME, or run octopaint window DOC)");
+        return ExitCode::from(1);
+    };
+    if let Err(e) = std::fs::create_dir_all(&home) {
+        eprintln!("octopaint: cannot make {}: {}", home.display(), octopaint_tree::trace::io_reason(&e));
+        return ExitCode::from(1);
+    }
+    let doc = home.join("painting.octo");
+    if !doc.exists()
+        && let Err(e) = create_default(&doc)
+    {
+        return fail(e);
+    }
+    eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
+    vr(&doc, None, None, None, false, false)
+}
+
+/// An empty document on the desktop window's default canvas.
+fn create_default(doc: &Path) -> Result<(), DocError> {
+    let canvas = Canvas { roots: [4, 4, 4], max_depth: 24, root_size: 1.0, capacity: 16_777_216 };
+    let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py("untitled")))]);
+    Session::create(doc, &canvas, &meta)?;
+    eprintln!("octopaint: created {} (4x4x4 roots of 1 unit, depth 24)", doc.display());
+    Ok(())
 }
 
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {

@@ -23,10 +23,16 @@ use octopaint_tree::raycast::{RayInput, RayParams};
 use octopaint_tree::trace::{Camera, Event, EventKind, read_trace};
 
 #[derive(Parser)]
-#[command(name = "octopaint", version, about = "Octopaint, volumetric painting on a dynamic deep octree")]
+#[command(
+    name = "octopaint",
+    version,
+    about = "Octopaint, volumetric painting on a dynamic deep octree",
+    after_help = "With no command, paints on painting.octo in the Octopaint folder of your Documents (OCTOPAINT_HOME \
+                  overrides it): in the headset when an OpenXR runtime is running, else in the desktop window."
+)]
 struct Cli {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
 }
 
 #[derive(Subcommand)]
@@ -409,7 +415,10 @@ fn xr_info() -> ExitCode {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    match cli.command {
+    let Some(command) = cli.command else {
+        return document::start();
+    };
+    match command {
         Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
             cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
         }

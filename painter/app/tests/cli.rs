@@ -284,3 +284,30 @@ fn bench_doc_prints_its_table() {
     let res = octopaint().args(["bench", "doc"]).arg(repo().join("traces/undo_redo.jsonl")).args(["--runs", "0"]).output().unwrap();
     assert_eq!(res.status.code(), Some(1));
 }
+
+#[test]
+fn with_no_command_it_paints_on_the_default_document() {
+    // What a double-click runs: the default document is made in
+    // OCTOPAINT_HOME (a Documents folder otherwise), then VR is tried and,
+    // with no runtime, the window; with no display that is a clear error
+    // and the document is kept for the next start.
+    let scratch = tempfile::tempdir().unwrap();
+    let home = scratch.path().join("Art");
+    for round in 0..2 {
+        let res = octopaint()
+            .env("OCTOPAINT_HOME", &home)
+            .env("XR_RUNTIME_JSON", scratch.path().join("none.json"))
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(1), "{err}");
+        assert_eq!(err.contains("created"), round == 0, "{err}");
+        assert!(err.contains(&format!("painting on {}", home.join("painting.octo").display())), "{err}");
+        assert!(err.contains("no VR here") && err.contains("opening the desktop window instead"), "{err}");
+        assert!(err.contains("is there a display"), "{err}");
+    }
+    let res = octopaint().arg("info").arg(home.join("painting.octo")).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+}

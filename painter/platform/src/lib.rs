@@ -5,9 +5,11 @@
 //! | module | concern | Linux and macOS | Windows |
 //! | --- | --- | --- | --- |
 //! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`; the folder's ACL |
-//! | [`memory`] | the process's peak resident memory | `getrusage` (`ru_maxrss`) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
+//! | [`memory`] | the process's peak resident memory | `VmHWM` in /proc (Linux; none on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
+//! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` | the Documents known folder + `Octopaint` |
 //!
 //! docs/documents.md says what each platform guarantees a save.
 
 pub mod durable;
+pub mod folders;
 pub mod memory;
