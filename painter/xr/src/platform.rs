@@ -12,9 +12,15 @@ pub const LOADER_HELP: &str = "libopenxr_loader.so.1; Debian and Ubuntu: apt-get
 
 /// Where an OpenXR runtime comes from.
 #[cfg(windows)]
-pub const RUNTIME_HELP: &str = "start SteamVR, the Meta Quest Link app or the Windows Mixed Reality portal, and set it as the active OpenXR runtime in its settings";
+pub const RUNTIME_HELP: &str = "start SteamVR or the Meta Quest Link app and set it as the active OpenXR runtime in its settings";
 #[cfg(not(windows))]
 pub const RUNTIME_HELP: &str = "install and start one: Monado's monado-service, SteamVR, ...";
+
+/// Said after "the runtime has no XR_KHR_vulkan_enable2".
+#[cfg(windows)]
+pub const NO_VULKAN_BINDING_HELP: &str = " (Windows Mixed Reality's own runtime offers Direct3D only: run its headsets through SteamVR, set as the OpenXR runtime)";
+#[cfg(not(windows))]
+pub const NO_VULKAN_BINDING_HELP: &str = "";
 
 /// macOS: no OpenXR runtime exists for it and wgpu has no Vulkan there, so
 /// the painter is the desktop window only.

@@ -113,7 +113,10 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     let entry = unsafe { xr::Entry::load(&()) }.map_err(|e| XrError::NoLoader(e.to_string()))?;
     let available = xr_call("enumerating extensions", entry.enumerate_extensions())?;
     if !available.khr_vulkan_enable2 {
-        return Err(XrError::Setup("the runtime has no XR_KHR_vulkan_enable2, the only graphics binding the painter renders through".into()));
+        return Err(XrError::Setup(format!(
+            "the runtime has no XR_KHR_vulkan_enable2, the only graphics binding the painter renders through{}",
+            crate::platform::NO_VULKAN_BINDING_HELP
+        )));
     }
     let mut exts = xr::ExtensionSet::default();
     exts.khr_vulkan_enable2 = true;
