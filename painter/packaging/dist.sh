@@ -32,6 +32,9 @@ trap 'rm -rf "$work"' EXIT
 # Shared by both packages: licences, documents, the README.
 shared="$work/shared"
 mkdir -p "$shared/examples"
+# cargo-about reads every package's manifest, for every platform, offline:
+# fetch them all first (the builds fetched only their own targets' crates).
+cargo fetch --locked --manifest-path "$repo/painter/Cargo.toml" >/dev/null 2>&1
 cargo about generate --frozen --fail -m "$repo/painter/Cargo.toml" -c "$here/about.toml" "$here/licenses.hbs" \
   -o "$shared/THIRD-PARTY-LICENSES.txt" 2>"$work/about.log" || { cat "$work/about.log" >&2; exit 1; }
 cp "$repo/LICENSE" "$shared/LICENSE.txt"
