@@ -96,9 +96,10 @@ test: setup painter test-painter test-reference conformance test-vr test-windows
 # target folder, so build scripts and proc macros compile once.
 WINDOWS_TARGET := x86_64-pc-windows-gnu
 WINDOWS_EXE := painter/target/$(WINDOWS_TARGET)/release/octopaint.exe
-WINDOWS_PACKAGES := gcc-mingw-w64-x86-64 g++-mingw-w64-x86-64 wine64 zip
+WINDOWS_PACKAGES := gcc-mingw-w64-x86-64 g++-mingw-w64-x86-64 wine64 zip cmake
 system-windows:
 	@if ! command -v x86_64-w64-mingw32-gcc >/dev/null || ! command -v x86_64-w64-mingw32-g++-posix >/dev/null \
+	    || ! command -v cmake >/dev/null \
 	    || ! test -x /usr/lib/wine/wine64 || ! command -v zip >/dev/null; then \
 	  echo "installing $(WINDOWS_PACKAGES)"; \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(WINDOWS_PACKAGES) >/dev/null || \

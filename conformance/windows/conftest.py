@@ -76,7 +76,9 @@ def display():
         proc.kill()
         raise RuntimeError(f"Xvfb :{n} did not start")
     yield f":{n}"
-    proc.kill()
+    # SIGTERM: Xvfb removes its lock file and socket, so the number is free
+    # for the next run.
+    proc.terminate()
     proc.wait()
 
 

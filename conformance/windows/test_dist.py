@@ -30,7 +30,9 @@ def unpacked(archive: str, into) -> str:
             z.extractall(into)
     else:
         with tarfile.open(path) as t:
-            t.extractall(into, filter="tar")
+            # The "tar" filter where this Python has extraction filters
+            # (3.11.4 and later; Debian 12's 3.11.2 has none).
+            t.extractall(into, **({"filter": "tar"} if hasattr(tarfile, "tar_filter") else {}))
     (top,) = os.listdir(into)
     assert top == archive.rsplit(".", 2 if archive.endswith(".tar.gz") else 1)[0]
     return os.path.join(into, top)

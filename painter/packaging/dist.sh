@@ -34,7 +34,7 @@ shared="$work/shared"
 mkdir -p "$shared/examples"
 # cargo-about reads every package's manifest, for every platform, offline:
 # fetch them all first (the builds fetched only their own targets' crates).
-cargo fetch --locked --manifest-path "$repo/painter/Cargo.toml" >/dev/null 2>&1
+cargo fetch --locked --manifest-path "$repo/painter/Cargo.toml" >"$work/fetch.log" 2>&1 || { cat "$work/fetch.log" >&2; exit 1; }
 cargo about generate --frozen --fail -m "$repo/painter/Cargo.toml" -c "$here/about.toml" "$here/licenses.hbs" \
   -o "$shared/THIRD-PARTY-LICENSES.txt" 2>"$work/about.log" || { cat "$work/about.log" >&2; exit 1; }
 cp "$repo/LICENSE" "$shared/LICENSE.txt"
@@ -42,8 +42,10 @@ sed "s/@VERSION@/$version/g" "$here/README-artist.md" > "$shared/README.md"
 # Example documents, made by the binary being shipped from checked-in
 # traces: the 40 km scene (0.3 mm detail under a km of haze) and a study
 # of every brush shape and mode.
-"$linux_bin" import "$repo/traces/scene.jsonl" "$shared/examples/scene.octo" >/dev/null 2>&1
-"$linux_bin" import "$repo/traces/shapes_modes.jsonl" "$shared/examples/shapes-and-modes.octo" >/dev/null 2>&1
+for pair in scene:scene shapes_modes:shapes-and-modes; do
+  "$linux_bin" import "$repo/traces/${pair%%:*}.jsonl" "$shared/examples/${pair#*:}.octo" >"$work/import.log" 2>&1 \
+    || { cat "$work/import.log" >&2; exit 1; }
+done
 # A document's journal starts empty at import; it is not shipped.
 rm -f "$shared/examples/"*.journal
 
@@ -67,7 +69,7 @@ for f in README.txt LICENSE.txt THIRD-PARTY-LICENSES.txt; do
   sed -i 's/\r*$/\r/' "$work/$name/$f"
 done
 x86_64-w64-mingw32-strip -o "$work/$name/octopaint.exe" "$windows_exe"
-"$here/openxr_loader.sh" "$repo/painter/target/openxr-loader" >/dev/null
+"$here/openxr_loader.sh" "$repo/painter/target/openxr-loader"
 cp "$repo/painter/target/openxr-loader/openxr_loader.dll" "$work/$name/"
 cp -r "$repo/painter/target/openxr-loader/openxr-sdk" "$work/$name/openxr-sdk"
 rm -f "$out/$name.zip"

@@ -24,6 +24,7 @@ stamp="$(basename "$(dirname "$manifest")"), OpenXR SDK $version"
 if [ -f "$out/openxr_loader.dll" ] && [ "$(cat "$out/openxr-sdk/VERSION" 2>/dev/null)" = "$stamp" ]; then
   exit 0
 fi
+command -v cmake >/dev/null || { echo "openxr_loader.sh: cmake missing (apt-get install cmake)" >&2; exit 1; }
 command -v x86_64-w64-mingw32-g++-posix >/dev/null || { echo "openxr_loader.sh: x86_64-w64-mingw32-g++-posix missing (apt-get install gcc-mingw-w64-x86-64 g++-mingw-w64-x86-64)" >&2; exit 1; }
 build=$(mktemp -d)
 trap 'rm -rf "$build"' EXIT

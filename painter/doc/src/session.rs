@@ -299,6 +299,9 @@ impl Session {
             let mut f = OpenOptions::new().create(true).append(true).open(&jp).map_err(io(&jp))?;
             if !exists || f.metadata().map_err(io(&jp))?.len() == 0 {
                 writeln!(f, "{}", journal_header(self.base_crc, self.base_events)).map_err(io(&jp))?;
+                // A new journal's folder entry must outlive a power cut too.
+                f.sync_data().map_err(io(&jp))?;
+                octopaint_platform::durable::sync_new_entry(&jp).map_err(io(&jp))?;
             }
             self.journal = Some(f);
         }

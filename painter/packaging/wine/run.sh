@@ -4,7 +4,8 @@
 #
 #   painter/packaging/wine/run.sh PROGRAM.exe [ARGS...]
 #
-# The prefix (OCTOPAINT_WINEPREFIX, default /opt/octopaint-wine) is made on
+# The prefix (OCTOPAINT_WINEPREFIX, default ~/.cache/octopaint-wine: Wine
+# wants a prefix its user owns) is made on
 # first use (wineboot, ~15 s) and given the bcryptprimitives.dll stand-in
 # Rust programs need on Wine 8. Wine's own messages are silenced
 # (WINEDEBUG=-all unless set); the program's output, exit status and
@@ -13,7 +14,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 wine=${OCTOPAINT_WINE:-/usr/lib/wine/wine64}
-export WINEPREFIX=${OCTOPAINT_WINEPREFIX:-/opt/octopaint-wine}
+export WINEPREFIX=${OCTOPAINT_WINEPREFIX:-${XDG_CACHE_HOME:-$HOME/.cache}/octopaint-wine}
 export WINEARCH=win64 WINEDEBUG=${WINEDEBUG:--all}
 # No Wine pop-ups asking to install Mono or Gecko (nothing here needs them).
 export WINEDLLOVERRIDES=${WINEDLLOVERRIDES:-mscoree,mshtml=}

@@ -11,11 +11,20 @@
 //! | --- | --- | --- |
 //! | temporary file | `.tmp-XXXXXX` beside the target, mode 0644 | `.tmp-XXXXXX` beside the target, the folder's ACL |
 //! | flush the data | `fsync` (`F_FULLFSYNC` on macOS) | `FlushFileBuffers` |
-//! | replace | `rename` | `MoveFileExW(MOVEFILE_REPLACE_EXISTING \| MOVEFILE_WRITE_THROUGH)` |
-//! | make the rename durable | `fsync` of the folder | `MOVEFILE_WRITE_THROUGH` returns once the rename is flushed |
+//! | replace | `rename` | `MoveFileExW(MOVEFILE_REPLACE_EXISTING \| MOVEFILE_WRITE_THROUGH)` on `\\?\` paths (no 260-character limit) |
+//! | make the rename durable | `fsync` of the folder | `FlushFileBuffers` of the replaced file (see below) |
 //!
-//! On any failure the temporary file is removed and the target is left as
-//! it was.
+//! On Windows there is no folder to sync. Microsoft documents
+//! `MOVEFILE_WRITE_THROUGH`'s flush only for moves that copy across
+//! volumes; within a volume the rename is one NTFS metadata transaction,
+//! and flushing the file afterwards commits NTFS's log up to it, which is
+//! the nearest Windows offers to a folder sync without administrator
+//! rights.
+//!
+//! A failure before the replacement removes the temporary file and leaves
+//! the target as it was. A failure of the last step (the sync after the
+//! replacement) is reported too: the new file is then in place, but
+//! whether it would survive a power cut is unknown.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -57,23 +66,40 @@ fn temporary_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     tempfile::Builder::new().prefix(".tmp-").tempfile_in(dir)
 }
 
+/// Make a file just created in `path`'s folder (not replaced through this
+/// module) survive a power cut: its folder's entry for it is synced.
+#[cfg(unix)]
+pub fn sync_new_entry(path: &Path) -> std::io::Result<()> {
+    File::open(folder_of(path))?.sync_all()
+}
+
+/// Windows: flushing the file commits NTFS's log with its new entry (the
+/// caller has synced the file; a folder cannot be opened for flushing).
+#[cfg(windows)]
+pub fn sync_new_entry(path: &Path) -> std::io::Result<()> {
+    std::fs::OpenOptions::new().write(true).open(path)?.sync_all()
+}
+
 #[cfg(unix)]
 fn replace(tmp: tempfile::TempPath, path: &Path) -> std::io::Result<()> {
     tmp.persist(path).map_err(|e| e.error)?;
-    File::open(folder_of(path))?.sync_all()
+    sync_new_entry(path)
 }
 
 #[cfg(windows)]
 fn replace(tmp: tempfile::TempPath, path: &Path) -> std::io::Result<()> {
-    use std::os::windows::ffi::OsStrExt;
     use windows_sys::Win32::Storage::FileSystem::{MOVEFILE_REPLACE_EXISTING, MOVEFILE_WRITE_THROUGH, MoveFileExW};
-    fn wide(p: &Path) -> Vec<u16> {
-        p.as_os_str().encode_wide().chain(std::iter::once(0)).collect()
-    }
+    let to_w = verbatim(path)?;
     // keep() clears the temporary attribute and stops the drop from
     // deleting the file; from here a failure removes it by hand.
-    let from: std::path::PathBuf = tmp.keep().map_err(|e| e.error)?;
-    let (from_w, to_w) = (wide(&from), wide(path));
+    let from = tmp.keep().map_err(|e| e.error)?;
+    let from_w = match verbatim(&from) {
+        Ok(f) => f,
+        Err(e) => {
+            let _ = std::fs::remove_file(&from);
+            return Err(e);
+        }
+    };
     // SAFETY: both arguments are NUL-terminated UTF-16 strings that live
     // until the call returns; MoveFileExW keeps no pointer to them.
     let ok = unsafe { MoveFileExW(from_w.as_ptr(), to_w.as_ptr(), MOVEFILE_REPLACE_EXISTING | MOVEFILE_WRITE_THROUGH) };
@@ -82,7 +108,28 @@ fn replace(tmp: tempfile::TempPath, path: &Path) -> std::io::Result<()> {
         let _ = std::fs::remove_file(&from);
         return Err(e);
     }
-    Ok(())
+    sync_new_entry(path)
+}
+
+/// `path` as a NUL-terminated verbatim (`\\?\`) absolute path, as the
+/// standard library passes paths to Windows, so paths over 260 characters
+/// work without the system's long-path setting. `std::path::absolute`
+/// (GetFullPathNameW) rather than canonicalize: the target may not exist,
+/// and Wine 8 cannot canonicalize long paths.
+#[cfg(windows)]
+fn verbatim(path: &Path) -> std::io::Result<Vec<u16>> {
+    use std::os::windows::ffi::OsStrExt;
+    let abs: Vec<u16> = std::path::absolute(path)?.as_os_str().encode_wide().collect();
+    let w = |s: &str| s.encode_utf16().collect::<Vec<u16>>();
+    let mut out = if abs.starts_with(&w(r"\\?\")) || abs.starts_with(&w(r"\\.\")) {
+        abs
+    } else if abs.starts_with(&w(r"\\")) {
+        [w(r"\\?\UNC\"), abs[2..].to_vec()].concat()
+    } else {
+        [w(r"\\?\"), abs].concat()
+    };
+    out.push(0);
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -115,6 +162,22 @@ mod tests {
         assert_eq!(err.to_string(), "disk full");
         assert_eq!(std::fs::read(&p).unwrap(), b"old");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn paths_longer_than_260_characters_are_replaced_too() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut deep = dir.path().to_path_buf();
+        for i in 0..6 {
+            deep.push(format!("{i}-{}", "f".repeat(48)));
+        }
+        std::fs::create_dir_all(&deep).unwrap();
+        let p = deep.join("painting.octo");
+        assert!(p.as_os_str().len() > 300);
+        write(&p, b"old").unwrap();
+        write(&p, b"new").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        assert_eq!(std::fs::read_dir(&deep).unwrap().count(), 1);
     }
 
     #[test]

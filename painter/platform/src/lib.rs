@@ -4,9 +4,9 @@
 //!
 //! | module | concern | Linux and macOS | Windows |
 //! | --- | --- | --- | --- |
-//! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`; the folder's ACL |
+//! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`, `FlushFileBuffers`; the folder's ACL |
 //! | [`memory`] | the process's peak resident memory | `VmHWM` in /proc (Linux; none on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
-//! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` | the Documents known folder + `Octopaint` |
+//! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` (`$HOME/Octopaint` without a Documents folder) | the Documents known folder + `Octopaint` |
 //!
 //! docs/documents.md says what each platform guarantees a save.
 
