@@ -5,12 +5,15 @@
 #
 # For each brush radius: `octopaint bench tree` paints the deterministic
 # stroke set (200 strokes x 50 sphere samples) and writes it out;
-# openvdb_stamp paints the same file with OpenVDB (ValueAccessor stamping
-# into a per-stroke grid), merging each stroke into the canvas twice over:
-# with tools::compMax (the idiom the benchmark was specified with) and by
-# visiting the stroke's active voxels (the faster idiom). All runs
-# single-threaded in this one script, one after the other, and the table
-# gives every figure with its ratio. Installs libopenvdb-dev and boost
+# openvdb_stamp paints the same file with OpenVDB three ways:
+#   equal    octopaint's work: colour and density, the per-stroke maximum in
+#            a scratch grid, octopaint's paint blend at the merge; at 1
+#            thread and at all cores (TBB's LeafManager for the merge);
+#   compmax  density only, merged with tools::compMax (context);
+#   voxels   density only, merged voxel by voxel (context).
+# Everything runs in this one script, one after the other, and the tables
+# give every figure with its ratio. Octopaint has no parallel paths yet: its
+# all-cores figure is its one-thread run. Installs libopenvdb-dev and boost
 # headers with apt-get when they are missing (needs root), builds the peer
 # with g++ and the painter with cargo.
 set -euo pipefail
@@ -31,11 +34,14 @@ fi
 cargo build --quiet --release --locked --manifest-path "$painter_dir/Cargo.toml" -p octopaint-app
 octopaint="$painter_dir/target/release/octopaint"
 
+cores=$(nproc)
 for r in "${radii[@]}"; do
     "$octopaint" bench tree --radius "$r" --write-strokes "$build/strokes_$r.txt" > "$build/octopaint_$r.json"
-    # TBB may start worker threads, but nothing here asks it for parallel work.
+    "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge equal --threads 1 > "$build/openvdb_equal_1_$r.json"
+    "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge equal --threads "$cores" > "$build/openvdb_equal_all_$r.json"
+    # TBB capped at one thread: the density-only rows are single-threaded.
     "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge compmax > "$build/openvdb_compmax_$r.json"
     "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge voxels > "$build/openvdb_voxels_$r.json"
 done
 
-python3 "$here/tree_vs_openvdb_table.py" "$build" "${radii[@]}"
+python3 "$here/tree_vs_openvdb_table.py" "$build" "$cores" "${radii[@]}"

@@ -105,7 +105,6 @@ fn write_strokes(set: &StrokeSet, path: &std::path::Path) -> anyhow::Result<()> 
     std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
 }
 
-
 fn count_cells(t: &Tree) -> (u64, u64) {
     let live = t.depth.iter().filter(|&&d| d != FREE).count() as u64;
     let leaves = (0..t.n_used()).filter(|&c| t.is_live(c) && t.is_leaf(c)).count() as u64;
