@@ -20,6 +20,15 @@ def mib(x):
     return f"{x / 2**20:.1f}"
 
 
+# OpenVDB's equal-work runs, by thread count; they must have painted the
+# same before any figure is printed.
+EQUAL_RUNS = (("1", 1), ("all", cores))
+for r in radii:
+    a, b = load("openvdb_equal_1", r), load("openvdb_equal_all", r)
+    assert (a["sigma_sum"], a["rgb_sum"], a["active_voxels"]) == (b["sigma_sum"], b["rgb_sum"], b["active_voxels"]), (
+        f"r={r}: OpenVDB painted differently on 1 and {cores} threads"
+    )
+
 # Equal work: octopaint against OpenVDB doing octopaint's work.
 print(f"Equal work (colour and density, per-stroke maximum, octopaint's blend); all cores = {cores}.")
 print()
@@ -31,7 +40,7 @@ for r in radii:
     alloc = o["cells_used"] * o["bytes_per_cell_allocated"]
     print(f"| {r} | octopaint | 1 | {o['seconds']:.2f} | {m(o['cell_updates'] / o['seconds'])} | "
           f"{m(o['leaves'])} leaves ({m(o['cells_used'])} cells) | {mib(kept)} | {mib(alloc)} (+{mib(o['history_bytes_per_cell'] * o['cells_used'])} undo) | {o['peak_rss_mib']:.0f} |")
-    for t, label in (("1", 1), ("all", cores)):
+    for t, label in EQUAL_RUNS:
         v = load(f"openvdb_equal_{t}", r)
         print(f"| {r} | OpenVDB {v['version']} | {label} | {v['seconds']:.2f} | {m(v['voxel_writes'] / v['seconds'])} | "
               f"{m(v['active_voxels'])} voxels | {mib(v['mem_bytes'])} | {mib(v['mem_bytes'])} | {v['peak_rss_mib']:.0f} |")
@@ -42,7 +51,7 @@ print("| radius | OpenVDB threads | time | updates/s, whole run | kept (voxels/c
 print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in radii:
     o = load("octopaint", r)
-    for t, label in (("1", 1), ("all", cores)):
+    for t, label in EQUAL_RUNS:
         v = load(f"openvdb_equal_{t}", r)
         print(
             f"| {r} | {label} | {v['seconds'] / o['seconds']:.2f}x | "
@@ -51,16 +60,9 @@ for r in radii:
             f"{v['mem_bytes'] / (o['cells_used'] * o['bytes_per_cell_pools']):.2f}x | "
             f"{v['peak_rss_mib'] / o['peak_rss_mib']:.2f}x |"
         )
-for r in radii:
-    a, b = load("openvdb_equal_1", r), load("openvdb_equal_all", r)
-    assert (a["sigma_sum"], a["rgb_sum"], a["active_voxels"]) == (b["sigma_sum"], b["rgb_sum"], b["active_voxels"]), (
-        f"r={r}: OpenVDB painted differently on 1 and {cores} threads"
-    )
 print()
 print("Density only (OpenVDB paints no colour; the earlier rows, kept for context):")
 print()
-
-
 print("| radius (cells) | implementation | time (s) | updates or writes | per s, whole run | per s, stamping | cells or voxels kept | bytes each |")
 print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in radii:

@@ -19,11 +19,10 @@ here=$(cd "$(dirname "$0")" && pwd)
 repo=$(cd "$here/../.." && pwd)
 version=$(sed -n 's/^version = "\(.*\)"$/\1/p' "$repo/painter/Cargo.toml" | head -1)
 test -n "$version" || { echo "dist.sh: no version in painter/Cargo.toml" >&2; exit 1; }
-# The binaries must be this version's.
-for b in "$linux_bin"; do  # the Windows one is checked under Wine by the tests
-  got=$("$b" --version)
-  test "$got" = "octopaint $version" || { echo "dist.sh: $b says '$got', not 'octopaint $version'" >&2; exit 1; }
-done
+# The binary must be this version's (the Windows one is checked under Wine
+# by the tests).
+got=$("$linux_bin" --version)
+test "$got" = "octopaint $version" || { echo "dist.sh: $linux_bin says '$got', not 'octopaint $version'" >&2; exit 1; }
 command -v cargo-about >/dev/null || { echo "dist.sh: cargo-about missing (cargo install --locked cargo-about --features cli)" >&2; exit 1; }
 command -v zip >/dev/null || { echo "dist.sh: zip missing (apt-get install zip)" >&2; exit 1; }
 

@@ -16,7 +16,7 @@ use anyhow::Context;
 
 use crate::bench_gpu::median;
 use octopaint_doc::format;
-use octopaint_doc::session::write_atomic;
+use octopaint_platform::durable;
 use octopaint_doc::Session;
 use octopaint_tree::trace::{EventKind, read_trace};
 
@@ -52,7 +52,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let (bytes, _) = format::write(text.trim_end(), tree, history, "{}").context("encoding")?;
         enc.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
-        write_atomic(&path, &bytes).context("saving")?;
+        durable::write(&path, &bytes).context("saving")?;
         save.push(t.elapsed().as_secs_f64());
         doc_bytes = bytes.len();
         let t = Instant::now();
@@ -64,7 +64,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let npz = octopaint_tree::dump::dump_bytes(tree);
         dump.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
-        write_atomic(&peer, &npz).context("writing the dump")?;
+        durable::write(&peer, &npz).context("writing the dump")?;
         dump_save.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         let back = std::fs::read(&peer).context("reading the dump")?;

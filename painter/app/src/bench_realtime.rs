@@ -440,7 +440,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "runs": results,
     });
     let path = a.out.join("results.json");
-    octopaint_tree::dump::write_atomic(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    octopaint_platform::durable::write(&path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     println!("{}", path.display());
     Ok(())
 }

@@ -284,7 +284,7 @@ pub fn record(doc: &Path, out: &Path) -> ExitCode {
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    match octopaint_tree::dump::write_atomic(out, s.trace_text().as_bytes()) {
+    match octopaint_platform::durable::write(out, s.trace_text().as_bytes()) {
         Ok(()) => {
             eprintln!("{}: {} events", out.display(), s.event_count());
             ExitCode::SUCCESS
@@ -337,9 +337,7 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
             return ExitCode::from(2);
         }
     };
-    if !doc.exists()
-        && let Err(e) = create_default(doc)
-    {
+    if let Err(e) = create_default(doc) {
         return fail(e);
     }
     let opts = octopaint_desktop::Options {
@@ -370,17 +368,19 @@ pub fn start() -> ExitCode {
         return ExitCode::from(1);
     }
     let doc = home.join("painting.octo");
-    if !doc.exists()
-        && let Err(e) = create_default(&doc)
-    {
+    if let Err(e) = create_default(&doc) {
         return fail(e);
     }
     eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
     vr(&doc, None, None, None, false, false)
 }
 
-/// An empty document on the desktop window's default canvas.
+/// An empty document on the desktop window's default canvas, unless `doc`
+/// exists.
 fn create_default(doc: &Path) -> Result<(), DocError> {
+    if doc.exists() {
+        return Ok(());
+    }
     let canvas = Canvas { roots: [4, 4, 4], max_depth: 24, root_size: 1.0, capacity: 16_777_216 };
     let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py("untitled")))]);
     Session::create(doc, &canvas, &meta)?;
@@ -389,7 +389,6 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
 }
 
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {
-    use octopaint_xr::XrError;
     let mut s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
@@ -415,7 +414,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
             }
             ExitCode::SUCCESS
         }
-        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset | XrError::Unsupported(_))) => {
+        Err(e) if e.is_no_vr() => {
             if no_fallback {
                 eprintln!("octopaint: no VR here: {e}");
                 return ExitCode::from(3);
@@ -438,7 +437,7 @@ pub fn dump(doc: &Path, out: &Path) -> ExitCode {
     };
     say_recovered(&s);
     let bytes = octopaint_tree::dump::dump_bytes(&s.painting.tree);
-    match octopaint_tree::dump::write_atomic(out, &bytes) {
+    match octopaint_platform::durable::write(out, &bytes) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("octopaint: cannot write {}: {}", out.display(), octopaint_tree::trace::io_reason(&e));

@@ -443,7 +443,6 @@ fn human(bytes: u64) -> String {
     if bytes >= 1 << 20 { format!("{:.1} MiB", bytes as f64 / f64::from(1 << 20)) } else { format!("{:.1} KiB", bytes as f64 / 1024.0) }
 }
 
-
 /// The folder exists and takes a new file (a temporary one, removed).
 fn check_writable(path: &Path) -> Result<(), Refusal> {
     let dir = octopaint_platform::durable::folder_of(path);

@@ -384,7 +384,6 @@ fn cmd_check(traces: &[PathBuf], canonical: bool) -> ExitCode {
 }
 
 fn xr_info() -> ExitCode {
-    use octopaint_xr::XrError;
     match octopaint_xr::probe() {
         Ok(i) => {
             println!("runtime    {} {}", i.runtime, i.runtime_version);
@@ -402,7 +401,7 @@ fn xr_info() -> ExitCode {
             println!("blending   {}", i.blend_modes.join(", "));
             ExitCode::SUCCESS
         }
-        Err(e @ (XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset | XrError::Unsupported(_))) => {
+        Err(e) if e.is_no_vr() => {
             eprintln!("octopaint: no VR here: {e}");
             ExitCode::from(3)
         }

@@ -15,6 +15,7 @@ use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use octopaint_platform::durable;
 use octopaint_tree::json;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
@@ -58,11 +59,6 @@ pub fn journal_path(doc: &Path) -> PathBuf {
     p.push(".journal");
     PathBuf::from(p)
 }
-
-/// Write `data` to `path` through a synced temporary file renamed over it
-/// (octopaint_platform::durable): the old file or the whole new one, even
-/// across a power cut.
-pub use octopaint_platform::durable::write as write_atomic;
 
 fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
     move |e| DocError::Io { path: path.to_path_buf(), reason: octopaint_tree::trace::io_reason(&e) }
@@ -294,14 +290,13 @@ impl Session {
     /// Append the pending events to the journal and sync it.
     fn flush(&mut self) -> Result<(), DocError> {
         let jp = journal_path(&self.path);
+        let mut created = false;
         if self.journal.is_none() {
             let exists = jp.exists();
             let mut f = OpenOptions::new().create(true).append(true).open(&jp).map_err(io(&jp))?;
             if !exists || f.metadata().map_err(io(&jp))?.len() == 0 {
                 writeln!(f, "{}", journal_header(self.base_crc, self.base_events)).map_err(io(&jp))?;
-                // A new journal's folder entry must outlive a power cut too.
-                f.sync_data().map_err(io(&jp))?;
-                octopaint_platform::durable::sync_new_entry(&jp).map_err(io(&jp))?;
+                created = true;
             }
             self.journal = Some(f);
         }
@@ -313,6 +308,10 @@ impl Session {
         }
         f.write_all(text.as_bytes()).map_err(io(&jp))?;
         f.sync_data().map_err(io(&jp))?;
+        if created {
+            // A new journal's folder entry must outlive a power cut too.
+            durable::sync_new_entry(&jp).map_err(io(&jp))?;
+        }
         for l in self.pending.drain(..) {
             self.trace_text.push('\n');
             self.trace_text.push_str(&l);
@@ -342,14 +341,14 @@ impl Session {
         );
         let written = format::write(&self.trace_text, &self.painting.tree, &self.painting.history, &meta);
         let (bytes, crc) = written.map_err(io(&self.path))?;
-        write_atomic(&self.path, &bytes).map_err(io(&self.path))?;
+        durable::write(&self.path, &bytes).map_err(io(&self.path))?;
         // The new journal extends the new document; until it exists, the
         // old one's events are all in the document (recover() sees that).
         self.journal = None;
         self.base_crc = crc;
         self.base_events = self.events;
         let jp = journal_path(&self.path);
-        write_atomic(&jp, format!("{}\n", journal_header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
+        durable::write(&jp, format!("{}\n", journal_header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
         Ok(())
     }
 

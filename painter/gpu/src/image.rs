@@ -18,7 +18,7 @@ pub fn png_bytes(rgb: &[u8], width: u32, height: u32) -> Vec<u8> {
 }
 
 pub fn write_png(path: &Path, rgb: &[u8], width: u32, height: u32) -> std::io::Result<()> {
-    octopaint_tree::dump::write_atomic(path, &png_bytes(rgb, width, height))
+    octopaint_platform::durable::write(path, &png_bytes(rgb, width, height))
 }
 
 /// Rows of 4-byte texels read back from a texture of `format` (each row

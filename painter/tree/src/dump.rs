@@ -238,10 +238,6 @@ pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
     out
 }
 
-/// Write `data` to `path` atomically and durably (a reader never sees a
-/// half-written file; a failure leaves any earlier file in place).
-pub use octopaint_platform::durable::write as write_atomic;
-
 #[cfg(test)]
 mod tests {
     use super::*;

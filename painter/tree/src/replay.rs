@@ -5,7 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::dump::{dump_bytes_with, write_atomic};
+use crate::dump::dump_bytes_with;
+use octopaint_platform::durable;
 use crate::g3::g3_table;
 use crate::paint::Painting;
 use crate::pool::FREE;
@@ -89,7 +90,7 @@ pub fn replay(
                         None => g3_table(&painting.tree),
                     };
                     let path = d.join(format!("{name}.npz"));
-                    write_atomic(&path, &dump_bytes_with(&painting.tree, &g3))?;
+                    durable::write(&path, &dump_bytes_with(&painting.tree, &g3))?;
                     stats.written.push(path);
                 }
             }

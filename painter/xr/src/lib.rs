@@ -60,6 +60,15 @@ pub enum XrError {
     Unsupported(&'static str),
 }
 
+impl XrError {
+    /// This machine has no VR (no loader, runtime or headset, or a system
+    /// without VR): callers say so and may open the desktop window, rather
+    /// than report a failure.
+    pub fn is_no_vr(&self) -> bool {
+        matches!(self, XrError::NoLoader(_) | XrError::NoRuntime | XrError::NoHeadset | XrError::Unsupported(_))
+    }
+}
+
 pub(crate) fn call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
     r.map_err(|result| match result {
         xr::sys::Result::ERROR_RUNTIME_UNAVAILABLE | xr::sys::Result::ERROR_RUNTIME_FAILURE => XrError::NoRuntime,
