@@ -167,6 +167,26 @@ def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness):
     return coverage_profile(xp, dist / r, hardness) * flow
 
 
+def capsule_coverage_bounds(xp, x, h, p0, p1, r0, r1, f0, f1, hardness):
+    """Bounds [lo, hi] of coverage * flow [n, k] of k tapered capsules over
+    the balls of radius h [n] about x [n, 3] (spec 8.7, settled leaves):
+    within a ball dist moves at most h and r(u) at most h * (K - 1), the
+    profile falls as dist / r grows, and the flow lies between f0 and f1."""
+    dist, _, r = capsule_geometry(xp, x, p0, p1, r0, r1)
+    d = p1 - p0
+    dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
+    long = dd >= TINY
+    slack = xp.where(long, 1.0 + xp.abs(r1 - r0) / xp.sqrt(xp.where(long, dd, 1.0)), 1.0)
+    hk = h[:, None]
+    hr = hk * (slack[None, :] - 1.0)
+    rho_lo = xp.maximum(dist - hk, 0.0) / (r + hr)
+    r_lo = r - hr
+    rho_hi = xp.where(r_lo > 0.0, (dist + hk) / xp.where(r_lo > 0.0, r_lo, 1.0), xp.inf)
+    lo = coverage_profile(xp, rho_hi, hardness) * xp.minimum(f0, f1)[None, :]
+    hi = coverage_profile(xp, rho_lo, hardness) * xp.maximum(f0, f1)[None, :]
+    return lo, hi
+
+
 def noise_factor(xp, x, perm, scale, octaves: int, gain):
     """clamp(0.5 + fbm(x), 0, 1) [n] at canvas points x [n, 3]."""
     return xp.clip(0.5 + noise.fbm(xp, perm, x, scale, octaves, gain), 0.0, 1.0)

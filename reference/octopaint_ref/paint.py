@@ -37,6 +37,9 @@ class Stroke:
         self.sigma_b = B.sigma_brush_host(brush.opacity, brush.radius)
         self.alpha = float(brush.opacity)
         self.prims = PrimsHistory()
+        # Leaves may be settled (spec 8.7): a sphere brush whose colour stays
+        # the same along the stroke (every mode but pickup).
+        self.settles = brush.shape == "sphere" and brush.mode != "pickup"
         self.capacity_warned = False
         # Per touched cell (a slot): the value before the stroke, the stroke
         # maximum a, and the colour of the primitive that gave it.
@@ -145,6 +148,7 @@ class Painting:
         hit = a > 0
         self._apply(st, leaves[hit], a[hit], seg.colour[best[hit]])
         candidates = leaves[needs]
+        candidates = candidates[~self._settled(st, candidates)]
         while len(candidates):
             units, refused = tree.refine_round(candidates)
             if refused:
@@ -162,6 +166,7 @@ class Painting:
             if refused:
                 break
             candidates = new[self._needs_refinement(st, seg, new)]
+            candidates = candidates[~self._settled(st, candidates)]
 
     def _paint_new_cells(self, st: Stroke, cells: np.ndarray) -> None:
         """New children take their parent's before-value and their own
@@ -269,6 +274,63 @@ class Painting:
                 best[n0 : n0 + len(x)] = cb
         return a, best
 
+    def _settled(self, st: Stroke, cells: np.ndarray) -> np.ndarray:
+        """bool mask: the leaves among `cells` whose refinement could not
+        change a value (spec 8.7). Over the ball of a leaf's reach radius h,
+        every capsule of the stroke whose box meets the ball's box bounds
+        its coverage * flow to [lo, hi]; the stroke maximum lies in
+        [max lo, max hi], and the leaf is settled when the stored blend is
+        the same at both ends (the blend and the rounding are monotone in
+        a), or when nothing covers the ball."""
+        n = len(cells)
+        out = np.zeros(n, bool)
+        hist = st.history()
+        if not st.settles or n == 0 or hist is None:
+            return out
+        tree = self.tree
+        x = tree.centres(cells)
+        h = tree.reach_radius[tree.depth[cells]]
+        ball_lo, ball_hi = x - h[:, None], x + h[:, None]
+        arr = hist.arrays
+        a_lo = np.zeros(n)
+        a_hi = np.zeros(n)
+        bad = np.zeros(n, bool)
+        step = max(1, CHUNK_ENTRIES // len(hist))
+        with np.errstate(all="ignore"):
+            for n0 in range(0, n, step):
+                sl = slice(n0, n0 + step)
+                meets = np.all(hist.hi[None, :, :] >= ball_lo[sl, None, :], axis=2) & np.all(
+                    hist.lo[None, :, :] <= ball_hi[sl, None, :], axis=2
+                )
+                lo, hi = B.capsule_coverage_bounds(
+                    np, x[sl], h[sl], arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], st.brush.hardness
+                )
+                bad[sl] = np.any(meets & ~((lo >= 0.0) & (hi >= 0.0)), axis=1)
+                a_lo[sl] = np.max(np.where(meets, lo, 0.0), axis=1)
+                a_hi[sl] = np.max(np.where(meets, hi, 0.0), axis=1)
+        slots = st.slots(cells)
+        had = slots >= 0
+        before_rgb = tree.rgb[cells].copy()
+        before_sigma = tree.sigma[cells].copy()
+        before_rgb[had] = st.before_rgb[slots[had]]
+        before_sigma[had] = st.before_sigma[slots[had]]
+        colour = np.broadcast_to(st.colour, (n, 3))
+        b = st.brush
+
+        def stored(a):
+            with np.errstate(all="ignore"):
+                rgb, sigma = B.blend(
+                    np, b.mode, before_rgb.astype(np.float64) / 255.0, before_sigma.astype(np.float64),
+                    colour, st.sigma_b, st.alpha, a, b.mix_ratio,
+                )
+            return B.quantize_rgb(rgb), B.quantize_sigma(sigma).view(np.uint32)
+
+        rgb_lo, sig_lo = stored(a_lo)
+        rgb_hi, sig_hi = stored(a_hi)
+        same = np.all(rgb_lo == rgb_hi, axis=1) & (sig_lo == sig_hi)
+        out = (a_hi < B.TINY) | ((a_lo >= B.TINY) & same)
+        return out & ~bad
+
     def _reach(self, st: Stroke, prims: Prims, cells: np.ndarray, want_needs):
         """Exact host decisions for `cells`: within reach of any primitive of
         the segment, and, for the cells selected by the bool mask
@@ -290,7 +352,7 @@ class Painting:
             return reach, needs
         x_all = tree.centres(cells)
         d_all = tree.depth[cells]
-        h_all = B.HALF_DIAG * tree.size_canvas[d_all]
+        h_all = tree.reach_radius[d_all]
         b = st.brush
         arr = prims.arrays
         step = max(1, CHUNK_ENTRIES // k)
@@ -336,7 +398,7 @@ class Painting:
         e2 = x2 - (p0[2] + u * d2)
         r = r0 + (r1 - r0) * u
         slack = B.capsule_slack(p0, p1, r0, r1)
-        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= (B.HALF_DIAG * tree.size_canvas[depth]) * slack
+        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= tree.reach_radius[depth] * slack
         sel = want_needs & reach
         needs = np.zeros(len(cells), bool)
         if sel.any():

@@ -59,6 +59,10 @@ class Tree:
         d = np.arange(self.max_depth + 1)
         self.half_lattice = np.ldexp(0.5, self.max_depth - d)  # exact powers of two
         self.size_canvas = np.ldexp(self.lattice_unit, self.max_depth - d)
+        # The reach radius: how far any centre inside a cell (its own, its
+        # descendants') lies from its centre, HALF_DIAG * (size - finest
+        # size) (spec 8.7). 0.8660254037844386 is brush.HALF_DIAG.
+        self.reach_radius = 0.8660254037844386 * (self.size_canvas - self.size_canvas[self.max_depth])
         self._alloc_arrays(max(self.n_padded, 64))
         self.n_used = self.n_padded
         r = np.arange(self.n_roots, dtype=np.int64)

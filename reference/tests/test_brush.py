@@ -223,3 +223,31 @@ def test_mix_on_an_empty_cell_takes_the_brush_colour_even_with_zero_weight():
     rgb, sigma, sb = _blend("mix", [0.0, 0.0, 0.0], 0.0, [0.9, 0.5, 0.1], 0.5, mix_ratio=0.0)
     np.testing.assert_allclose(rgb, [0.9, 0.5, 0.1], atol=1e-15)
     assert sigma == pytest.approx(0.5 * sb, abs=1e-15)
+
+
+def test_capsule_coverage_bounds_hold_over_the_ball():
+    """Spec 8.7, settled leaves: [lo, hi] bounds coverage * flow at every
+    point of the ball of radius h, tapered and pressure-varying capsules
+    included, and is tight enough to settle a ball deep in a hard core."""
+    rng = np.random.default_rng(15)
+    k, n, m = 6, 200, 64
+    p0 = rng.uniform(-5, 5, (k, 3))
+    p1 = p0 + rng.uniform(-4, 4, (k, 3))
+    r0 = rng.uniform(0.5, 4, k)
+    r1 = rng.uniform(0.5, 4, k)
+    f0 = rng.uniform(0, 1, k)
+    f1 = rng.uniform(0, 1, k)
+    x = rng.uniform(-8, 8, (n, 3))
+    h = rng.uniform(0, 2, n)
+    for hardness in (0.0, 0.5, 0.9, 1.0):
+        lo, hi = B.capsule_coverage_bounds(np, x, h, p0, p1, r0, r1, f0, f1, hardness)
+        assert np.all(lo <= hi)
+        d = rng.normal(size=(n, m, 3))
+        d *= (h[:, None] * rng.uniform(0, 1, (n, m)) ** (1 / 3) / np.linalg.norm(d, axis=2))[:, :, None]
+        pts = (x[:, None, :] + d).reshape(-1, 3)
+        cov = B.capsule_coverage(np, pts, p0, p1, r0, r1, f0, f1, hardness).reshape(n, m, k)
+        assert np.all(cov >= lo[:, None, :] - 1e-12)
+        assert np.all(cov <= hi[:, None, :] + 1e-12)
+    one = np.ones(1)
+    lo, hi = B.capsule_coverage_bounds(np, np.zeros((1, 3)), np.array([0.5]), np.zeros((1, 3)), np.zeros((1, 3)), 4 * one, 4 * one, one, one, 0.9)
+    assert lo[0, 0] == hi[0, 0] == 1.0

@@ -137,6 +137,21 @@ impl Capsule {
         cp.dist - cp.r <= h * self.slack
     }
 
+    /// Bounds of coverage·flow over the ball of radius `h` about a centre
+    /// that projects to `cp` (spec 8.7, settled leaves): `dist` moves at
+    /// most `h` and `r(u)` at most `h·(K − 1)` within the ball, the profile
+    /// falls as `dist / r` grows, and the flow lies between `f0` and `f1`.
+    #[inline]
+    pub fn coverage_bounds(&self, cp: &CapsulePoint, h: f64, hardness: f64) -> (f64, f64) {
+        let hr = h * (self.slack - 1.0);
+        let rho_lo = (cp.dist - h).max(0.0) / (cp.r + hr);
+        let r_lo = cp.r - hr;
+        let rho_hi = if r_lo > 0.0 { (cp.dist + h) / r_lo } else { f64::INFINITY };
+        let lo = coverage_profile(rho_hi, hardness) * self.f0.min(self.f1);
+        let hi = coverage_profile(rho_lo, hardness) * self.f0.max(self.f1);
+        (lo, hi)
+    }
+
     /// Coverage·flow at a point that projects to `cp` (spec 8.5).
     #[inline]
     pub fn coverage_at(&self, cp: &CapsulePoint, hardness: f64) -> f64 {

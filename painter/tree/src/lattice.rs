@@ -30,6 +30,10 @@ pub struct Lattice {
     pub half_lattice: [f64; DEPTH_LIMIT as usize + 1],
     /// Per depth: the edge in canvas units, `2^(D-d) · lattice_unit`.
     pub size_canvas: [f64; DEPTH_LIMIT as usize + 1],
+    /// Per depth: the reach radius `HALF_DIAG · (size_canvas[d] −
+    /// size_canvas[D])`, the farthest any centre of a cell inside the cell
+    /// (the cell's own, its descendants') lies from its centre (spec 8.7).
+    pub reach_radius: [f64; DEPTH_LIMIT as usize + 1],
 }
 
 /// `2^e` for small integer `e`, exactly.
@@ -49,6 +53,10 @@ impl Lattice {
             half_lattice[depth as usize] = edge * 0.5;
             size_canvas[depth as usize] = edge * lattice_unit;
         }
+        let mut reach_radius = [0.0; DEPTH_LIMIT as usize + 1];
+        for depth in 0..=d as usize {
+            reach_radius[depth] = crate::brush::HALF_DIAG * (size_canvas[depth] - size_canvas[d as usize]);
+        }
         Lattice {
             roots: c.roots,
             max_depth: d,
@@ -59,6 +67,7 @@ impl Lattice {
             extent: c.roots.map(|r| u64::from(r) << d),
             half_lattice,
             size_canvas,
+            reach_radius,
         }
     }
 

@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use crate::brush::{self, Capsule, HALF_DIAG, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
+use crate::brush::{self, Capsule, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::clean::clean;
 use crate::history::History;
 use crate::noise::permutation;
@@ -33,6 +33,12 @@ struct Slot {
     before_sigma: f32,
     /// The colour K of the primitive that attained `a`.
     colour: [f64; 3],
+    /// The settled test's bounds `[a_lo, a_hi]` over the stroke's first
+    /// `bounds_upto` primitives (0: not computed yet; NaN: a NaN bound).
+    /// Both are maxima over primitives, so a later test folds in only the
+    /// primitives added since.
+    bounds: [f64; 2],
+    bounds_upto: u32,
 }
 
 /// The stroke in progress.
@@ -48,6 +54,9 @@ struct StrokeState {
     prims: Vec<Prim>,
     perm: Box<[u16; 512]>,
     stamp_reach: StampReach,
+    /// Leaves may be settled (spec 8.7): a sphere brush whose colour stays
+    /// the same along the stroke (every mode but pickup).
+    settles: bool,
     refusal_warned: bool,
     slots: Vec<Slot>,
     /// The stroke maximum of coverage·flow of each slot.
@@ -85,6 +94,9 @@ pub struct PaintCounters {
     pub cells_written: u64,
     /// Cells created by refinement.
     pub cells_created: u64,
+    /// Leaves within reach and coarser than their target depth that were
+    /// left unrefined because they are settled (spec 8.7).
+    pub leaves_settled: u64,
     /// Refinement rounds refused by the cell budget or memory.
     pub refusals: u64,
     /// Cells collapsed by cleaning.
@@ -113,6 +125,9 @@ pub struct Painting {
     spare_slots: Vec<Slot>,
     spare_slot_a: Vec<f64>,
     spare_stack: Vec<(u32, [u32; 3])>,
+    /// Settled leaves are left unrefined (spec 8.7); off only to measure
+    /// what the rule saves and to test that it changes no value.
+    settling: bool,
 }
 
 impl Painting {
@@ -134,7 +149,17 @@ impl Painting {
             spare_slots: Vec::new(),
             spare_slot_a: Vec::new(),
             spare_stack: Vec::new(),
+            settling: true,
         }
+    }
+
+    /// Turn the settled-leaf rule of spec 8.7 off (or on again) from the
+    /// next stroke: without it every leaf within reach refines to its
+    /// target depth and cleaning removes what did not need to be there.
+    /// The values at every centre are the same either way; benchmarks and
+    /// tests compare the two. Documents and traces always paint with it.
+    pub fn set_settling(&mut self, on: bool) {
+        self.settling = on;
     }
 
     pub fn in_stroke(&self) -> bool {
@@ -153,6 +178,7 @@ impl Painting {
             prims: Vec::new(),
             perm: Box::new(if brush.shape == Shape::Noise { permutation(brush.noise.seed) } else { [0; 512] }),
             stamp_reach: StampReach::new(brush.aspect),
+            settles: self.settling && brush.shape == Shape::Sphere && brush.mode != Mode::Pickup,
             refusal_warned: false,
             slots: std::mem::take(&mut self.spare_slots),
             slot_a: std::mem::take(&mut self.spare_slot_a),
@@ -329,7 +355,7 @@ impl Painting {
         while let Some((c, o)) = stack.pop() {
             let d = u32::from(self.tree.depth[c as usize]);
             let x = self.tree.lat.centre(o, d);
-            let h = HALF_DIAG * self.tree.lat.size_canvas[d as usize];
+            let h = self.tree.lat.reach_radius[d as usize];
             let fc = self.tree.first_child[c as usize];
             let st = self.stroke.as_ref().expect("stroke");
             let seg = &st.prims[first..];
@@ -379,13 +405,18 @@ impl Painting {
         let st = self.stroke.as_ref().expect("stroke");
         let hardness = st.brush.hardness;
         let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
+        let settles = st.settles;
+        // Candidates with their centres and reach radii, when they may be
+        // settled: decided after the pass, over the stroke's capsules.
+        let mut maybe: Vec<(u32, DVec3, f64)> = Vec::new();
         let (mut visited, mut hit) = (0u64, 0u64);
         while let Some((c, o)) = stack.pop() {
             let d = u32::from(self.tree.depth[c as usize]);
             let lat = &self.tree.lat;
             let x = lat.centre(o, d);
             let cp = cap.project(x);
-            if !cap.within_reach(&cp, HALF_DIAG * lat.size_canvas[d as usize]) {
+            let h = lat.reach_radius[d as usize];
+            if !cap.within_reach(&cp, h) {
                 continue;
             }
             let fc = self.tree.first_child[c as usize];
@@ -403,11 +434,26 @@ impl Painting {
                 self.apply(c, a, colour, false);
             }
             if needs {
-                candidates.push(c);
+                if settles {
+                    maybe.push((c, x, h));
+                } else {
+                    candidates.push(c);
+                }
             }
         }
         self.counters.leaves_visited += visited;
         self.counters.leaves_hit += hit;
+        if !maybe.is_empty() {
+            let st = self.stroke.as_ref().expect("stroke");
+            let caps = capsules_near(&st.prims, maybe.iter().map(|&(_, x, h)| (x, h)));
+            for &(c, x, h) in &maybe {
+                if self.settled(c, x, h, &caps) {
+                    self.counters.leaves_settled += 1;
+                } else {
+                    candidates.push(c);
+                }
+            }
+        }
         stack
     }
 
@@ -457,16 +503,28 @@ impl Painting {
         }
         let st = self.stroke.as_ref().expect("stroke");
         let seg = &st.prims[first..];
+        let lat = &self.tree.lat;
+        let caps = if st.settles {
+            capsules_near(&st.prims, cells.iter().map(|&(_, x, d)| (x, lat.reach_radius[d as usize])))
+        } else {
+            Vec::new()
+        };
+        let settles = st.settles;
         let mut next = Vec::new();
         for &(c, x, d) in &cells {
-            let h = HALF_DIAG * self.tree.lat.size_canvas[d as usize];
+            let h = lat.reach_radius[d as usize];
             let (reach, needs) = segment_reach(&self.tree, st, seg, x, d, h, true);
             let empty = !(self.tree.sigma[c as usize] > 0.0);
             if reach && needs && !(empty && matches!(st.brush.mode, Mode::Erase | Mode::Recolor)) {
-                next.push(c);
+                next.push((c, x, h));
             }
         }
-        Some((consumed, next))
+        if settles {
+            let before = next.len();
+            next.retain(|&(c, x, h)| !self.settled(c, x, h, &caps));
+            self.counters.leaves_settled += (before - next.len()) as u64;
+        }
+        Some((consumed, next.into_iter().map(|(c, _, _)| c).collect()))
     }
 
     /// New children take their parent's before-value and their own stroke
@@ -474,12 +532,7 @@ impl Painting {
     /// always written: one outside the brush returns to its before-value.
     fn paint_new_cells(&mut self, cells: &[(u32, DVec3, u32)]) {
         let st = self.stroke.as_ref().expect("stroke");
-        let mut lo = DVec3::INFINITY;
-        let mut hi = DVec3::NEG_INFINITY;
-        for &(_, x, _) in cells {
-            lo = lo.min(x);
-            hi = hi.max(x);
-        }
+        let (lo, hi) = centre_bounds(cells.iter().map(|&(_, x, _)| x));
         // Only primitives whose box meets the new centres can cover them.
         let near: Vec<Prim> = st.prims.iter().filter(|p| p.overlaps(lo, hi)).copied().collect();
         let mut values = Vec::with_capacity(cells.len());
@@ -502,6 +555,69 @@ impl Painting {
         }
     }
 
+    /// A leaf whose refinement could not change a value (spec 8.7): over
+    /// the ball of its reach radius `h` about `x`, the stroke maximum lies
+    /// in `[a_lo, a_hi]` (from the capsules among `caps` whose boxes meet
+    /// the ball's box: `caps` holds at least every such capsule), and the stored value of the blend is the same at
+    /// both ends, hence everywhere between (the blend and the rounding to
+    /// bytes and f32 are monotone in `a`). Nothing covering it counts as
+    /// settled too: every cell under it keeps the before-value.
+    fn settled(&mut self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> bool {
+        let slot = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
+        let st = self.stroke.as_mut().expect("stroke");
+        let hardness = st.brush.hardness;
+        let (mut a_lo, mut a_hi, from) = match slot {
+            NONE => (0.0f64, 0.0f64, 0),
+            s => {
+                let s = &st.slots[s as usize];
+                (s.bounds[0], s.bounds[1], s.bounds_upto)
+            }
+        };
+        if a_lo.is_nan() {
+            return false;
+        }
+        let (ball_lo, ball_hi) = (x - h, x + h);
+        for (i, p) in caps {
+            let Geometry::Capsule(cap) = &p.geo else { continue };
+            if *i < from || !p.overlaps(ball_lo, ball_hi) {
+                continue; // folded in already, or covers nothing in the ball
+            }
+            let (lo, hi) = cap.coverage_bounds(&cap.project(x), h, hardness);
+            if !(lo >= 0.0 && hi >= 0.0) {
+                a_lo = f64::NAN; // absurd input: never settled
+                break;
+            }
+            a_lo = a_lo.max(lo);
+            a_hi = a_hi.max(hi);
+        }
+        if slot != NONE {
+            let s = &mut st.slots[slot as usize];
+            s.bounds = [a_lo, a_hi];
+            s.bounds_upto = st.prims.len() as u32;
+        }
+        let st = self.stroke.as_ref().expect("stroke");
+        if a_lo.is_nan() {
+            return false;
+        }
+        if a_hi < TINY {
+            return true;
+        }
+        if a_lo < TINY {
+            return false; // 0 and a > 0 may differ at any a
+        }
+        let (before_rgb, before_sigma) = match self.slot_of.get(c as usize).copied().unwrap_or(NONE) {
+            NONE => (self.tree.rgb[c as usize], self.tree.sigma[c as usize]),
+            s => (st.slots[s as usize].before_rgb, st.slots[s as usize].before_sigma),
+        };
+        let before = before_rgb.map(|v| UNIT_RGB[v as usize]);
+        let b = &st.brush;
+        let value = |a: f64| {
+            let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), st.colour, st.sigma_b, st.alpha, a, b.mix_ratio);
+            (quantize_rgb(rgb), quantize_sigma(sigma).to_bits())
+        };
+        value(a_lo) == value(a_hi)
+    }
+
     /// Give `c` a slot with its before-value (a = 0).
     fn record(&mut self, c: u32, before_rgb: [u8; 3], before_sigma: f32) -> u32 {
         let st = self.stroke.as_mut().expect("stroke");
@@ -509,7 +625,7 @@ impl Painting {
             self.slot_of.resize(self.tree.n_used() as usize, NONE);
         }
         let slot = st.slots.len() as u32;
-        st.slots.push(Slot { cell: c, before_rgb, before_sigma, colour: [0.0; 3] });
+        st.slots.push(Slot { cell: c, before_rgb, before_sigma, colour: [0.0; 3], bounds: [0.0; 2], bounds_upto: 0 });
         st.slot_a.push(0.0);
         self.slot_of[c as usize] = slot;
         slot
@@ -550,6 +666,24 @@ impl Painting {
         self.tree.set_value(c, quantize_rgb(rgb), quantize_sigma(sigma));
         self.counters.cells_written += 1;
     }
+}
+
+/// The bounding box of some centres.
+fn centre_bounds(xs: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
+    xs.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), x| (lo.min(x), hi.max(x)))
+}
+
+/// The capsules among `prims` whose boxes meet the bounds of the balls
+/// `(centre, radius)` (the only ones that cover any point of them), with
+/// their indices in the stroke, ascending.
+fn capsules_near(prims: &[Prim], balls: impl Iterator<Item = (DVec3, f64)>) -> Vec<(u32, Prim)> {
+    let (lo, hi) = balls.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (x, h)| (lo.min(x - h), hi.max(x + h)));
+    prims
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| matches!(p.geo, Geometry::Capsule(_)) && p.overlaps(lo, hi))
+        .map(|(i, p)| (i as u32, *p))
+        .collect()
 }
 
 /// Within reach of some primitive of the segment, and (when `want_needs`)

@@ -284,3 +284,93 @@ proptest! {
         prop_assert!(whole == split, "painting in steps of {k} units changed the tree");
     }
 }
+
+/// Replay a session with the settled-leaf rule on or off; None when a
+/// refinement was refused (the two use different numbers of cells, so a
+/// budget may stop one and not the other).
+fn replay_settling(s: &Session, settling: bool) -> Option<Painting> {
+    let mut painting = Painting::new(&s.canvas);
+    painting.set_settling(settling);
+    for op in &s.ops {
+        match op {
+            Op::Stroke(st) => {
+                painting.begin_stroke(&st.brush);
+                for smp in &st.samples {
+                    painting.add_sample(smp, 0);
+                }
+                painting.end_stroke();
+            }
+            Op::Undo => {
+                painting.undo();
+            }
+            Op::Redo => {
+                painting.redo();
+            }
+        }
+    }
+    (painting.counters.refusals == 0).then_some(painting)
+}
+
+/// Every leaf of `a` holds the value `b` stores at its centre.
+fn same_values_at_centres(a: &Tree, b: &Tree) -> Result<(), TestCaseError> {
+    for c in 0..a.n_used() {
+        if !a.is_live(c) || !a.is_leaf(c) {
+            continue;
+        }
+        let x = a.centre(c).to_array();
+        let other = b.leaf_at(x).expect("a leaf's centre is inside the canvas") as usize;
+        prop_assert_eq!(a.rgb[c as usize], b.rgb[other], "rgb at the centre of leaf {} ({:?})", c, x);
+        prop_assert_eq!(a.sigma[c as usize].to_bits(), b.sigma[other].to_bits(), "sigma at the centre of leaf {} ({:?})", c, x);
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, max_shrink_iters: 500, ..ProptestConfig::default() })]
+    /// Spec 8.7: a settled leaf stores what refining it would have stored at
+    /// every centre inside it, so the rule changes topology, never a value.
+    #[test]
+    fn settled_leaves_hold_what_refinement_would(s in session()) {
+        let (Some(with), Some(without)) = (replay_settling(&s, true), replay_settling(&s, false)) else {
+            return Ok(());
+        };
+        prop_assert!(with.counters.cells_created <= without.counters.cells_created);
+        same_values_at_centres(&with.tree, &without.tree)?;
+        same_values_at_centres(&without.tree, &with.tree)?;
+    }
+}
+
+/// A hard sphere brush over a region painted with one colour: the rule
+/// settles the cores and the repainted region, creates fewer cells, and
+/// stores the same values.
+#[test]
+fn settling_saves_cells_on_hard_brushes() {
+    let canvas = Canvas { roots: [1, 1, 1], max_depth: 7, root_size: 128.0, capacity: 1 << 24 };
+    let mut brush = Brush::new(Shape::Sphere, Mode::Paint, 20.0, [0.9, 0.4, 0.1], 0.7, 0.9);
+    brush.spacing = 0.3;
+    let run = |settling: bool| {
+        let mut p = Painting::new(&canvas);
+        p.set_settling(settling);
+        for stroke in 0..2 {
+            p.begin_stroke(&brush);
+            for i in 0..12 {
+                let t = f64::from(i) * 4.0;
+                p.add_sample(&Sample::at([30.0 + t, 64.0 + f64::from(stroke), 64.0]), 0);
+            }
+            p.end_stroke();
+        }
+        p
+    };
+    let (with, without) = (run(true), run(false));
+    assert!(with.counters.leaves_settled > 0, "no leaf settled");
+    assert_eq!(without.counters.leaves_settled, 0);
+    assert!(
+        with.counters.cells_created * 10 < without.counters.cells_created * 9,
+        "settling saved under 10%: {} cells against {}",
+        with.counters.cells_created,
+        without.counters.cells_created
+    );
+    same_values_at_centres(&with.tree, &without.tree).unwrap();
+    same_values_at_centres(&without.tree, &with.tree).unwrap();
+    assert!(check_tree(&with.tree).is_empty());
+}
