@@ -558,10 +558,13 @@ impl Painting {
     /// A leaf whose refinement could not change a value (spec 8.7): over
     /// the ball of its reach radius `h` about `x`, the stroke maximum lies
     /// in `[a_lo, a_hi]` (from the capsules among `caps` whose boxes meet
-    /// the ball's box: `caps` holds at least every such capsule), and the stored value of the blend is the same at
-    /// both ends, hence everywhere between (the blend and the rounding to
-    /// bytes and f32 are monotone in `a`). Nothing covering it counts as
-    /// settled too: every cell under it keeps the before-value.
+    /// the ball's box; `caps` holds at least every such capsule, with its
+    /// index in the stroke), and the stored value of the blend is the same
+    /// at both ends, hence everywhere between (the blend and the rounding
+    /// to bytes and f32 are monotone in `a`). Nothing covering it counts as
+    /// settled too: every cell under it keeps the before-value. A touched
+    /// leaf keeps its bounds in its slot, so the next test folds in only
+    /// the capsules added since.
     fn settled(&mut self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> bool {
         let slot = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
         let st = self.stroke.as_mut().expect("stroke");
