@@ -149,7 +149,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
             "\"hardness\": {}, \"settling\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
-            "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, ",
+            "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, ",
             "\"peak_rss_mib\": {:.1}}}"
         ),
         a.radius,
@@ -176,6 +176,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         Tree::BYTES_PER_CELL,
         t.pool_bytes_allocated() as f64 / n,
         history / n,
+        history / painting.history.changed_cells().max(1) as f64,
         octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
     );
     println!("{json}");

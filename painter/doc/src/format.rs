@@ -102,12 +102,15 @@ fn history_bytes(h: &History) -> Vec<u8> {
     for s in h.done.iter().chain(&h.undone) {
         put_u32(&mut out, s.n_before);
         put_u32(&mut out, s.n_after);
-        put_u32(&mut out, s.cells.len() as u32);
-        for c in &s.cells {
-            put_u32(&mut out, *c);
+        put_u32(&mut out, s.len() as u32);
+        for (c, _, _) in s.entries() {
+            put_u32(&mut out, c);
         }
-        for r in s.before.iter().chain(&s.after) {
-            put_record(&mut out, r);
+        for (_, r, _) in s.entries() {
+            put_record(&mut out, &r);
+        }
+        for (_, _, r) in s.entries() {
+            put_record(&mut out, &r);
         }
     }
     out
@@ -331,6 +334,11 @@ fn decode_history(tree: &Tree, raw: &[u8]) -> Result<History, DocError> {
         if let Some(x) = cells.iter().find(|&&x| x >= len) {
             return Err(bad(format!("step {i} names cell {x} past its length {len}")));
         }
+        let mut sorted = cells.clone();
+        sorted.sort_unstable();
+        if let Some(w) = sorted.windows(2).find(|w| w[0] == w[1]) {
+            return Err(bad(format!("step {i} names cell {} twice", w[0])));
+        }
         let mut recs = Vec::with_capacity(2 * k);
         for _ in 0..2 * k {
             let r = c.record()?;
@@ -345,19 +353,23 @@ fn decode_history(tree: &Tree, raw: &[u8]) -> Result<History, DocError> {
             recs.push(r);
         }
         let after = recs.split_off(k);
-        steps.push(UndoStep { n_before, n_after, cells, before: recs, after });
+        let mut step = UndoStep::new(n_before, n_after);
+        for ((c, b), a) in cells.into_iter().zip(recs).zip(after) {
+            step.push(c, b, a);
+        }
+        steps.push(step);
     }
     c.done()?;
     let undone_steps = steps.split_off(done);
     let h = History { done: steps, undone: undone_steps };
     let n = tree.n_used();
     if let Some(s) = h.done.last()
-        && (s.n_after != n || s.cells.iter().zip(&s.after).any(|(&c, r)| !tree.record(c).same_bits(r)))
+        && (s.n_after != n || s.entries().any(|(c, _, r)| !tree.record(c).same_bits(&r)))
     {
         return Err(bad("its last stroke is not the tree's state".into()));
     }
     if let Some(s) = h.undone.last()
-        && (s.n_before != n || s.cells.iter().zip(&s.before).any(|(&c, r)| !tree.record(c).same_bits(r)))
+        && (s.n_before != n || s.entries().any(|(c, r, _)| !tree.record(c).same_bits(&r)))
     {
         return Err(bad("its last undone stroke does not start from the tree's state".into()));
     }

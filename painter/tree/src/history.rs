@@ -9,7 +9,7 @@
 //! for byte what they were, indices and free units included; redo writes
 //! the after-records.
 
-use crate::pool::{CellRecord, Tree};
+use crate::pool::{CellRecord, NONE, Tree};
 
 #[derive(Clone)]
 pub(crate) struct Journal {
@@ -43,19 +43,84 @@ impl Journal {
     }
 }
 
-/// One stroke's effect on the pools.
-#[derive(Clone, Debug)]
+/// One stroke's effect on the pools: for each changed cell its record
+/// before and after the stroke, kept by what changed so that most cells
+/// cost far less than their two 16-byte records:
+/// - *values*: a leaf before and after whose only change is rgb and sigma
+///   (a painted leaf): the cell, its parent and depth, both values, 23
+///   bytes;
+/// - *born*: free before (a new cell), only the after-record, 20 bytes;
+/// - *freed*: free after (a collapse), only the before-record, 20 bytes;
+/// - *other*: both records (a refined leaf, a parent), 36 bytes.
+#[derive(Clone, Debug, Default)]
 pub struct UndoStep {
     pub n_before: u32,
     pub n_after: u32,
-    pub cells: Vec<u32>,
-    pub before: Vec<CellRecord>,
-    pub after: Vec<CellRecord>,
+    value_cells: Vec<u32>,
+    value_parent: Vec<u32>,
+    value_depth: Vec<u8>,
+    value_rgb: Vec<[[u8; 3]; 2]>,
+    value_sigma: Vec<[f32; 2]>,
+    born_cells: Vec<u32>,
+    born: Vec<CellRecord>,
+    freed_cells: Vec<u32>,
+    freed: Vec<CellRecord>,
+    other_cells: Vec<u32>,
+    other: Vec<[CellRecord; 2]>,
 }
 
 impl UndoStep {
+    pub fn new(n_before: u32, n_after: u32) -> Self {
+        UndoStep { n_before, n_after, ..UndoStep::default() }
+    }
+
+    /// Add a cell that changed from `before` to `after` (each cell once).
+    pub fn push(&mut self, c: u32, before: CellRecord, after: CellRecord) {
+        if before.same_bits(&CellRecord::FREE) {
+            self.born_cells.push(c);
+            self.born.push(after);
+        } else if after.same_bits(&CellRecord::FREE) {
+            self.freed_cells.push(c);
+            self.freed.push(before);
+        } else if before.first_child == NONE && (before.parent, before.first_child, before.depth) == (after.parent, after.first_child, after.depth) {
+            self.value_cells.push(c);
+            self.value_parent.push(before.parent);
+            self.value_depth.push(before.depth);
+            self.value_rgb.push([before.rgb, after.rgb]);
+            self.value_sigma.push([before.sigma, after.sigma]);
+        } else {
+            self.other_cells.push(c);
+            self.other.push([before, after]);
+        }
+    }
+
+    /// How many cells the stroke changed.
+    pub fn len(&self) -> usize {
+        self.value_cells.len() + self.born_cells.len() + self.freed_cells.len() + self.other_cells.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Every changed cell with its records before and after the stroke
+    /// (values first, then born, freed and other cells).
+    pub fn entries(&self) -> impl Iterator<Item = (u32, CellRecord, CellRecord)> + '_ {
+        let values = (0..self.value_cells.len()).map(|i| {
+            let (parent, depth) = (self.value_parent[i], self.value_depth[i]);
+            let rec = |k: usize| CellRecord { parent, first_child: NONE, depth, rgb: self.value_rgb[i][k], sigma: self.value_sigma[i][k] };
+            (self.value_cells[i], rec(0), rec(1))
+        });
+        let born = self.born_cells.iter().zip(&self.born).map(|(&c, r)| (c, CellRecord::FREE, *r));
+        let freed = self.freed_cells.iter().zip(&self.freed).map(|(&c, r)| (c, *r, CellRecord::FREE));
+        let other = self.other_cells.iter().zip(&self.other).map(|(&c, r)| (c, r[0], r[1]));
+        values.chain(born).chain(freed).chain(other)
+    }
+
     pub fn bytes(&self) -> usize {
-        self.cells.len() * (4 + 2 * std::mem::size_of::<CellRecord>())
+        self.value_cells.len() * (4 + 4 + 1 + 2 * 3 + 2 * 4)
+            + (self.born_cells.len() + self.freed_cells.len()) * (4 + std::mem::size_of::<CellRecord>())
+            + self.other_cells.len() * (4 + 2 * std::mem::size_of::<CellRecord>())
     }
 }
 
@@ -69,6 +134,12 @@ pub struct History {
 impl History {
     pub fn bytes(&self) -> usize {
         self.done.iter().chain(self.undone.iter()).map(UndoStep::bytes).sum()
+    }
+
+    /// Changed cells over all steps (a cell changed by two strokes counts
+    /// twice).
+    pub fn changed_cells(&self) -> usize {
+        self.done.iter().chain(self.undone.iter()).map(UndoStep::len).sum()
     }
 
     /// Forget the oldest done strokes until the history takes at most
@@ -98,21 +169,17 @@ impl Tree {
     /// length, which were free.
     pub(crate) fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
-        let mut step = UndoStep { n_before: j.n_before, n_after: self.n_used(), cells: vec![], before: vec![], after: vec![] };
+        let mut step = UndoStep::new(j.n_before, self.n_used());
         for (&c, before) in j.cells.iter().zip(&j.before) {
             let now = self.record(c);
             if !now.same_bits(before) {
-                step.cells.push(c);
-                step.before.push(*before);
-                step.after.push(now);
+                step.push(c, *before, now);
             }
         }
         for c in j.n_before..self.n_used() {
             let now = self.record(c);
             if !now.same_bits(&CellRecord::FREE) {
-                step.cells.push(c);
-                step.before.push(CellRecord::FREE);
-                step.after.push(now);
+                step.push(c, CellRecord::FREE, now);
             }
         }
         step
@@ -122,18 +189,52 @@ impl Tree {
     /// Marks the rewritten cells dirty, and the cells that gained or lost
     /// children as topology changes (spec 10, 3.4).
     pub(crate) fn apply_step(&mut self, step: &UndoStep, forward: bool) {
-        let (recs, old, n) =
-            if forward { (&step.after, &step.before, step.n_after) } else { (&step.before, &step.after, step.n_before) };
+        let n = if forward { step.n_after } else { step.n_before };
         self.set_used_length(step.n_before.max(step.n_after));
-        for ((&c, r), o) in step.cells.iter().zip(recs).zip(old) {
-            self.write_record(c, *r);
+        for (c, before, after) in step.entries() {
+            let (r, o) = if forward { (after, before) } else { (before, after) };
+            self.write_record(c, r);
             self.changes.direct(c);
             if r.first_child != o.first_child {
-                let unit = if r.first_child != crate::pool::NONE { r.first_child } else { o.first_child };
+                let unit = if r.first_child != NONE { r.first_child } else { o.first_child };
                 self.changes.topology(c, unit);
             }
         }
         self.set_used_length(n);
         self.rebuild_free_units();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rec(parent: u32, first_child: u32, depth: u8, rgb: [u8; 3], sigma: f32) -> CellRecord {
+        CellRecord { parent, first_child, depth, rgb, sigma }
+    }
+
+    #[test]
+    fn a_step_keeps_every_change_in_its_cheapest_form() {
+        let leaf = |rgb, sigma| rec(0, NONE, 3, rgb, sigma);
+        let cases = [
+            (8, leaf([1, 2, 3], 0.5), leaf([4, 5, 6], 0.75)),                    // value: 23 bytes
+            (9, CellRecord::FREE, leaf([7, 8, 9], 1.0)),                         // born: 20
+            (10, leaf([1, 1, 1], 2.0), CellRecord::FREE),                        // freed: 20
+            (11, leaf([1, 1, 1], 2.0), rec(0, 16, 3, [1, 1, 1], 2.0)),           // refined: 36
+            (12, rec(0, 16, 3, [0; 3], 0.0), rec(0, 16, 3, [0; 3], -0.0)),       // internal: 36
+            (13, leaf([1, 1, 1], 2.0), rec(5, NONE, 3, [1, 1, 1], 2.0)),         // reparented: 36
+        ];
+        let mut step = UndoStep::new(16, 24);
+        for (c, b, a) in cases {
+            step.push(c, b, a);
+        }
+        assert_eq!(step.len(), cases.len());
+        assert_eq!(step.bytes(), 23 + 20 + 20 + 36 + 36 + 36);
+        let mut got: Vec<_> = step.entries().collect();
+        got.sort_by_key(|e| e.0);
+        for ((c, b, a), (d, e, f)) in cases.iter().zip(&got) {
+            assert_eq!(c, d);
+            assert!(b.same_bits(e) && a.same_bits(f), "cell {c} came back changed");
+        }
     }
 }

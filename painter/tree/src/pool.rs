@@ -315,13 +315,20 @@ impl Tree {
         Ok(n)
     }
 
+    /// Grow by one unit. A full pool grows by a quarter of its length (at
+    /// least a unit), not Vec's doubling, so the pools never allocate more
+    /// than 1.25 times the cells in use (big reallocations move pages
+    /// rather than copy them).
     fn grow_by_unit(&mut self) -> Result<(), std::collections::TryReserveError> {
         let u = UNIT as usize;
-        self.parent.try_reserve(u)?;
-        self.first_child.try_reserve(u)?;
-        self.depth.try_reserve(u)?;
-        self.rgb.try_reserve(u)?;
-        self.sigma.try_reserve(u)?;
+        if self.parent.len() + u > self.parent.capacity() {
+            let extra = (self.parent.len() / 4).max(u);
+            self.parent.try_reserve_exact(extra)?;
+            self.first_child.try_reserve_exact(extra)?;
+            self.depth.try_reserve_exact(extra)?;
+            self.rgb.try_reserve_exact(extra)?;
+            self.sigma.try_reserve_exact(extra)?;
+        }
         self.parent.extend_from_slice(&[NONE; UNIT as usize]);
         self.first_child.extend_from_slice(&[NONE; UNIT as usize]);
         self.depth.extend_from_slice(&[FREE; UNIT as usize]);
@@ -389,11 +396,29 @@ impl Tree {
     /// a length the pools had before.
     pub(crate) fn set_used_length(&mut self, n: u32) {
         let n = n as usize;
+        if n > self.parent.len() {
+            let extra = n - self.parent.len();
+            self.parent.reserve_exact(extra);
+            self.first_child.reserve_exact(extra);
+            self.depth.reserve_exact(extra);
+            self.rgb.reserve_exact(extra);
+            self.sigma.reserve_exact(extra);
+        }
         self.parent.resize(n, NONE);
         self.first_child.resize(n, NONE);
         self.depth.resize(n, FREE);
         self.rgb.resize(n, [0; 3]);
         self.sigma.resize(n, 0.0);
+        // Give memory back when the pools hold over 1.25 times what is in
+        // use (cleaning, undo), keeping an eighth to grow into.
+        if self.parent.capacity() > n + n / 4 + 4096 {
+            let keep = n + n / 8;
+            self.parent.shrink_to(keep);
+            self.first_child.shrink_to(keep);
+            self.depth.shrink_to(keep);
+            self.rgb.shrink_to(keep);
+            self.sigma.shrink_to(keep);
+        }
     }
 
     /// Rebuild the free-unit list from the depth pool (after undo/redo).
