@@ -287,3 +287,27 @@ fn refused_events_change_nothing() {
     assert_eq!(dump_bytes(&s.painting.tree), before);
     assert!(matches!(Session::create(&path, &t.canvas, &t.meta), Err(DocError::Exists(_))));
 }
+
+#[test]
+fn a_step_naming_a_cell_twice_is_refused() {
+    let doc = format::read(&small_document()).unwrap().doc;
+    let mut history = doc.history.clone();
+    let last = history.done.pop().expect("the stamp is one undo step");
+    // The same changes, the first one listed twice (a record before and
+    // after as the stroke left them, so nothing else is wrong).
+    let mut step = octopaint_tree::history::UndoStep::new(last.n_before, last.n_after);
+    let first = last.entries().next().expect("the stroke changed cells");
+    step.push(first.0, first.1, first.2);
+    for (c, b, a) in last.entries() {
+        step.push(c, b, a);
+    }
+    history.done.push(step);
+    let (data, _) = format::write(&doc.trace_text, &doc.tree, &history, &doc.meta).unwrap();
+    match format::read(&data) {
+        Err(DocError::Corrupt(m)) => assert!(m.contains(&format!("names cell {} twice", first.0)), "{m}"),
+        other => panic!("accepted or refused for another reason: {:?}", other.err()),
+    }
+    // Written back whole, the same history opens.
+    let (data, _) = format::write(&doc.trace_text, &doc.tree, &doc.history, &doc.meta).unwrap();
+    assert!(format::read(&data).is_ok());
+}
