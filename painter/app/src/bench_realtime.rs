@@ -57,6 +57,14 @@ pub struct Args {
     /// Only the default configuration and the strategies (a quick look).
     #[arg(long)]
     quick: bool,
+    /// Only the default configuration (the stroke thread's paint time per
+    /// sample is the figure wanted).
+    #[arg(long, conflicts_with = "quick")]
+    default_only: bool,
+    /// Paint the live stroke with this brush radius in finest cells (the
+    /// canvas's lattice unit) instead of the recorded one.
+    #[arg(long)]
+    radius_cells: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -110,6 +118,9 @@ struct RunResult {
     g3_ms: Percentiles,
     cast_ms: Percentiles,
     latency_ms: Percentiles,
+    /// The stroke thread's painting time per sample job (Painting::step
+    /// with the tree's lock held, lock waits excluded).
+    paint_ms: Percentiles,
     staging_copies: usize,
     staging_cells_per_copy: f64,
     staging_ms: Percentiles,
@@ -138,7 +149,7 @@ fn mask_name(m: MaskSize) -> String {
     }
 }
 
-fn configs(quick: bool) -> Vec<Config> {
+fn configs(quick: bool, default_only: bool) -> Vec<Config> {
     let base = |label: &str, group: &'static str| Config {
         label: label.into(),
         group,
@@ -151,6 +162,9 @@ fn configs(quick: bool) -> Vec<Config> {
         capture: false,
     };
     let mut out = vec![Config { strategy: Strategy::default(), ..base("default: 65K blocks, K=4, 64x32, grouped", "default") }];
+    if default_only {
+        return out;
+    }
     if !quick {
         out.push(Config { block: BlockSize::WholePool, k: 1, ..base("no block (whole pool)", "table1") });
         for shift in 16..=21 {
@@ -317,6 +331,7 @@ fn run_one(pre: &Painting, live: &[(f64, Job)], camera: &Camera, c: &Config, hz:
     let stage = percentiles(&staging_ms);
     let cells_per_copy = report.staging.iter().map(|s| s.cells as f64).sum::<f64>() / report.staging.len().max(1) as f64;
     let latency: Vec<f64> = report.ledger.jobs.iter().filter_map(|j| j.latency_ms()).collect();
+    let paint: Vec<f64> = report.ledger.jobs.iter().filter(|j| j.kind == "sample").map(|j| j.paint_seconds * 1e3).collect();
     let uploaded: u64 = f.iter().map(|fr| fr.cells_uploaded).sum();
     let result = RunResult {
         label: c.label.clone(),
@@ -339,6 +354,7 @@ fn run_one(pre: &Painting, live: &[(f64, Job)], camera: &Camera, c: &Config, hz:
         g3_ms: ms(|fr| fr.g3_seconds * 1e3),
         cast_ms: ms(|fr| fr.cast_seconds * 1e3),
         latency_ms: percentiles(&latency),
+        paint_ms: percentiles(&paint),
         staging_copies: report.staging.len(),
         staging_cells_per_copy: cells_per_copy,
         staged_copies_per_s: if stage.mean > 0.0 { 1e3 / stage.mean } else { 0.0 },
@@ -359,6 +375,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         .and_then(|(w, h)| Some((w.parse::<u32>().ok()?, h.parse::<u32>().ok()?)))
         .filter(|&(w, h)| (1..=8192).contains(&w) && (1..=8192).contains(&h))
         .with_context(|| format!("--size {:?}: expected WxH, each 1 to 8192", a.size))?;
+    if let Some(r) = a.radius_cells {
+        anyhow::ensure!(r.is_finite() && r > 0.0 && r <= 1e6, "--radius-cells {r}: expected a radius in (0, 1e6] finest cells");
+    }
     if let Some(hz) = a.hz {
         anyhow::ensure!(hz.is_finite() && hz > 0.0, "--hz {hz}: expected a positive rate");
     }
@@ -386,6 +405,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             live.push((*t, Job::EndStroke));
             break;
         }
+        if let (Job::BeginStroke(b), Some(r)) = (job, a.radius_cells) {
+            let mut b = *b;
+            b.radius = r * trace.canvas.root_size * (-f64::from(trace.canvas.max_depth)).exp2();
+            live.push((*t, Job::BeginStroke(b)));
+            continue;
+        }
         if a.samples.is_some_and(|n| live.len() > n) {
             let t = live.last().map_or(*t, |x| x.0);
             live.push((t, Job::EndStroke));
@@ -407,7 +432,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     );
     let mut results = Vec::new();
     let mut adapter = String::new();
-    for c in configs(a.quick) {
+    for c in configs(a.quick, a.default_only) {
         let (mut result, report) = run_one(&pre, &live, &camera, &c, a.hz)?;
         adapter.clone_from(&report.adapter);
         if c.capture {
@@ -416,7 +441,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             result.corruption = Some(corruption(&report, &images));
         }
         println!(
-            "{:<36} {:>5} frames, frame ms p50 {:>6.1} p99 {:>6.1}; latency ms p50 {:>6.1} p99 {:>6.1} max {:>6.1}; staging {:>5} copies, {:>6.2} ms each{}",
+            "{:<36} {:>5} frames, frame ms p50 {:>6.1} p99 {:>6.1}; latency ms p50 {:>6.1} p99 {:>6.1} max {:>6.1}; paint ms a sample p50 {:>6.2} p99 {:>6.2}; staging {:>5} copies, {:>6.2} ms each{}",
             result.label,
             result.frames,
             result.frame_ms.p50,
@@ -424,6 +449,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             result.latency_ms.p50,
             result.latency_ms.p99,
             result.latency_ms.max,
+            result.paint_ms.p50,
+            result.paint_ms.p99,
             result.staging_copies,
             result.staging_ms.mean,
             result.corruption.as_ref().map_or(String::new(), |c| format!("; corrupted {:.1}% of frames, longest {:.0} ms", c.percent, c.longest_ms))

@@ -20,6 +20,9 @@ pub struct JobRecord {
     pub submitted: Instant,
     pub started: Option<Instant>,
     pub finished: Option<Instant>,
+    /// Time the stroke thread spent painting it (inside `Painting::step`,
+    /// with the tree's lock held; waits for the lock excluded), seconds.
+    pub paint_seconds: f64,
     /// Its first and last publications (None: it changed nothing).
     pub first_pub: Option<u64>,
     pub last_pub: Option<u64>,
@@ -58,6 +61,7 @@ impl Ledger {
             kind,
             submitted: at,
             started: None,
+            paint_seconds: 0.0,
             finished: None,
             first_pub: None,
             last_pub: None,
@@ -90,6 +94,11 @@ impl Ledger {
             q.push_back(n);
         }
         n
+    }
+
+    /// Job `seq` took `seconds` of painting.
+    pub fn painted(&mut self, seq: u64, seconds: f64) {
+        self.job(seq).paint_seconds += seconds;
     }
 
     pub fn finished(&mut self, seq: u64) {

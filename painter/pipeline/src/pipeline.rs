@@ -304,18 +304,23 @@ fn stroke_thread(shared: &Shared, settings: &Settings, hooks: &Hooks) {
         }
         match &ticket.job {
             Job::Sample(s) => {
+                let t0 = Instant::now();
                 shared.painting.lock().expect("painting").begin_sample(s, 0);
+                let mut painting_seconds = t0.elapsed().as_secs_f64();
                 loop {
                     let mut painting = shared.painting.lock().expect("painting");
                     if let Some(g) = &hooks.stroke {
                         g.pass();
                     }
+                    let t0 = Instant::now();
                     let done = painting.step(settings.strategy.aggressive_units);
+                    painting_seconds += t0.elapsed().as_secs_f64();
                     publish(&mut painting, seq);
                     if done {
                         break;
                     }
                 }
+                shared.ledger.lock().expect("ledger").painted(seq, painting_seconds);
             }
             job => {
                 let mut painting = shared.painting.lock().expect("painting");
