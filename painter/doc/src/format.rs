@@ -357,6 +357,7 @@ fn decode_history(tree: &Tree, raw: &[u8]) -> Result<History, DocError> {
         for ((c, b), a) in cells.into_iter().zip(recs).zip(after) {
             step.push(c, b, a);
         }
+        step.shrink();
         steps.push(step);
     }
     c.done()?;

@@ -94,6 +94,22 @@ impl UndoStep {
         }
     }
 
+    /// Give back what the vectors hold beyond their contents (a finished
+    /// step no longer grows), so that [`UndoStep::bytes`] is what it takes.
+    pub fn shrink(&mut self) {
+        self.value_cells.shrink_to_fit();
+        self.value_parent.shrink_to_fit();
+        self.value_depth.shrink_to_fit();
+        self.value_rgb.shrink_to_fit();
+        self.value_sigma.shrink_to_fit();
+        self.born_cells.shrink_to_fit();
+        self.born.shrink_to_fit();
+        self.freed_cells.shrink_to_fit();
+        self.freed.shrink_to_fit();
+        self.other_cells.shrink_to_fit();
+        self.other.shrink_to_fit();
+    }
+
     /// How many cells the stroke changed.
     pub fn len(&self) -> usize {
         self.value_cells.len() + self.born_cells.len() + self.freed_cells.len() + self.other_cells.len()
@@ -182,6 +198,7 @@ impl Tree {
                 step.push(c, CellRecord::FREE, now);
             }
         }
+        step.shrink();
         step
     }
 
