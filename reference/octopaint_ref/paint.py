@@ -85,6 +85,17 @@ class Stroke:
         self.n = need
         return slots
 
+    def before_values(self, tree, cells):
+        """Before-values of `cells` (spec 8.8): recorded for touched cells,
+        the stored value otherwise."""
+        slots = self.slots(cells)
+        before_rgb = tree.rgb[cells].copy()
+        before_sigma = tree.sigma[cells].copy()
+        had = slots >= 0
+        before_rgb[had] = self.before_rgb[slots[had]]
+        before_sigma[had] = self.before_sigma[slots[had]]
+        return before_rgb, before_sigma
+
     def history(self) -> Prims | None:
         """Every primitive of the stroke so far (None before the first)."""
         return self.prims.view()
@@ -172,13 +183,7 @@ class Painting:
         """New children take their parent's before-value and their own
         stroke maximum over every segment so far (spec 8.8)."""
         tree = self.tree
-        parents = tree.parent[cells].astype(np.int64)
-        slots = st.slots(parents)
-        before_rgb = tree.rgb[parents].copy()
-        before_sigma = tree.sigma[parents].copy()
-        had = slots >= 0
-        before_rgb[had] = st.before_rgb[slots[had]]
-        before_sigma[had] = st.before_sigma[slots[had]]
+        before_rgb, before_sigma = st.before_values(tree, tree.parent[cells].astype(np.int64))
         a = np.zeros(len(cells))
         colour = np.zeros((len(cells), 3))
         hist = st.history()
@@ -308,12 +313,7 @@ class Painting:
                 bad[sl] = np.any(meets & ~((lo >= 0.0) & (hi >= 0.0)), axis=1)
                 a_lo[sl] = np.max(np.where(meets, lo, 0.0), axis=1)
                 a_hi[sl] = np.max(np.where(meets, hi, 0.0), axis=1)
-        slots = st.slots(cells)
-        had = slots >= 0
-        before_rgb = tree.rgb[cells].copy()
-        before_sigma = tree.sigma[cells].copy()
-        before_rgb[had] = st.before_rgb[slots[had]]
-        before_sigma[had] = st.before_sigma[slots[had]]
+        before_rgb, before_sigma = st.before_values(tree, cells)
         colour = np.broadcast_to(st.colour, (n, 3))
         b = st.brush
 

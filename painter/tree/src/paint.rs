@@ -109,6 +109,18 @@ pub struct PaintCounters {
     pub stroke_end_ns: u64,
 }
 
+impl StrokeState {
+    /// What a cell with `before` stores after blending the colour `colour`
+    /// at stroke maximum `a` (spec 8.5, rounded by spec 5).
+    #[inline]
+    fn stored(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
+        let before = before_rgb.map(|v| UNIT_RGB[v as usize]);
+        let b = &self.brush;
+        let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), colour, self.sigma_b, self.alpha, a, b.mix_ratio);
+        (quantize_rgb(rgb), quantize_sigma(sigma))
+    }
+}
+
 /// A tree plus the strokes painted on it.
 #[derive(Clone)]
 pub struct Painting {
@@ -537,14 +549,7 @@ impl Painting {
         let near: Vec<Prim> = st.prims.iter().filter(|p| p.overlaps(lo, hi)).copied().collect();
         let mut values = Vec::with_capacity(cells.len());
         for &(c, x, _) in cells {
-            let parent = self.tree.parent[c as usize];
-            let ps = self.slot_of.get(parent as usize).copied().unwrap_or(NONE);
-            let (before_rgb, before_sigma) = if ps != NONE {
-                let s = &st.slots[ps as usize];
-                (s.before_rgb, s.before_sigma)
-            } else {
-                (self.tree.rgb[parent as usize], self.tree.sigma[parent as usize])
-            };
+            let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
             let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
             let colour = if near.is_empty() { [0.0; 3] } else { near[k].colour };
             values.push((c, before_rgb, before_sigma, a, colour));
@@ -608,17 +613,24 @@ impl Painting {
         if a_lo < TINY {
             return false; // 0 and a > 0 may differ at any a
         }
-        let (before_rgb, before_sigma) = match self.slot_of.get(c as usize).copied().unwrap_or(NONE) {
-            NONE => (self.tree.rgb[c as usize], self.tree.sigma[c as usize]),
-            s => (st.slots[s as usize].before_rgb, st.slots[s as usize].before_sigma),
-        };
-        let before = before_rgb.map(|v| UNIT_RGB[v as usize]);
-        let b = &st.brush;
+        let (before_rgb, before_sigma) = self.before_value(c);
         let value = |a: f64| {
-            let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), st.colour, st.sigma_b, st.alpha, a, b.mix_ratio);
-            (quantize_rgb(rgb), quantize_sigma(sigma).to_bits())
+            let (rgb, sigma) = st.stored(before_rgb, before_sigma, st.colour, a);
+            (rgb, sigma.to_bits())
         };
         value(a_lo) == value(a_hi)
+    }
+
+    /// `c`'s before-value (spec 8.8): the one its slot recorded when the
+    /// stroke touched it, else its stored value.
+    fn before_value(&self, c: u32) -> ([u8; 3], f32) {
+        match self.slot_of.get(c as usize).copied().unwrap_or(NONE) {
+            NONE => (self.tree.rgb[c as usize], self.tree.sigma[c as usize]),
+            s => {
+                let s = &self.stroke.as_ref().expect("stroke").slots[s as usize];
+                (s.before_rgb, s.before_sigma)
+            }
+        }
     }
 
     /// Give `c` a slot with its before-value (a = 0).
@@ -650,23 +662,14 @@ impl Painting {
         if !(up || force) {
             return;
         }
-        let s = &mut st.slots[slot as usize];
         if up {
             *slot_a = a;
-            s.colour = colour;
+            st.slots[slot as usize].colour = colour;
         }
-        let before = s.before_rgb.map(|v| UNIT_RGB[v as usize]);
-        let (rgb, sigma) = blend(
-            st.brush.mode,
-            before,
-            f64::from(s.before_sigma),
-            s.colour,
-            st.sigma_b,
-            st.alpha,
-            *slot_a,
-            st.brush.mix_ratio,
-        );
-        self.tree.set_value(c, quantize_rgb(rgb), quantize_sigma(sigma));
+        let a = st.slot_a[slot as usize];
+        let s = &st.slots[slot as usize];
+        let (rgb, sigma) = st.stored(s.before_rgb, s.before_sigma, s.colour, a);
+        self.tree.set_value(c, rgb, sigma);
         self.counters.cells_written += 1;
     }
 }
