@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import glob
+import json
 import os
 import shutil
 import subprocess
@@ -157,7 +158,8 @@ def main(argv=None) -> int:
             + ("the same verdict on every one." if not bad else f"**{len(bad)} disagree**."), ""]
     for path, want, have in bad[:50]:
         failed = True
-        out += [f"`{os.path.relpath(path, args.report)}`:", "", _fence(list(difflib.unified_diff(want, have, "reference", "painter", lineterm="", n=1))), ""]
+        diff = difflib.unified_diff([json.dumps(r) for r in want], [json.dumps(r) for r in have], "reference", "painter", lineterm="", n=1)
+        out += [f"`{os.path.relpath(path, args.report)}`:", "", _fence(list(diff)), ""]
     print(f"readers: {n} traces, {len(bad)} disagreements", flush=True)
 
     out += ["## Replays", "", "| trace | dumps | cells | images | reference (s) | painter (s) | speed-up | result |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]

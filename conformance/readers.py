@@ -3,9 +3,11 @@
 Every checked-in malformed trace, every checked-in trace, and a set of
 generated variants (lines of the checked-in traces with tokens replaced,
 characters inserted or deleted, keys duplicated, lines swapped or cut) go
-through both readers. Each must give the same verdict: the same error
-message, or the same parsed trace, written canonically (every number by
-Python's repr) by both sides (`octopaint check --canonical`).
+through both readers. Each must give the same verdict: a refusal on the same
+line with the same error kind (the messages are each reader's own), or the
+same parsed trace. The painter writes its verdict as JSON arrays
+(`octopaint check --canonical`); they are compared here by value, floats bit
+for bit, never by their text.
 
 Variants are pseudo-random by hashing an index (lowbias32), so a failing one
 can be rebuilt from its number in any language.
@@ -14,8 +16,10 @@ can be rebuilt from its number in any language.
 from __future__ import annotations
 
 import glob
+import json
 import os
 import re
+import struct
 import subprocess
 
 from octopaint_ref.trace import TraceError, read_trace
@@ -72,8 +76,9 @@ def _mutate_line(line: str, r: Stream) -> str:
         return line[: r.below(len(line) + 1)]
     if op == 5 and '"ev": "' in line:  # another event kind
         i = line.index('"ev": "') + 7
-        j = line.index('"', i)
-        return line[:i] + EVENTS[r.below(len(EVENTS))] + line[j:]
+        j = line.find('"', i)
+        if j >= 0:
+            return line[:i] + EVENTS[r.below(len(EVENTS))] + line[j:]
     return line + " " * r.below(2)
 
 
@@ -112,61 +117,63 @@ def variants(trace_paths: list[str], count: int, out_dir: str) -> list[str]:
     return paths
 
 
-def _f(x) -> str:
-    return repr(float(x))
-
-
-def _v(xs) -> str:
-    return "[" + ", ".join(_f(x) for x in xs) + "]"
-
-
-def canonical(path: str) -> list[str]:
-    """The reference reader's verdict on a trace, in the text the painter's
-    `check --canonical` writes."""
+def canonical(path: str) -> list:
+    """The reference reader's verdict on a trace, as the values the
+    painter's `check --canonical` writes: `[["error", line, kind]]`, or the
+    canvas, the warnings and one row per event."""
     try:
         t = read_trace(path)
     except TraceError as e:
-        return [f"error: {e}"]
+        return [["error", e.line, e.kind]]
     c = t.canvas
-    out = [f"canvas {list(c.roots)} {c.max_depth} {_f(c.root_size)} {c.capacity}"]
-    out += [f"warning: {w}" for w in t.warnings]
+    out = [["canvas", list(c.roots), c.max_depth, float(c.root_size), c.capacity]]
+    out += [["warning", w] for w in t.warnings]
     for ev in t.events:
         v = ev.value
-        head = f"{ev.line} {_f(ev.t)} {ev.kind}"
+        row = [ev.line, float(ev.t), ev.kind]
         if ev.kind == "brush":
             n = v.noise
-            out.append(
-                f"{head} {v.shape} {v.mode} {_f(v.radius)} {_v(v.color)} {_f(v.opacity)} {_f(v.hardness)} {_f(v.spacing)} "
-                f"{_f(v.mix_ratio)} {_f(v.pickup_rate)} {_v(v.aspect)} {_f(n.frequency)} {n.octaves} {n.seed} {_f(n.gain)}"
-            )
+            row += [v.shape, v.mode, v.radius, list(v.color), v.opacity, v.hardness, v.spacing, v.mix_ratio,
+                    v.pickup_rate, list(v.aspect), n.frequency, n.octaves, n.seed, n.gain]
         elif ev.kind == "sample":
-            out.append(f"{head} {_v(v.p)} {_f(v.pressure)} {_v(v.q)}")
+            row += [list(v.p), v.pressure, list(v.q)]
         elif ev.kind == "camera":
-            out.append(f"{head} {_v(v.eye)} {_v(v.q)} {_v(v.fov)} {list(v.size)} {_v(v.background)}")
+            row += [list(v.eye), list(v.q), list(v.fov), list(v.size), list(v.background)]
         elif ev.kind in ("render", "snapshot"):
-            out.append(f"{head} {v}")
-        else:
-            out.append(head)
+            row.append(v)
+        out.append(row)
     return out
 
 
-def painter_canonical(painter: str, paths: list[str]) -> dict[str, list[str]]:
+def same(a, b) -> bool:
+    """Equal values: the same JSON types and, for floats, the same bits."""
+    if isinstance(a, float) or isinstance(b, float):
+        return isinstance(a, float) and isinstance(b, float) and struct.pack("<d", a) == struct.pack("<d", b)
+    if isinstance(a, list) or isinstance(b, list):
+        return isinstance(a, list) and isinstance(b, list) and len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    return type(a) is type(b) and a == b
+
+
+def painter_canonical(painter: str, paths: list[str]) -> dict[str, list]:
     """`octopaint check --canonical PATHS...`, split per trace."""
     res = subprocess.run([painter, "check", "--canonical", *paths], capture_output=True, timeout=600)
     if res.returncode not in (0, 2):
         raise RuntimeError(f"octopaint check failed ({res.returncode}): {res.stderr.decode(errors='replace')[-2000:]}")
-    out: dict[str, list[str]] = {}
+    out: dict[str, list] = {}
     current = None
     for line in res.stdout.decode("utf-8").split("\n"):
         if line.startswith("== "):
             current = line[3:]
             out[current] = []
         elif current is not None and line:
-            out[current].append(line)
+            try:
+                out[current].append(json.loads(line))
+            except ValueError:
+                out[current].append(["unreadable", line])
     return out
 
 
-def compare_readers(painter: str, repo: str, work_dir: str, generated: int) -> tuple[int, list[tuple[str, list[str], list[str]]]]:
+def compare_readers(painter: str, repo: str, work_dir: str, generated: int) -> tuple[int, list[tuple[str, list, list]]]:
     """Run both readers on the checked-in traces (valid and malformed) and
     `generated` variants. Returns (traces checked, disagreements)."""
     traces = sorted(glob.glob(os.path.join(repo, "traces", "*.jsonl")))
@@ -177,7 +184,7 @@ def compare_readers(painter: str, repo: str, work_dir: str, generated: int) -> t
     bad = []
     for p in paths:
         want = canonical(p)
-        have = got.get(p, ["(no verdict from the painter)"])
-        if want != have:
+        have = got.get(p, [["no verdict from the painter"]])
+        if not same(want, have):
             bad.append((p, want, have))
     return len(paths), bad

@@ -73,7 +73,7 @@ def test_reader_disagreements_are_reported(painter, tmp_path):
     # A painter whose reader accepts everything: its verdicts differ on every malformed trace.
     fake.write_text(
         "#!/usr/bin/env bash\n"
-        f'"{painter}" "$@" | sed -e "s/^error: .*/canvas [1, 1, 1] 6 1.0 4096/"\n'
+        f'"{painter}" "$@" | sed -e \'s/^\\["error".*/["canvas", [1, 1, 1], 6, 1.0, 4096]/\'\n'
         "exit 0\n"
     )
     fake.chmod(fake.stat().st_mode | stat.S_IEXEC)

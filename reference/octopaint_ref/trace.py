@@ -3,7 +3,8 @@
 The format is docs/spec.md section 12 (and ../shared/TRACE-FORMAT.md). Every
 error names the line and the field; a bad trace raises `TraceError` and the
 caller writes nothing. The painter's reader (painter/tree/src/trace.rs) must
-accept and reject exactly the same traces with the same messages.
+accept and reject exactly the same traces, and refuse each bad one on the same
+line with the same error kind (spec 12.2); the wording is each reader's own.
 """
 
 from __future__ import annotations
@@ -21,10 +22,13 @@ MAX_CAPACITY = 0xFFFF_FFF8  # largest multiple of 8 below NONE
 MAX_IMAGE_SIZE = 16384
 MAX_ROOTS = 1 << 24
 MAX_STAMPS_PER_SEGMENT = 65536
-# Two limits of the JSON reading (spec 12.2) that Python would otherwise
-# meet as RecursionError and ValueError: both readers refuse such lines.
-MAX_NESTING = 512
-MAX_INT_DIGITS = 4300
+# Lines nested deeper than this are refused before they are parsed (spec
+# 12.2), below the depth where either reader's JSON library stops on its own
+# (serde_json: 128; Python: the recursion limit).
+MAX_NESTING = 64
+# An integer literal with more digits is beyond f64 (and refused as such)
+# whatever its digits are; JSON has no leading zeros.
+MAX_F64_INT_DIGITS = 309
 SPACING_RANGE = (0.01, 100.0)
 ASPECT_RANGE = (1e-3, 1e3)
 NOISE_OCTAVES_RANGE = (1, 8)
@@ -32,8 +36,20 @@ NOISE_FREQUENCY_MAX = 1e6
 HALF_PI = math.pi / 2
 
 
+# What went wrong, as a short stable code (spec 12.2): both readers must give
+# the same line and kind for a refused trace; the message text is their own.
+KINDS = ("io", "utf8", "json", "header", "type", "missing", "range", "budget", "event", "event-order", "name")
+
+
 class TraceError(ValueError):
-    """A trace that must not be replayed. The message names line and field."""
+    """A trace that must not be replayed: `line` (1-based; 0 when the file
+    cannot be read), `kind` (one of KINDS) and a message naming the field."""
+
+    def __init__(self, line: int, kind: str, text: str):
+        assert kind in KINDS, kind
+        super().__init__(f"line {line}: {text}" if line else text)
+        self.line = line
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -102,19 +118,14 @@ class Trace:
     warnings: tuple[str, ...]
 
 
-def _fail(line: int, fld: str, msg: str) -> TraceError:
-    return TraceError(f"line {line}: {fld}: {msg}")
+def _fail(line: int, fld: str, msg: str, kind: str = "range") -> TraceError:
+    return TraceError(line, kind, f"{fld}: {msg}")
 
 
 def _finite(line: int, fld: str, v) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _fail(line, fld, f"expected a number, got {json.dumps(v)}")
-    try:
-        x = float(v)
-    except OverflowError:  # an integer literal beyond f64
-        raise _fail(line, fld, "not a finite number") from None
-    if not math.isfinite(x):
-        raise _fail(line, fld, "not a finite number")
+        raise _fail(line, fld, f"expected a number, got {json.dumps(v)}", "type")
+    x = float(v)  # finite: the JSON reading refused literals beyond f64
     # Subnormal numbers are read as 0: XLA flushes them, numpy and Rust do
     # not, and no painting needs them (spec 12.2).
     return 0.0 if abs(x) < 2.2250738585072014e-308 else x
@@ -122,9 +133,9 @@ def _finite(line: int, fld: str, v) -> float:
 
 def _int(line: int, fld: str, v, lo: int, hi: int) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _fail(line, fld, f"expected an integer, got {json.dumps(v)}")
-    if isinstance(v, float) and (not math.isfinite(v) or v != math.floor(v)):
-        raise _fail(line, fld, f"expected an integer, got {v!r}")
+        raise _fail(line, fld, f"expected an integer, got {json.dumps(v)}", "type")
+    if isinstance(v, float) and v != math.floor(v):
+        raise _fail(line, fld, f"expected an integer, got {v!r}", "type")
     i = int(v)
     if not lo <= i <= hi:
         raise _fail(line, fld, f"{i} is outside [{lo}, {hi}]")
@@ -140,7 +151,7 @@ def _ranged(line: int, fld: str, v, lo: float, hi: float) -> float:
 
 def _vec(line: int, fld: str, v, n: int) -> list:
     if not isinstance(v, list) or len(v) != n:
-        raise _fail(line, fld, f"expected an array of {n} numbers")
+        raise _fail(line, fld, f"expected an array of {n} numbers", "type")
     return v
 
 
@@ -162,19 +173,19 @@ def _quat(line: int, fld: str, v) -> tuple:
 
 def _require(line: int, obj: dict, key: str, prefix: str = ""):
     if key not in obj:
-        raise _fail(line, prefix + key, "missing")
+        raise _fail(line, prefix + key, "missing", "missing")
     return obj[key]
 
 
 def _name(line: int, v) -> str:
     if not isinstance(v, str) or not NAME_RE.fullmatch(v) or v in (".", ".."):
-        raise _fail(line, "name", f"{json.dumps(v)} is not a name of [A-Za-z0-9._-]+ (no paths)")
+        raise _fail(line, "name", f"{json.dumps(v)} is not a name of [A-Za-z0-9._-]+ (no paths)", "name")
     return v
 
 
 def parse_canvas(line: int, obj) -> Canvas:
     if not isinstance(obj, dict):
-        raise _fail(line, "canvas", "expected an object")
+        raise _fail(line, "canvas", "expected an object", "type")
     roots = tuple(
         _int(line, f"canvas.roots[{i}]", x, 1, 1 << 16)
         for i, x in enumerate(_vec(line, "canvas.roots", _require(line, obj, "roots", "canvas."), 3))
@@ -188,11 +199,11 @@ def parse_canvas(line: int, obj) -> Canvas:
         raise _fail(line, "canvas.root_size", f"{root_size!r} is outside [1e-09, 1e+12]")
     n_roots = roots[0] * roots[1] * roots[2]
     if n_roots > MAX_ROOTS:
-        raise _fail(line, "canvas.roots", f"{n_roots} roots are more than the {MAX_ROOTS} allowed")
+        raise _fail(line, "canvas.roots", f"{n_roots} roots are more than the {MAX_ROOTS} allowed", "budget")
     padded = (n_roots + 7) // 8 * 8
     capacity = _int(line, "canvas.capacity", _require(line, obj, "capacity", "canvas."), 8, MAX_CAPACITY)
     if capacity < padded:
-        raise _fail(line, "canvas.capacity", f"{capacity} is below the {padded} cells the roots need")
+        raise _fail(line, "canvas.capacity", f"{capacity} is below the {padded} cells the roots need", "budget")
     return Canvas(roots, max_depth, root_size, capacity)
 
 
@@ -224,7 +235,7 @@ def parse_brush(line: int, obj: dict) -> Brush:
     if "noise" in obj:
         n = obj["noise"]
         if not isinstance(n, dict):
-            raise _fail(line, "noise", "expected an object")
+            raise _fail(line, "noise", "expected an object", "type")
         nkw = {}
         if "frequency" in n:
             nkw["frequency"] = _finite(line, "noise.frequency", n["frequency"])
@@ -290,15 +301,76 @@ def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> float:
     return math.floor(quotient) + 1 if math.isfinite(quotient) else math.inf
 
 
-class _IntTooLong(ValueError):
-    pass
+class _NotJson(ValueError):
+    """A line that the JSON rules of spec 12.2 refuse although Python's
+    `json` module would read it."""
 
 
 def _parse_int(text: str) -> int:
-    digits = len(text) - text.startswith("-")
-    if digits > MAX_INT_DIGITS:
-        raise _IntTooLong(f"an integer literal of {digits} digits (at most {MAX_INT_DIGITS} are read)")
-    return int(text)
+    """Integers are exact, but one beyond f64's range is refused, as a
+    float literal beyond it is (serde_json refuses both)."""
+    if len(text) - text.startswith("-") > MAX_F64_INT_DIGITS:
+        raise _NotJson("number out of range")
+    i = int(text)
+    try:
+        float(i)
+    except OverflowError:
+        raise _NotJson("number out of range") from None
+    return i
+
+
+def _parse_float(text: str) -> float:
+    x = float(text)
+    if math.isinf(x):
+        raise _NotJson("number out of range")
+    return x
+
+
+def _parse_constant(text: str):
+    raise _NotJson(f"{text} is not a JSON number")
+
+
+def _no_lone_surrogates(v) -> None:
+    """Refuse a string holding an unpaired surrogate escape such as
+    "\\ud800": it is no Unicode text, and serde_json refuses it. Objects are
+    checked as they are built (`_object`), so that a repeated key's earlier
+    value is checked too."""
+    if isinstance(v, str):
+        if any("\ud800" <= c <= "\udfff" for c in v):
+            raise _NotJson("a string holds an unpaired surrogate")
+    elif isinstance(v, list):
+        for x in v:
+            _no_lone_surrogates(x)
+
+
+def _object(pairs: list) -> dict:
+    for k, v in pairs:
+        _no_lone_surrogates(k)
+        _no_lone_surrogates(v)
+    return dict(pairs)  # a repeated key: its first place, its last value
+
+
+# Lines where a surrogate escape or a number literal beyond f64 could hide
+# take the slower reading with every check (most lines of a trace do not;
+# the verdict is the same either way). A literal beyond f64 (>= 1.8e308) has
+# an exponent of three or more digits, or else at least 309 - 99 = 210
+# digits in a row.
+_EXPONENT_3 = re.compile(r"[eE]\+?\d{3}")
+_DIGITS_200 = re.compile(r"\d{200}")
+
+
+def _suspect(raw: str) -> bool:
+    return "\\u" in raw or _EXPONENT_3.search(raw) is not None or (len(raw) >= 200 and _DIGITS_200.search(raw) is not None)
+
+
+def _json_line(raw: str):
+    """One trace line as JSON under spec 12.2's rules (raises
+    json.JSONDecodeError or _NotJson)."""
+    if not _suspect(raw):
+        return json.loads(raw, parse_constant=_parse_constant)
+    obj = json.loads(raw, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant, object_pairs_hook=_object)
+    _no_lone_surrogates(obj)
+    return obj
 
 
 def _nesting_depth(line: str) -> int:
@@ -342,52 +414,52 @@ def parse_trace(text: str) -> Trace:
         if raw.strip() == "":
             continue
         if _nesting_depth(raw) > MAX_NESTING:
-            raise TraceError(f"line {lineno}: not valid JSON: brackets nested deeper than {MAX_NESTING} levels")
+            raise TraceError(lineno, "json", f"not valid JSON: brackets nested deeper than {MAX_NESTING} levels")
         try:
-            obj = json.loads(raw, parse_int=_parse_int)
+            obj = _json_line(raw)
         except json.JSONDecodeError as e:
-            raise TraceError(f"line {lineno}: not valid JSON: {e.msg} (column {e.colno})") from None
-        except _IntTooLong as e:
-            raise TraceError(f"line {lineno}: not valid JSON: {e}") from None
+            raise TraceError(lineno, "json", f"not valid JSON: {e.msg} (column {e.colno})") from None
+        except _NotJson as e:
+            raise TraceError(lineno, "json", f"not valid JSON: {e}") from None
         if not isinstance(obj, dict):
-            raise TraceError(f"line {lineno}: expected a JSON object")
+            raise TraceError(lineno, "type", "expected a JSON object")
         if header is None:
             if obj.get("format") != "ddo-trace":
-                raise _fail(lineno, "format", 'the first line must be a header with "format": "ddo-trace"')
+                raise _fail(lineno, "format", 'the first line must be a header with "format": "ddo-trace"', "header")
             if "version" not in obj:
-                raise _fail(lineno, "version", "missing")
+                raise _fail(lineno, "version", "missing", "missing")
             version = obj["version"]
             if isinstance(version, bool) or version != 1:
-                raise _fail(lineno, "version", f"{json.dumps(version)} is not supported (this reader knows version 1)")
+                raise _fail(lineno, "version", f"{json.dumps(version)} is not supported (this reader knows version 1)", "header")
             canvas = parse_canvas(lineno, _require(lineno, obj, "canvas"))
             meta = obj.get("meta", {})
             if not isinstance(meta, dict):
-                raise _fail(lineno, "meta", "expected an object")
+                raise _fail(lineno, "meta", "expected an object", "type")
             header = (canvas, meta)
             continue
         ev = _require(lineno, obj, "ev")
         if not isinstance(ev, str):
-            raise _fail(lineno, "ev", f"expected a string, got {json.dumps(ev)}")
+            raise _fail(lineno, "ev", f"expected a string, got {json.dumps(ev)}", "type")
         t = _finite(lineno, "t", _require(lineno, obj, "t"))
         if t < 0:
             raise _fail(lineno, "t", f"{t!r} must be >= 0")
         if t < last_t:
-            raise _fail(lineno, "t", f"{t!r} is earlier than the previous event's {last_t!r}")
+            raise _fail(lineno, "t", f"{t!r} is earlier than the previous event's {last_t!r}", "event-order")
         last_t = t
         value = None
         if ev == "brush":
             if in_stroke:
-                raise _fail(lineno, "ev", "brush inside a stroke (brushes change between strokes)")
+                raise _fail(lineno, "ev", "brush inside a stroke (brushes change between strokes)", "event-order")
             brush = value = parse_brush(lineno, obj)
         elif ev == "stroke_begin":
             if in_stroke:
-                raise _fail(lineno, "ev", f"stroke_begin inside the stroke begun on line {stroke_begin_line}")
+                raise _fail(lineno, "ev", f"stroke_begin inside the stroke begun on line {stroke_begin_line}", "event-order")
             if brush is None:
-                raise _fail(lineno, "ev", "stroke_begin before any brush event")
+                raise _fail(lineno, "ev", "stroke_begin before any brush event", "event-order")
             in_stroke, stroke_begin_line, last_sample = True, lineno, None
         elif ev == "sample":
             if not in_stroke:
-                raise _fail(lineno, "ev", "sample outside a stroke")
+                raise _fail(lineno, "ev", "sample outside a stroke", "event-order")
             value = parse_sample(lineno, obj)
             if last_sample is not None and stamp_count_bound(brush, last_sample, value) > MAX_STAMPS_PER_SEGMENT:
                 raise _fail(
@@ -395,11 +467,12 @@ def parse_trace(text: str) -> Trace:
                     "p",
                     f"this segment would place more than {MAX_STAMPS_PER_SEGMENT} stamps "
                     "(samples too far apart for the brush radius and spacing)",
+                    "budget",
                 )
             last_sample = value
         elif ev == "stroke_end":
             if not in_stroke:
-                raise _fail(lineno, "ev", "stroke_end outside a stroke")
+                raise _fail(lineno, "ev", "stroke_end outside a stroke", "event-order")
             in_stroke = False
             done.append(lineno)
             undone = 0
@@ -408,28 +481,28 @@ def parse_trace(text: str) -> Trace:
         elif ev in ("render", "snapshot"):
             value = _name(lineno, _require(lineno, obj, "name"))
             if value in names[ev]:
-                raise _fail(lineno, "name", f"{json.dumps(value)} is already used by an earlier {ev}")
+                raise _fail(lineno, "name", f"{json.dumps(value)} is already used by an earlier {ev}", "name")
             names[ev].add(value)
             if ev == "render" and not any(e.kind == "camera" for e in events):
-                raise _fail(lineno, "ev", "render before any camera event")
+                raise _fail(lineno, "ev", "render before any camera event", "event-order")
         elif ev in ("undo", "redo"):
             if in_stroke:
-                raise _fail(lineno, "ev", f"{ev} inside a stroke")
+                raise _fail(lineno, "ev", f"{ev} inside a stroke", "event-order")
             if ev == "undo":
                 if not done:
-                    raise _fail(lineno, "ev", "undo with no stroke to undo")
+                    raise _fail(lineno, "ev", "undo with no stroke to undo", "event-order")
                 done.pop()
                 undone += 1
             else:
                 if undone == 0:
-                    raise _fail(lineno, "ev", "redo with nothing undone")
+                    raise _fail(lineno, "ev", "redo with nothing undone", "event-order")
                 undone -= 1
                 done.append(lineno)
         else:
-            raise _fail(lineno, "ev", f"unknown event {json.dumps(ev)}")
+            raise _fail(lineno, "ev", f"unknown event {json.dumps(ev)}", "event")
         events.append(Event(lineno, t, ev, value))
     if header is None:
-        raise TraceError("line 1: format: empty trace (a header line is required)")
+        raise TraceError(1, "header", "format: empty trace (a header line is required)")
     if in_stroke:
         warnings.append(f"line {stroke_begin_line}: the trace ends inside this stroke; it is ended here")
         events.append(Event(len(lines), last_t, "stroke_end", None))
@@ -441,10 +514,10 @@ def read_trace(path) -> Trace:
         with open(path, "rb") as f:
             data = f.read()
     except OSError as e:
-        raise TraceError(f"cannot read {path}: {e.strerror}") from None
+        raise TraceError(0, "io", f"cannot read {path}: {e.strerror}") from None
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
-        raise TraceError(f"line {line}: not valid UTF-8") from None
+        raise TraceError(line, "utf8", "not valid UTF-8") from None
     return parse_trace(text)

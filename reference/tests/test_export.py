@@ -20,6 +20,7 @@ import pytest
 
 from conftest import TRACES
 from octopaint_ref.cli import main
+from octopaint_ref.trace import TraceError, read_trace
 from octopaint_ref.dump import dump_bytes, load_dump, tree_arrays, write_atomic
 from octopaint_ref.export import (
     ExportError,
@@ -417,8 +418,11 @@ def test_command_refuses_a_malformed_trace(tmp_path, capsys, name):
     with open(os.path.join(TRACES, "malformed", "expected.json")) as f:
         expected = json.load(f)[name]
     path = os.path.join(TRACES, "malformed", name)
+    with pytest.raises(TraceError) as e:
+        read_trace(path)
+    assert e.value.line == expected["line"]
     assert main(["export", path, "--voxels", str(tmp_path / "r.npz")]) == 2
-    assert capsys.readouterr().err == f"octopaint-ref: {path}: {expected}\n"
+    assert capsys.readouterr().err == f"octopaint-ref: {path}: {e.value}\n"
     assert os.listdir(tmp_path) == []
 
 

@@ -1,5 +1,5 @@
-"""The trace reader: every malformed trace fails with its exact message and
-nothing is written; valid traces parse."""
+"""The trace reader: every malformed trace fails on its line with its error
+kind (spec 12.2) and nothing is written; valid traces parse."""
 
 import json
 import os
@@ -15,10 +15,11 @@ EXPECTED = json.load(open(os.path.join(TRACES, "malformed", "expected.json")))
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_malformed_trace_fails_with_its_message(name):
+def test_malformed_trace_fails_on_its_line_with_its_kind(name):
     with pytest.raises(TraceError) as e:
         read_trace(os.path.join(TRACES, "malformed", name))
-    assert str(e.value) == EXPECTED[name]
+    assert (e.value.line, e.value.kind) == (EXPECTED[name]["line"], EXPECTED[name]["kind"]), str(e.value)
+    assert str(e.value).startswith(f"line {e.value.line}: "), str(e.value)
 
 
 def test_every_malformed_file_has_an_expected_message():
@@ -35,7 +36,7 @@ def test_cli_writes_nothing_for_a_bad_trace(tmp_path, name):
         text=True,
     )
     assert r.returncode == 2
-    assert EXPECTED[name] in r.stderr
+    assert f"line {EXPECTED[name]['line']}: " in r.stderr
     assert not out.exists()
 
 
@@ -70,3 +71,26 @@ def test_redo_history_is_dropped_by_a_new_stroke():
 def test_checked_in_traces_parse(name):
     t = read_trace(os.path.join(TRACES, name))
     assert t.events
+
+
+@pytest.mark.parametrize(
+    "value",
+    ["NaN", "-Infinity", "1.8e308", "1e999", "1e0309", "2" + "0" * 308, "1" + "0" * 250 + "e99", "1" + "0" * 5000,
+     '0, "x": "\\ud800"', '0, "\\udfff": 0', '0, "t": "\\udc00", "t": 0'],
+)
+def test_json_rules_refuse(value):
+    """Spec 12.2: what is not JSON (or beyond f64) is refused as `json` on its line."""
+    with pytest.raises(TraceError) as e:
+        parse_trace(H + '\n{"ev": "undo", "t": ' + value + "}")
+    assert (e.value.line, e.value.kind) == (2, "json"), str(e.value)
+
+
+def test_json_rules_accept():
+    line = '{"ev": "camera", "t": 5, "t": 1e-400, "eye": [1.7976931348623157e308, 1' + "0" * 200 + ', 0], "q": [0, 0, 0, 1], ' \
+        '"fov": [-0.5, 0.5, 0.5, -0.5], "size": [4, 4], "x": "\\ud83d\\ude00"}'
+    t = parse_trace(H + "\n" + line)
+    assert t.events[0].t == 0.0 and t.events[0].value.eye[:2] == (1.7976931348623157e308, 1e200)
+    deep = '{"ev": "camera", "t": 0, "x": ' + "[" * 64 + "]" * 64 + "}"
+    with pytest.raises(TraceError) as e:
+        parse_trace(H + "\n" + deep)
+    assert (e.value.line, e.value.kind) == (2, "json")

@@ -1,66 +1,47 @@
-//! A parsed trace written canonically, one line per event, every number as
-//! Python's repr writes it: the conformance driver compares this text with
-//! the reference reader's (conformance/readers.py `canonical`).
+//! A parsed trace written canonically: one JSON array per line, numbers as
+//! serde_json writes them (shortest round trip). The conformance driver
+//! compares these values, not their text, with the reference reader's
+//! (conformance/readers.py `canonical`): a refusal is `["error", LINE,
+//! KIND]`, so the two readers agree on where and what, each in its own
+//! words.
 
-use octopaint_tree::pyrepr::py_float_repr as f;
 use octopaint_tree::trace::{EventKind, MODES, SHAPES, Trace, TraceError};
-use octopaint_tree::trace_write::float_list;
+use serde_json::{Value, json};
 
 pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
     let t = match result {
         Ok(t) => t,
-        Err(e) => return vec![format!("error: {e}")],
+        Err(e) => return vec![json!(["error", e.line, e.kind.code()]).to_string()],
     };
     let c = &t.canvas;
-    let mut out = vec![format!(
-        "canvas [{}, {}, {}] {} {} {}",
-        c.roots[0],
-        c.roots[1],
-        c.roots[2],
-        c.max_depth,
-        f(c.root_size),
-        c.capacity
-    )];
-    out.extend(t.warnings.iter().map(|w| format!("warning: {w}")));
+    let mut out = vec![json!(["canvas", c.roots, c.max_depth, c.root_size, c.capacity]).to_string()];
+    out.extend(t.warnings.iter().map(|w| json!(["warning", w]).to_string()));
     for ev in &t.events {
-        let head = |kind: &str| format!("{} {} {kind}", ev.line, f(ev.t));
-        out.push(match &ev.kind {
-            EventKind::Brush(b) => format!(
-                "{} {} {} {} {} {} {} {} {} {} {} {} {} {} {}",
-                head("brush"),
-                SHAPES[b.shape as usize],
-                MODES[b.mode as usize],
-                f(b.radius),
-                float_list(&b.color),
-                f(b.opacity),
-                f(b.hardness),
-                f(b.spacing),
-                f(b.mix_ratio),
-                f(b.pickup_rate),
-                float_list(&b.aspect),
-                f(b.noise.frequency),
-                b.noise.octaves,
-                b.noise.seed,
-                f(b.noise.gain)
-            ),
-            EventKind::Sample(s) => format!("{} {} {} {}", head("sample"), float_list(&s.p), f(s.pressure), float_list(&s.q)),
-            EventKind::Camera(c) => format!(
-                "{} {} {} {} [{}, {}] {}",
-                head("camera"),
-                float_list(&c.eye),
-                float_list(&c.q),
-                float_list(&c.fov),
-                c.size[0],
-                c.size[1],
-                float_list(&c.background)
-            ),
-            EventKind::Render(n) => format!("{} {n}", head("render")),
-            EventKind::Snapshot(n) => format!("{} {n}", head("snapshot")),
-            EventKind::StrokeBegin => head("stroke_begin"),
-            EventKind::StrokeEnd => head("stroke_end"),
-            EventKind::Undo => head("undo"),
-            EventKind::Redo => head("redo"),
-        });
+        let mut row = vec![json!(ev.line), json!(ev.t), json!(ev.kind.ev())];
+        let fields: Vec<Value> = match &ev.kind {
+            EventKind::Brush(b) => vec![
+                json!(SHAPES[b.shape as usize]),
+                json!(MODES[b.mode as usize]),
+                json!(b.radius),
+                json!(b.color),
+                json!(b.opacity),
+                json!(b.hardness),
+                json!(b.spacing),
+                json!(b.mix_ratio),
+                json!(b.pickup_rate),
+                json!(b.aspect),
+                json!(b.noise.frequency),
+                json!(b.noise.octaves),
+                json!(b.noise.seed),
+                json!(b.noise.gain),
+            ],
+            EventKind::Sample(s) => vec![json!(s.p), json!(s.pressure), json!(s.q)],
+            EventKind::Camera(c) => vec![json!(c.eye), json!(c.q), json!(c.fov), json!(c.size), json!(c.background)],
+            EventKind::Render(n) | EventKind::Snapshot(n) => vec![json!(n)],
+            EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => vec![],
+        };
+        row.extend(fields);
+        out.push(Value::Array(row).to_string());
     }
     out
 }

@@ -9,8 +9,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use octopaint_doc::{DocError, Session, journal_path};
-use octopaint_tree::json;
-use octopaint_tree::trace::{Canvas, Event, EventKind, read_trace};
+use octopaint_tree::trace::{Canvas, Event, EventKind, Meta, read_trace};
 
 #[derive(clap::Args)]
 pub struct NewArgs {
@@ -77,8 +76,10 @@ fn fail(e: DocError) -> ExitCode {
     }
 }
 
-fn py(s: &str) -> json::PyStr {
-    json::PyStr(s.chars().map(u32::from).collect())
+fn titled(title: &str) -> Meta {
+    let mut meta = Meta::new();
+    meta.insert("title".into(), title.into());
+    meta
 }
 
 fn parse_roots(s: &str) -> Option<[u32; 3]> {
@@ -104,7 +105,7 @@ pub fn new(a: &NewArgs) -> ExitCode {
                 eprintln!("octopaint: --capacity {} is too large", a.capacity);
                 return ExitCode::from(2);
             };
-            let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py(&a.title)))]);
+            let meta = titled(&a.title);
             (Canvas { roots, max_depth: a.max_depth, root_size: a.root_size, capacity }, meta)
         }
     };
@@ -382,7 +383,7 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
         return Ok(());
     }
     let canvas = Canvas { roots: [4, 4, 4], max_depth: 24, root_size: 1.0, capacity: 16_777_216 };
-    let meta = json::Json::Object(vec![(py("title"), json::Json::Str(py("untitled")))]);
+    let meta = titled("untitled");
     Session::create(doc, &canvas, &meta)?;
     eprintln!("octopaint: created {} (4x4x4 roots of 1 unit, depth 24)", doc.display());
     Ok(())

@@ -20,7 +20,7 @@ use octopaint_tree::pool::CellRecord;
 use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::raycast::{RayInput, RayParams};
-use octopaint_tree::trace::{Camera, Event, EventKind, read_trace};
+use octopaint_tree::trace::{Camera, Event, read_trace};
 
 #[derive(Parser)]
 #[command(
@@ -232,25 +232,15 @@ impl ReplayObserver for Reporter<'_> {
         if let Some((cell, last)) = &mut self.history {
             let now = painting.tree.record(*cell);
             if !now.same_bits(last) {
-                let kind = match &ev.kind {
-                    EventKind::Brush(_) => "brush",
-                    EventKind::StrokeBegin => "stroke_begin",
-                    EventKind::Sample(_) => "sample",
-                    EventKind::StrokeEnd => "stroke_end",
-                    EventKind::Camera(_) => "camera",
-                    EventKind::Render(_) => "render",
-                    EventKind::Snapshot(_) => "snapshot",
-                    EventKind::Undo => "undo",
-                    EventKind::Redo => "redo",
-                };
+                let kind = ev.kind.ev();
                 println!(
-                    "history: line {} {kind}: parent {} first_child {} depth {} rgb {:?} sigma {}",
+                    "history: line {} {kind}: parent {} first_child {} depth {} rgb {:?} sigma {:?}",
                     ev.line,
                     now.parent,
                     now.first_child,
                     now.depth,
                     now.rgb,
-                    octopaint_tree::pyrepr::py_float_repr(f64::from(now.sigma))
+                    f64::from(now.sigma)
                 );
                 *last = now;
             }

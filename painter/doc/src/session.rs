@@ -16,10 +16,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use octopaint_platform::durable;
-use octopaint_tree::json;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
-    Brush, Canvas, Event, EventKind, Sample, Trace, parse_brush, parse_camera, parse_sample, parse_trace, segment_too_long,
+    Brush, Canvas, Event, EventKind, Meta, Sample, Trace, parse_brush, parse_camera, parse_sample, parse_trace, segment_too_long,
 };
 use octopaint_tree::trace_write::{event_line, header_line};
 
@@ -66,7 +65,7 @@ fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
 
 impl Session {
     /// A new, empty document at `path` (refused if a file is there).
-    pub fn create(path: &Path, canvas: &Canvas, meta: &json::Json) -> Result<Session, DocError> {
+    pub fn create(path: &Path, canvas: &Canvas, meta: &Meta) -> Result<Session, DocError> {
         if path.exists() {
             return Err(DocError::Exists(path.to_path_buf()));
         }
@@ -243,7 +242,7 @@ impl Session {
             return bad(format!("time {} goes back (last {})", ev.t, self.last_t));
         }
         let line = event_line(ev);
-        let obj = json::loads(&line).map_err(|_| DocError::BadEvent("unwritable event".into()))?;
+        let obj: serde_json::Value = serde_json::from_str(&line).map_err(|_| DocError::BadEvent("unwritable event".into()))?;
         let check = |r: Result<(), octopaint_tree::TraceError>| r.map_err(|e| DocError::BadEvent(e.to_string()));
         match &ev.kind {
             EventKind::Brush(_) if self.in_stroke => return bad("brush inside a stroke (brushes change between strokes)".into()),
@@ -369,13 +368,10 @@ fn journal_header(crc: u32, events: usize) -> String {
 }
 
 fn parse_journal_header(line: &str) -> Option<(u32, usize)> {
-    let j = json::loads(line).ok()?;
-    if !matches!(j.get("journal")?, json::Json::Str(s) if s.is("octopaint")) {
+    let j: serde_json::Value = serde_json::from_str(line).ok()?;
+    if j.get("journal")?.as_str()? != "octopaint" {
         return None;
     }
-    let num = |k: &str| match j.get(k)? {
-        json::Json::Int(i) => num_traits::ToPrimitive::to_u64(i),
-        _ => None,
-    };
+    let num = |k: &str| j.get(k)?.as_u64();
     Some((u32::try_from(num("document_crc")?).ok()?, usize::try_from(num("document_events")?).ok()?))
 }

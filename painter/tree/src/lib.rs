@@ -20,7 +20,7 @@
 //! | [`clean`] | topology cleaning | clean.py |
 //! | [`history`] | undo and redo | history.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
-//! | [`trace`], [`json`], [`pyrepr`] | the trace reader | trace.py |
+//! | [`trace`] | the event model and the trace reader | trace.py |
 //! | [`trace_write`] | writing traces (recorded sessions) | — |
 //! | [`replay`] | replaying a trace | replay.py |
 
@@ -33,12 +33,10 @@ pub mod dump;
 pub mod fuzz_harness;
 pub mod g3;
 pub mod history;
-pub mod json;
 pub mod lattice;
 pub mod noise;
 pub mod paint;
 pub mod pool;
-pub mod pyrepr;
 pub mod raycast;
 pub mod replay;
 pub mod stroke;

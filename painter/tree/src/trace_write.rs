@@ -1,79 +1,62 @@
-//! Writing traces: a header and events as the JSON lines of spec 12, every
-//! number in Python's shortest round-trip form, so that what the painter
-//! records reads back (here and in the reference) as exactly the events
-//! that were painted. The tests parse every line back.
+//! Writing traces: a header and events as the JSON lines of spec 12,
+//! written by serde_json (every number as the shortest text that reads back
+//! to the same f64, by `ryu`), so that what the painter records reads back,
+//! here and in the reference, as exactly the events that were painted. The
+//! tests parse every line back.
 
-use crate::json::Json;
-use crate::pyrepr::py_float_repr as f;
-use crate::trace::{Brush, Canvas, Event, EventKind, MODES, SHAPES};
+use serde_json::{Value, json};
 
-/// A list of numbers as Python writes it: `[1.0, 0.5]`.
-pub fn float_list(xs: &[f64]) -> String {
-    format!("[{}]", xs.iter().map(|x| f(*x)).collect::<Vec<_>>().join(", "))
+use crate::trace::{Brush, Canvas, Event, EventKind, MODES, Meta, SHAPES};
+
+fn line(v: Value) -> String {
+    serde_json::to_string(&v).expect("trace values are finite numbers, strings and arrays")
 }
 
 /// The first line of a trace.
-pub fn header_line(canvas: &Canvas, meta: &Json) -> String {
-    format!(
-        "{{\"format\": \"ddo-trace\", \"version\": 1, \"canvas\": {{\"roots\": [{}, {}, {}], \"max_depth\": {}, \"root_size\": {}, \"capacity\": {}}}, \"meta\": {}}}",
-        canvas.roots[0],
-        canvas.roots[1],
-        canvas.roots[2],
-        canvas.max_depth,
-        f(canvas.root_size),
-        canvas.capacity,
-        meta.dumps()
-    )
+pub fn header_line(canvas: &Canvas, meta: &Meta) -> String {
+    line(json!({
+        "format": "ddo-trace",
+        "version": 1,
+        "canvas": {
+            "roots": canvas.roots,
+            "max_depth": canvas.max_depth,
+            "root_size": canvas.root_size,
+            "capacity": canvas.capacity,
+        },
+        "meta": meta,
+    }))
 }
 
-fn brush_fields(b: &Brush) -> String {
-    format!(
-        "\"shape\": \"{}\", \"mode\": \"{}\", \"radius\": {}, \"color\": {}, \"opacity\": {}, \"hardness\": {}, \"spacing\": {}, \"mix_ratio\": {}, \"pickup_rate\": {}, \"aspect\": {}, \"noise\": {{\"frequency\": {}, \"octaves\": {}, \"seed\": {}, \"gain\": {}}}",
-        SHAPES[b.shape as usize],
-        MODES[b.mode as usize],
-        f(b.radius),
-        float_list(&b.color),
-        f(b.opacity),
-        f(b.hardness),
-        f(b.spacing),
-        f(b.mix_ratio),
-        f(b.pickup_rate),
-        float_list(&b.aspect),
-        f(b.noise.frequency),
-        b.noise.octaves,
-        b.noise.seed,
-        f(b.noise.gain)
-    )
+fn brush_fields(b: &Brush) -> Value {
+    json!({
+        "shape": SHAPES[b.shape as usize],
+        "mode": MODES[b.mode as usize],
+        "radius": b.radius,
+        "color": b.color,
+        "opacity": b.opacity,
+        "hardness": b.hardness,
+        "spacing": b.spacing,
+        "mix_ratio": b.mix_ratio,
+        "pickup_rate": b.pickup_rate,
+        "aspect": b.aspect,
+        "noise": {"frequency": b.noise.frequency, "octaves": b.noise.octaves, "seed": b.noise.seed, "gain": b.noise.gain},
+    })
 }
 
 /// One event as a trace line (no newline). Names are valid by construction
 /// (the reader checked them, or the painter made them).
 pub fn event_line(ev: &Event) -> String {
-    let t = f(ev.t);
-    match &ev.kind {
-        EventKind::Brush(b) => format!("{{\"ev\": \"brush\", \"t\": {t}, {}}}", brush_fields(b)),
-        EventKind::StrokeBegin => format!("{{\"ev\": \"stroke_begin\", \"t\": {t}}}"),
-        EventKind::Sample(s) => format!(
-            "{{\"ev\": \"sample\", \"t\": {t}, \"p\": {}, \"pressure\": {}, \"q\": {}}}",
-            float_list(&s.p),
-            f(s.pressure),
-            float_list(&s.q)
-        ),
-        EventKind::StrokeEnd => format!("{{\"ev\": \"stroke_end\", \"t\": {t}}}"),
-        EventKind::Camera(c) => format!(
-            "{{\"ev\": \"camera\", \"t\": {t}, \"eye\": {}, \"q\": {}, \"fov\": {}, \"size\": [{}, {}], \"background\": {}}}",
-            float_list(&c.eye),
-            float_list(&c.q),
-            float_list(&c.fov),
-            c.size[0],
-            c.size[1],
-            float_list(&c.background)
-        ),
-        EventKind::Render(name) => format!("{{\"ev\": \"render\", \"t\": {t}, \"name\": \"{name}\"}}"),
-        EventKind::Snapshot(name) => format!("{{\"ev\": \"snapshot\", \"t\": {t}, \"name\": \"{name}\"}}"),
-        EventKind::Undo => format!("{{\"ev\": \"undo\", \"t\": {t}}}"),
-        EventKind::Redo => format!("{{\"ev\": \"redo\", \"t\": {t}}}"),
-    }
+    let mut obj = json!({"ev": ev.kind.ev(), "t": ev.t});
+    let fields = match &ev.kind {
+        EventKind::Brush(b) => brush_fields(b),
+        EventKind::Sample(s) => json!({"p": s.p, "pressure": s.pressure, "q": s.q}),
+        EventKind::Camera(c) => json!({"eye": c.eye, "q": c.q, "fov": c.fov, "size": c.size, "background": c.background}),
+        EventKind::Render(name) | EventKind::Snapshot(name) => json!({"name": name}),
+        EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => json!({}),
+    };
+    let (Value::Object(head), Value::Object(rest)) = (&mut obj, fields) else { unreachable!("objects") };
+    head.extend(rest);
+    line(obj)
 }
 
 #[cfg(test)]
@@ -98,7 +81,7 @@ mod tests {
             }
             let again = parse_trace(&text).unwrap_or_else(|e| panic!("{}: {e}\n", path.display()));
             assert_eq!(again.canvas, trace.canvas);
-            assert_eq!(again.meta.dumps(), trace.meta.dumps());
+            assert_eq!(again.meta, trace.meta);
             assert_eq!(again.events.len(), trace.events.len());
             for (a, b) in again.events.iter().zip(&trace.events) {
                 assert_eq!(a.kind, b.kind, "{}", path.display());
@@ -107,5 +90,26 @@ mod tests {
             seen += trace.events.len();
         }
         assert!(seen > 5000);
+    }
+
+    #[test]
+    fn extreme_numbers_read_back_bit_for_bit() {
+        let canvas = Canvas { roots: [1, 1, 1], max_depth: 4, root_size: 1.0, capacity: 64 };
+        let xs = [f64::MAX, f64::MIN_POSITIVE, 0.1, 1e16, 1e-9, 123456789.123456789, -2.5e-300];
+        let s = crate::trace::Sample { p: [xs[0], xs[1], xs[2]], pressure: 0.3, q: [xs[3], xs[4], xs[5], xs[6]] };
+        let b = Brush::new(crate::trace::Shape::Sphere, crate::trace::Mode::Paint, 0.1, [1.0, 0.0, 0.0], 1.0, 0.5);
+        let events = [
+            Event { line: 0, t: 0.0, kind: EventKind::Brush(b) },
+            Event { line: 0, t: 0.0, kind: EventKind::StrokeBegin },
+            Event { line: 0, t: 7.5e-5, kind: EventKind::Sample(s) },
+        ];
+        let mut text = header_line(&canvas, &Meta::new());
+        for ev in &events {
+            text.push('\n');
+            text.push_str(&event_line(ev));
+        }
+        let t = parse_trace(&text).unwrap();
+        assert_eq!(t.events[2].kind, EventKind::Sample(s));
+        assert_eq!(t.events[2].t, 7.5e-5);
     }
 }
