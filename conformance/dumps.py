@@ -48,7 +48,10 @@ def _rows_differ(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def compare(ref: dict, painter: dict) -> list[Difference]:
-    """Every array that differs beyond its tolerance, in ARRAY_ORDER."""
+    """Every array that differs beyond its tolerance, in ARRAY_ORDER, then
+    any array only one side holds. Equal dumps hold the same arrays, each
+    with the same dtype, shape and values (spec 11.1); their files' bytes
+    are not compared."""
     out = []
     for name in ARRAY_ORDER:
         if name not in ref or name not in painter:
@@ -78,6 +81,9 @@ def compare(ref: dict, painter: dict) -> list[Difference]:
                     f"{len(cells)} cells differ; first cell {i}: reference {a[i].tolist()}, painter {b[i].tolist()}",
                 )
             )
+    for name in sorted((set(ref) ^ set(painter)) - set(ARRAY_ORDER)):
+        side = "reference" if name in ref else "painter"
+        out.append(Difference(name, 1, None, f"an array only the {side}'s dump holds"))
     return out
 
 

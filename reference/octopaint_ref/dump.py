@@ -1,10 +1,11 @@
 """Tree dumps (.npz, spec 11): the arrays both implementations write at a
 trace's `snapshot` events and the conformance driver compares.
 
-The file is a zip of .npy entries (format 1.0, little-endian, C order), stored
-without compression, entries in the order of DUMP_ARRAYS, every timestamp
-1980-01-01 00:00:00: the same tree always gives the same bytes. numpy.load
-reads it. Painter twin: painter/tree/src/dump.rs.
+The file is a zip (zipfile) of .npy entries (numpy's format.write_array),
+stored without compression, entries in the order of DUMP_ARRAYS, every
+timestamp 1980-01-01 00:00:00, so the same tree gives the same bytes here.
+The painter's dumps (painter/tree/src/dump.rs, other zip and npy libraries)
+hold the same arrays in other bytes: dumps are compared by content.
 """
 
 from __future__ import annotations

@@ -2,187 +2,86 @@
 //! `snapshot` events and the conformance driver compares. Reference twin:
 //! reference/octopaint_ref/dump.py.
 //!
-//! The bytes are fixed by the spec so that the same tree always gives the
-//! same file, in either implementation: a zip of stored `.npy` entries laid
-//! out exactly as CPython's `zipfile.writestr` and numpy's `write_array`
-//! (format 1.0) write them. No zip or npy crate promises those exact bytes:
-//! the `zip` crate (2.6) writes "version made by 4.5" where CPython writes
-//! 2.0 and decides zip64 records differently, and numpy's header carries
-//! growth-axis spaces and 64-byte padding. So both formats are written out
-//! here, and the conformance driver compares the files byte for byte.
-//!
-//! ```text
-//!  local header (30 bytes)         central entry (46 bytes)      end record (22)
-//!  50 4b 03 04  signature          50 4b 01 02  signature        50 4b 05 06
-//!  14 00        version needed 20  14 03        made by 2.0,Unix 0000 0000 disks
-//!  00 00        flags              14 00        needed 20        count, count
-//!  00 00        stored             00 00 00 00  flags, stored    dir size
-//!  00 00 21 00  1980-01-01 00:00   00 00 21 00  time, date       dir offset
-//!  crc  csize  usize  nlen  0      crc csize usize nlen 0 0 0 0  00 00 comment
-//!  name                            a4 01 00 00 attrs  offset name
-//! ```
+//! A dump is a zip (the `zip` crate) of `.npy` entries (the `npyz` crate),
+//! stored without compression, with a fixed timestamp: what the two
+//! implementations must agree on is the arrays (names, dtypes, shapes,
+//! values), which numpy and `octopaint-ref check` read; the file's bytes
+//! are each library's business. The painter's own dumps of one tree are
+//! still identical byte for byte, which its undo tests use.
 
-use std::io::Write;
+use std::io::{Cursor, Seek, Write};
+
+use npyz::WriterBuilder;
+use zip::write::SimpleFileOptions;
+use zip::{CompressionMethod, DateTime, ZipWriter};
 
 use crate::g3::g3_table;
 use crate::pool::{FREE, NONE, Tree};
 
-#[cfg(target_endian = "big")]
-compile_error!("tree dumps are written by reinterpreting little-endian pools");
+/// The values of one array, flat in C order.
+pub enum Values<'a> {
+    U8(&'a [u8]),
+    U32(&'a [u32]),
+    F32(&'a [f32]),
+    F64(&'a [f64]),
+}
 
-/// Python's `zipfile.ZIP64_LIMIT`.
-const ZIP64_LIMIT: u64 = (1 << 31) - 1;
+impl Values<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Values::U8(v) => v.len(),
+            Values::U32(v) => v.len(),
+            Values::F32(v) => v.len(),
+            Values::F64(v) => v.len(),
+        }
+    }
 
-/// One `.npy` entry: dtype descr, shape, little-endian C-order bytes.
+    fn item_size(&self) -> usize {
+        match self {
+            Values::U8(_) => 1,
+            Values::U32(_) | Values::F32(_) => 4,
+            Values::F64(_) => 8,
+        }
+    }
+}
+
+/// One `.npy` entry: its name (without `.npy`), shape and values.
 pub struct NpyArray<'a> {
     pub name: &'static str,
-    pub descr: &'static str,
     pub shape: Vec<usize>,
-    pub data: &'a [u8],
+    pub values: Values<'a>,
 }
 
-/// numpy's `_write_array_header` + `_wrap_header` for format 1.0: the dict
-/// repr, spaces for a growth axis of up to 21 digits, padding so the data
-/// starts at a multiple of 64, and a newline.
-pub fn npy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
-    let shape_repr = match shape {
-        [] => "()".to_string(),
-        [n] => format!("({n},)"),
-        dims => format!("({})", dims.iter().map(|d| d.to_string()).collect::<Vec<_>>().join(", ")),
-    };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape_repr}, }}");
-    if let Some(first) = shape.first() {
-        header.push_str(&" ".repeat(21usize.saturating_sub(first.to_string().len())));
-    }
-    let hlen = header.len() + 1;
-    let padlen = 64 - ((8 + 2 + hlen) % 64);
-    let mut out = Vec::with_capacity(10 + hlen + padlen);
-    out.extend_from_slice(b"\x93NUMPY\x01\x00");
-    out.extend_from_slice(&((hlen + padlen) as u16).to_le_bytes());
-    out.extend_from_slice(header.as_bytes());
-    out.extend(std::iter::repeat_n(b' ', padlen));
-    out.push(b'\n');
-    out
+fn npy<T: npyz::AutoSerialize + Copy>(out: impl Write, shape: &[usize], values: &[T]) -> std::io::Result<()> {
+    let shape: Vec<u64> = shape.iter().map(|&d| d as u64).collect();
+    let mut w = npyz::WriteOptions::new().default_dtype().shape(&shape).writer(out).begin_nd()?;
+    w.extend(values.iter().copied())?;
+    w.finish()
 }
 
-struct Entry {
-    name: &'static str,
-    crc: u32,
-    size: u64,
-    offset: u64,
-}
-
-fn u16le(v: u64) -> [u8; 2] {
-    (v as u16).to_le_bytes()
-}
-fn u32le(v: u64) -> [u8; 4] {
-    (v as u32).to_le_bytes()
-}
-
-/// Write the arrays as a zip of stored `.npy` entries, byte for byte what
-/// CPython's zipfile writes for the same entries (zip64 fields included
-/// where it would add them).
-pub fn write_npz(out: &mut impl Write, arrays: &[NpyArray]) -> std::io::Result<()> {
-    let mut entries = Vec::new();
-    let mut pos: u64 = 0;
+/// Write the arrays as an `.npz`: one stored `.npy` entry per array, in
+/// order, every timestamp 1980-01-01 00:00.
+pub fn write_npz<W: Write + Seek>(out: W, arrays: &[NpyArray]) -> std::io::Result<W> {
+    let mut zip = ZipWriter::new(out);
     for a in arrays {
-        let header = npy_header(a.descr, &a.shape);
-        let size = (header.len() + a.data.len()) as u64;
-        let mut h = crc32fast::Hasher::new();
-        h.update(&header);
-        h.update(a.data);
-        let crc = h.finalize();
-        let name = format!("{}.npy", a.name);
-        let zip64 = size as f64 * 1.05 > ZIP64_LIMIT as f64;
-        let big = size > ZIP64_LIMIT;
-        let mut local = Vec::with_capacity(64);
-        local.extend_from_slice(b"PK\x03\x04");
-        local.extend_from_slice(&[if big { 45 } else { 20 }, 0]);
-        local.extend_from_slice(&[0, 0, 0, 0, 0, 0, 0x21, 0]); // flags, stored, time, date
-        local.extend_from_slice(&crc.to_le_bytes());
-        let field = if big { 0xFFFF_FFFF } else { size };
-        local.extend_from_slice(&u32le(field));
-        local.extend_from_slice(&u32le(field));
-        local.extend_from_slice(&u16le(name.len() as u64));
-        local.extend_from_slice(&u16le(if zip64 { 20 } else { 0 }));
-        local.extend_from_slice(name.as_bytes());
-        if zip64 {
-            local.extend_from_slice(&[1, 0, 16, 0]);
-            local.extend_from_slice(&size.to_le_bytes());
-            local.extend_from_slice(&size.to_le_bytes());
+        assert_eq!(a.shape.iter().product::<usize>(), a.values.len(), "{}: shape and values disagree", a.name);
+        // Entries past 4 GiB need zip64 fields, which the zip crate writes
+        // only when told before the data (the header is under 1 KiB).
+        let size = (a.values.len() * a.values.item_size()) as u64 + 1024;
+        let options = SimpleFileOptions::default()
+            .compression_method(CompressionMethod::Stored)
+            .last_modified_time(DateTime::default())
+            .unix_permissions(0o644)
+            .large_file(size >= u64::from(u32::MAX));
+        zip.start_file(format!("{}.npy", a.name), options).map_err(std::io::Error::other)?;
+        match a.values {
+            Values::U8(v) => npy(&mut zip, &a.shape, v)?,
+            Values::U32(v) => npy(&mut zip, &a.shape, v)?,
+            Values::F32(v) => npy(&mut zip, &a.shape, v)?,
+            Values::F64(v) => npy(&mut zip, &a.shape, v)?,
         }
-        out.write_all(&local)?;
-        out.write_all(&header)?;
-        out.write_all(a.data)?;
-        entries.push(Entry { name: a.name, crc, size, offset: pos });
-        pos += local.len() as u64 + size;
     }
-    let dir_start = pos;
-    for e in &entries {
-        let name = format!("{}.npy", e.name);
-        let mut extra: Vec<u64> = Vec::new();
-        let size_field = if e.size > ZIP64_LIMIT {
-            extra.extend([e.size, e.size]);
-            0xFFFF_FFFF
-        } else {
-            e.size
-        };
-        let offset_field = if e.offset > ZIP64_LIMIT {
-            extra.push(e.offset);
-            0xFFFF_FFFF
-        } else {
-            e.offset
-        };
-        let version = if extra.is_empty() { 20 } else { 45 };
-        let mut c = Vec::with_capacity(46 + name.len() + 28);
-        c.extend_from_slice(b"PK\x01\x02");
-        c.extend_from_slice(&[version, 3, version, 0]);
-        c.extend_from_slice(&[0, 0, 0, 0, 0, 0, 0x21, 0]);
-        c.extend_from_slice(&e.crc.to_le_bytes());
-        c.extend_from_slice(&u32le(size_field));
-        c.extend_from_slice(&u32le(size_field));
-        c.extend_from_slice(&u16le(name.len() as u64));
-        c.extend_from_slice(&u16le(if extra.is_empty() { 0 } else { 4 + 8 * extra.len() as u64 }));
-        c.extend_from_slice(&[0, 0, 0, 0, 0, 0]); // comment length, disk, internal attributes
-        c.extend_from_slice(&(0o644u32 << 16).to_le_bytes());
-        c.extend_from_slice(&u32le(offset_field));
-        c.extend_from_slice(name.as_bytes());
-        if !extra.is_empty() {
-            c.extend_from_slice(&u16le(1));
-            c.extend_from_slice(&u16le(8 * extra.len() as u64));
-            for v in &extra {
-                c.extend_from_slice(&v.to_le_bytes());
-            }
-        }
-        out.write_all(&c)?;
-        pos += c.len() as u64;
-    }
-    let dir_size = pos - dir_start;
-    let count = entries.len() as u64;
-    if dir_start > ZIP64_LIMIT || dir_size > ZIP64_LIMIT {
-        let mut z = Vec::with_capacity(76);
-        z.extend_from_slice(b"PK\x06\x06");
-        z.extend_from_slice(&44u64.to_le_bytes());
-        z.extend_from_slice(&[45, 0, 45, 0, 0, 0, 0, 0, 0, 0, 0, 0]);
-        z.extend_from_slice(&count.to_le_bytes());
-        z.extend_from_slice(&count.to_le_bytes());
-        z.extend_from_slice(&dir_size.to_le_bytes());
-        z.extend_from_slice(&dir_start.to_le_bytes());
-        z.extend_from_slice(b"PK\x06\x07");
-        z.extend_from_slice(&0u32.to_le_bytes());
-        z.extend_from_slice(&pos.to_le_bytes());
-        z.extend_from_slice(&1u32.to_le_bytes());
-        out.write_all(&z)?;
-    }
-    let mut end = Vec::with_capacity(22);
-    end.extend_from_slice(b"PK\x05\x06");
-    end.extend_from_slice(&[0, 0, 0, 0]);
-    end.extend_from_slice(&u16le(count.min(0xFFFF)));
-    end.extend_from_slice(&u16le(count.min(0xFFFF)));
-    end.extend_from_slice(&u32le(dir_size.min(0xFFFF_FFFF)));
-    end.extend_from_slice(&u32le(dir_start.min(0xFFFF_FFFF)));
-    end.extend_from_slice(&[0, 0]);
-    out.write_all(&end)
+    zip.finish().map_err(std::io::Error::other)
 }
 
 /// Lattice origin of every cell (NONE for free cells), parents first.
@@ -222,50 +121,77 @@ pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
     let max_depth = [tree.lat.max_depth];
     let root_size = [tree.lat.root_size];
     let arrays = [
-        NpyArray { name: "parent", descr: "<u4", shape: vec![n], data: bytemuck::cast_slice(&tree.parent) },
-        NpyArray { name: "first_child", descr: "<u4", shape: vec![n], data: bytemuck::cast_slice(&tree.first_child) },
-        NpyArray { name: "depth", descr: "|u1", shape: vec![n], data: &tree.depth },
-        NpyArray { name: "rgb", descr: "|u1", shape: vec![n, 3], data: bytemuck::cast_slice(&tree.rgb) },
-        NpyArray { name: "sigma", descr: "<f4", shape: vec![n], data: bytemuck::cast_slice(&tree.sigma) },
-        NpyArray { name: "g3", descr: "<u4", shape: vec![n, 3], data: bytemuck::cast_slice(g3) },
-        NpyArray { name: "origin", descr: "<u4", shape: vec![n, 3], data: bytemuck::cast_slice(&origin) },
-        NpyArray { name: "roots", descr: "<u4", shape: vec![3], data: bytemuck::cast_slice(&roots[..]) },
-        NpyArray { name: "max_depth", descr: "<u4", shape: vec![], data: bytemuck::cast_slice(&max_depth[..]) },
-        NpyArray { name: "root_size", descr: "<f8", shape: vec![], data: bytemuck::cast_slice(&root_size[..]) },
+        NpyArray { name: "parent", shape: vec![n], values: Values::U32(&tree.parent) },
+        NpyArray { name: "first_child", shape: vec![n], values: Values::U32(&tree.first_child) },
+        NpyArray { name: "depth", shape: vec![n], values: Values::U8(&tree.depth) },
+        NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
+        NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&tree.sigma) },
+        NpyArray { name: "g3", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(g3)) },
+        NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&origin)) },
+        NpyArray { name: "roots", shape: vec![3], values: Values::U32(&roots[..]) },
+        NpyArray { name: "max_depth", shape: vec![], values: Values::U32(&max_depth[..]) },
+        NpyArray { name: "root_size", shape: vec![], values: Values::F64(&root_size[..]) },
     ];
-    let mut out = Vec::new();
-    write_npz(&mut out, &arrays).expect("writing to memory cannot fail");
-    out
+    write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory cannot fail").into_inner()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn npy_headers_match_numpy() {
-        // Header text numpy 2.4 writes (format 1.0), and its total length.
-        let h = npy_header("<u4", &[17784]);
-        assert_eq!(h.len(), 128);
-        let text = std::str::from_utf8(&h[10..]).unwrap();
-        assert_eq!(text.trim_end(), "{'descr': '<u4', 'fortran_order': False, 'shape': (17784,), }");
-        assert_eq!(npy_header("<f8", &[]).len(), 128);
-        assert!(std::str::from_utf8(&npy_header("|u1", &[8, 3])[10..]).unwrap().starts_with("{'descr': '|u1', 'fortran_order': False, 'shape': (8, 3), }"));
-        for n in [0, 1, 10usize.pow(19), usize::MAX] {
-            assert_eq!(npy_header("<u4", &[n]).len() % 64, 0);
-        }
+    /// The entries of an `.npz`, read back by the zip and npyz crates:
+    /// name, dtype descr, shape and values as f64.
+    fn read_npz(bytes: &[u8]) -> Vec<(String, String, Vec<u64>, Vec<f64>)> {
+        let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).unwrap();
+        (0..zip.len())
+            .map(|i| {
+                let mut e = zip.by_index(i).unwrap();
+                assert_eq!(e.compression(), CompressionMethod::Stored);
+                let mut data = Vec::new();
+                std::io::Read::read_to_end(&mut e, &mut data).unwrap();
+                let f = npyz::NpyFile::new(&data[..]).unwrap();
+                let descr = f.dtype().descr().trim_matches('\'').to_string();
+                let shape = f.shape().to_vec();
+                let values: Vec<f64> = match descr.as_str() {
+                    "|u1" => f.into_vec::<u8>().unwrap().into_iter().map(f64::from).collect(),
+                    "<u4" => f.into_vec::<u32>().unwrap().into_iter().map(f64::from).collect(),
+                    "<f4" => f.into_vec::<f32>().unwrap().into_iter().map(f64::from).collect(),
+                    "<f8" => f.into_vec::<f64>().unwrap(),
+                    other => panic!("{other}"),
+                };
+                (e.name().to_string(), descr, shape, values)
+            })
+            .collect()
     }
 
     #[test]
-    fn zip_layout_is_cpythons() {
-        let data = [1u8, 2, 3];
-        let mut out = Vec::new();
-        write_npz(&mut out, &[NpyArray { name: "a", descr: "|u1", shape: vec![3], data: &data }]).unwrap();
-        // 30 + 5 name + 128 header + 3 data, then 46 + 5, then 22.
-        assert_eq!(out.len(), 30 + 5 + 131 + 51 + 22);
-        assert_eq!(&out[..12], b"PK\x03\x04\x14\x00\x00\x00\x00\x00\x00\x00");
-        let c = 30 + 5 + 131;
-        assert_eq!(&out[c..c + 8], b"PK\x01\x02\x14\x03\x14\x00");
-        assert_eq!(&out[c + 38..c + 42], &(0o644u32 << 16).to_le_bytes());
+    fn a_dump_holds_every_array_with_its_dtype_and_shape() {
+        let tree = Tree::new(&crate::trace::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 64 });
+        let bytes = dump_bytes(&tree);
+        let entries = read_npz(&bytes);
+        let n = tree.n_used() as u64;
+        let want: [(&str, &str, Vec<u64>); 10] = [
+            ("parent.npy", "<u4", vec![n]),
+            ("first_child.npy", "<u4", vec![n]),
+            ("depth.npy", "|u1", vec![n]),
+            ("rgb.npy", "|u1", vec![n, 3]),
+            ("sigma.npy", "<f4", vec![n]),
+            ("g3.npy", "<u4", vec![n, 3]),
+            ("origin.npy", "<u4", vec![n, 3]),
+            ("roots.npy", "<u4", vec![3]),
+            ("max_depth.npy", "<u4", vec![]),
+            ("root_size.npy", "<f8", vec![]),
+        ];
+        assert_eq!(entries.len(), want.len());
+        for ((name, descr, shape, _), (wn, wd, ws)) in entries.iter().zip(&want) {
+            assert_eq!((name.as_str(), descr.as_str(), shape), (*wn, *wd, ws));
+        }
+        assert_eq!(entries[7].3, [2.0, 1.0, 1.0]);
+        assert_eq!(entries[8].3, [4.0]);
+        assert_eq!(entries[9].3, [0.5]);
+        assert_eq!(entries[2].3[..2], [0.0, 0.0]);
+        assert_eq!(entries[2].3[2], f64::from(FREE));
+        // The same tree gives the same bytes.
+        assert_eq!(bytes, dump_bytes(&tree));
     }
 }
