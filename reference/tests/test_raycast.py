@@ -26,12 +26,15 @@ def graded():
     return arrays, raycast.device_tree(arrays)
 
 
-def test_png_bytes_decode_with_pillow():
+def test_png_files_hold_their_pixels():
     rgb = (np.arange(7 * 5 * 3).reshape(5, 7, 3) * 7 % 256).astype(np.uint8)
     data = png_bytes(rgb)
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.array_equal(np.asarray(Image.open(io.BytesIO(data)).convert("RGB")), rgb)
     assert np.array_equal(read_png(data), rgb)
     assert png_bytes(rgb) == data
+    with pytest.raises(ValueError, match="expected"):
+        png_bytes(rgb[..., :2])
 
 
 def test_f64_local_matches_the_exact_ray(graded):
