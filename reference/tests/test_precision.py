@@ -7,7 +7,7 @@ import pytest
 
 from octopaint_ref import oracle
 from octopaint_ref import ray_error as RE
-from octopaint_ref.precision import build_scene, eye_split, measure, rays_from, sphere_directions, within_bound
+from octopaint_ref.precision import build_scene, eye_split, fig11_choices, measure, rays_from, sphere_directions, within_bound
 from octopaint_ref.raycast import cast, device_tree
 
 N_RAYS = 300
@@ -35,6 +35,26 @@ def test_every_ray_is_within_the_papers_bound(blind_scene, precision):
     ok = within_bound(m)
     assert ok.all(), (m["final_angle"][~ok], RE.bound(m["e0"], m["length"], m["eps"])[~ok])
     assert m["final_angle"].max() > 0  # measured, not vacuous
+
+
+def test_fig11_choices_measure_what_they_say(blind_scene):
+    """The measurement choices of the Fig. 11 comparison (docs/precision.md):
+    against the unrounded direction the angle moves by at most the angle
+    the rounding turned the direction (triangle inequality on the sphere);
+    without e0 it moves by at most e0/L; the statistics are ordered."""
+    arrays, dev, rays = blind_scene
+    m = measure(arrays, rays, "f32", "local", device=dev, opaque=False)
+    rows = {r["key"]: r["rad"] for r in fig11_choices(arrays, rays, m)}
+    ours = rows["ours"]
+    dirs = np.asarray(rays.dir_canvas)
+    turn = RE.angles((dirs.astype(np.float32).astype(np.float64), np.zeros_like(dirs)), dirs)[0].max()
+    assert abs(rows["exact_direction"] - ours) <= turn * (1 + 1e-9)
+    assert abs(rows["from_start"] - ours) <= (m["e0"] / m["length"]).max() * (1 + 1e-6) + 1e-18
+    assert 0 < rows["median"] <= rows["mean"] * 2 <= 2 * ours
+    assert 0 < rows["at_paint"] <= m["angle"].max()
+    # A graded tree seen from its finest leaf has no cell that small for its
+    # distance: the row says so rather than inventing a value.
+    assert np.isnan(rows["fine_cells"])
 
 
 def test_world_coordinates_drift_at_depth_24(blind_scene):

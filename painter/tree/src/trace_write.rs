@@ -1,6 +1,7 @@
 //! Writing traces: a header and events as the JSON lines of spec 12,
 //! written by serde_json (every number as the shortest text that reads back
-//! to the same f64, by `ryu`), so that what the painter records reads back,
+//! to the same f64: serde_json formats floats with `zmij`, the successor of
+//! `ryu`), so that what the painter records reads back,
 //! here and in the reference, as exactly the events that were painted. The
 //! tests parse every line back.
 
