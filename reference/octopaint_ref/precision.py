@@ -392,6 +392,18 @@ def run_study(out: str, quick: bool = False) -> dict:
             if size == sizes[0]:
                 P.image_grid(shots, os.path.join(out, f"images_{name}.png"))
     results["images"] = images
+
+    # Compositing in low precision (composite_precision.py): the segments
+    # the f64 caster composites for the near camera's rays, and adversarial
+    # media, in f16, bf16 and f32 under each formulation, against mpmath.
+    from . import composite_precision as CP
+
+    side_c = 32 if quick else 64
+    rays_c = rays_from(E, phi, pixel_directions(near_camera((side_c, side_c))).reshape(-1, 3))
+    media = {"scene": CP.scene_segments(arrays, rays_c), **CP.adversarial_media()}
+    comp = CP.study(media)
+    results["compositing"] = {"|".join(k): v for k, v in comp.items()}
+    log("compositing", {k: round(v["max_colour_steps"], 3) for k, v in results["compositing"].items() if k.startswith("scene")})
     results["seconds"] = time.perf_counter() - t0
     with open(os.path.join(out, "results.json"), "w") as f:
         json.dump(results, f, indent=1, sort_keys=True)
@@ -440,6 +452,12 @@ def tables(r: dict) -> str:
     lines += ["| camera | " + " | ".join(cols) + " |", "| --- |" + " --- |" * len(cols)]
     for key, row in r["images"].items():
         lines.append(f"| {key} | " + " | ".join(f"{row[c]['psnr_db']:.1f} / {row[c]['pct_over_2_steps']:.3f}%" for c in cols) + " |")
+    if "compositing" in r:
+        from .composite_precision import table as composite_table
+
+        comp = {tuple(k.split("|")): v for k, v in r["compositing"].items()}
+        lines += ["", "Compositing in low precision against mpmath (max colour error in 8-bit steps / max transmittance "
+                  "error / % rays within the transmittance bound):", "", composite_table(comp)]
     return "\n".join(lines) + "\n"
 
 
