@@ -112,6 +112,15 @@ def main(argv=None) -> int:
     )
     ex.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors (no summary line)")
     ex.set_defaults(func=_cmd_export)
+    from . import precision_scale
+
+    pr = sub.add_parser(
+        "precision",
+        help="the angle bound on N rays from a depth-24 leaf, sharded over devices and processes, resumable",
+        description=precision_scale.__doc__.split("\n\n")[0],
+    )
+    precision_scale.add_arguments(pr)
+    pr.set_defaults(func=precision_scale.command)
     args = ap.parse_args(argv)
     return args.func(args)
 

@@ -373,9 +373,10 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State):
     return new, (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
 
 
-def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard):
+def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_only: bool = False):
     """One ray. Returns (State at the end, Record or None); the State's
-    colour already includes the background (spec 6)."""
+    colour already includes the background (spec 6). last_only: the Record
+    holds only the last step (one row), for callers that need no more."""
     m = Arith(setup.fmt, guard)
     d = m.rnd(ray.dir_canvas)
     hit, cell, depth, origin, p = _start(tree, setup, ray, m, d)
@@ -391,7 +392,7 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard):
         skipped=jnp.int32(0),
         status=jnp.where(hit, RUNNING, LEFT).astype(jnp.int32),
     )
-    K = setup.record
+    K = 1 if last_only else setup.record
     if K:
         rec0 = Record(
             cell=jnp.full(K, NONE, jnp.uint32),
@@ -408,7 +409,7 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard):
         def body(c):
             s, rec = c
             new, r = _step(tree, setup, m, d, s)
-            i = s.steps
+            i = 0 if last_only else s.steps
             rec = Record(*(a.at[i].set(v) for a, v in zip(rec, r)))
             return new, rec
 
