@@ -403,7 +403,23 @@ def run_study(out: str, quick: bool = False) -> dict:
     media = {"scene": CP.scene_segments(arrays, rays_c), **CP.adversarial_media()}
     comp = CP.study(media)
     results["compositing"] = {"|".join(k): v for k, v in comp.items()}
+    P.compositing_errors(comp, os.path.join(out, "compositing_errors.png"))
     log("compositing", {k: round(v["max_colour_steps"], 3) for k, v in results["compositing"].items() if k.startswith("scene")})
+    # At scale (precision_scale.py, in this process on its devices): many
+    # more rays than the camera's, summarised exactly per shard.
+    from . import precision_scale as PS
+
+    n_scale = 16384 if quick else 262144
+    scale = {}
+    for prec in PRECISIONS:
+        tracer = PS.Tracer(prec, "local", CANVAS.max_depth, 512)
+        total = PS.empty_summary()
+        for first in range(0, n_scale, 4096):
+            total = PS.merge(total, tracer.shard(first, min(4096, n_scale - first)))
+        scale[prec] = {**total, "eps": tracer.eps}
+        log("at scale", prec, {k: total[k] for k in ("rays", "within", "max_angle", "argmax")})
+    results["at_scale"] = scale
+    P.angle_histograms(scale, PS.BIN_EDGES, os.path.join(out, "angle_histograms.png"))
     results["seconds"] = time.perf_counter() - t0
     with open(os.path.join(out, "results.json"), "w") as f:
         json.dump(results, f, indent=1, sort_keys=True)
@@ -452,6 +468,11 @@ def tables(r: dict) -> str:
     lines += ["| camera | " + " | ".join(cols) + " |", "| --- |" + " --- |" * len(cols)]
     for key, row in r["images"].items():
         lines.append(f"| {key} | " + " | ".join(f"{row[c]['psnr_db']:.1f} / {row[c]['pct_over_2_steps']:.3f}%" for c in cols) + " |")
+    if "at_scale" in r:
+        lines += ["", "At scale (octopaint-ref precision's shards, local frame, eye in a depth-24 leaf, rays to the canvas boundary):", "",
+                  "| precision | rays | within the bound | max angle error (rad) | its ray |", "| --- | --- | --- | --- | --- |"]
+        for prec, v in r["at_scale"].items():
+            lines.append(f"| {prec} | {v['rays']:,} | {100.0 * v['within'] / v['rays']:.4f}% | {v['max_angle']:.3g} | {v['argmax']} |")
     if "compositing" in r:
         from .composite_precision import table as composite_table
 

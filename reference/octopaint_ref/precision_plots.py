@@ -127,3 +127,44 @@ def image_grid(shots: dict, path: str) -> None:
     axes[-1].axis("off")
     fig.savefig(path, dpi=80)
     plt.close(fig)
+
+
+def angle_histograms(scale: dict, edges: np.ndarray, path: str) -> None:
+    """The at-scale runs: how many rays end at each quarter decade of final
+    angle error, per precision, with each precision's 5 eps."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    for prec, colour in zip(PRECISIONS, ("tab:red", "tab:blue", "tab:green")):
+        s = scale[prec]
+        counts = np.asarray(s["hist"][1:-1], np.float64)  # the finite bins
+        ax.stairs(np.maximum(counts, 0.5), edges, label=f"{prec}: {s['rays']:,} rays, max {s['max_angle']:.2g} rad", color=colour)
+        ax.axvline(np.log10(5 * s["eps"]), color=colour, ls=":", lw=1)
+    ax.set_yscale("log")
+    ax.set_ylim(0.8, None)
+    ax.set_xlabel("log10 final angle error (rad); dotted: 5 eps")
+    ax.set_ylabel("rays")
+    ax.set_title("Rays from a depth-24 leaf to the canvas boundary, local frame", fontsize=10)
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def compositing_errors(comp: dict, path: str) -> None:
+    """Largest colour error (8-bit steps) of each formulation, per medium,
+    in f16 and bf16."""
+    from .composite_precision import FORMS
+
+    media = list(dict.fromkeys(k[0] for k in comp))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True, sharey=True)
+    width = 0.8 / len(FORMS)
+    for ax, fmt in zip(axes, ("f16", "bf16")):
+        for j, form in enumerate(FORMS):
+            v = [max(comp[(m, fmt, form)]["max_colour_steps"], 1e-3) for m in media]
+            ax.bar(np.arange(len(media)) + (j - (len(FORMS) - 1) / 2) * width, v, width, label=form)
+        ax.axhline(1.0, color="k", lw=0.8, ls=":")
+        ax.set_yscale("log")
+        ax.set_xticks(np.arange(len(media)), media, rotation=20, fontsize=8)
+        ax.set_title(f"{fmt}: max colour error against mpmath (8-bit steps; dotted: 1 step)", fontsize=9)
+    axes[0].legend(fontsize=8)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
