@@ -266,7 +266,7 @@ def steps_8bit(v: float) -> str:
 def table(results: dict) -> str:
     """Markdown: one row per medium and format, one column per formulation
     (colour error in 8-bit steps / transmittance error / % within bound)."""
-    media = sorted({k[0] for k in results}, key=lambda m: list(dict.fromkeys(k[0] for k in results)).index(m))
+    media = list(dict.fromkeys(k[0] for k in results))
     fmts = list(dict.fromkeys(k[1] for k in results))
     lines = ["| medium | format | " + " | ".join(FORMS) + " |", "| --- | --- |" + " --- |" * len(FORMS)]
     for m in media:

@@ -62,9 +62,10 @@ def uniform(stream: int, i) -> np.ndarray:
     return hash32(hash32(np.uint64(stream)) ^ ((i * np.uint64(0x9E3779B9)) & np.uint64(0xFFFFFFFF))).astype(np.float64) / 4294967296.0
 
 
-def sphere_directions(n: int, stream: int = 11) -> np.ndarray:
-    """n unit vectors, uniform on the sphere, f64 [n, 3]."""
-    i = np.arange(n)
+def sphere_directions(n: int, stream: int = 11, first: int = 0) -> np.ndarray:
+    """n unit vectors, uniform on the sphere, f64 [n, 3]: those of indices
+    first .. first + n - 1, each from its index alone."""
+    i = np.arange(first, first + n, dtype=np.uint64)
     z = 2.0 * uniform(stream, i) - 1.0
     phi = 2.0 * math.pi * uniform(stream + 1, i)
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
@@ -142,6 +143,23 @@ def far_camera(size=(256, 256), fov_deg=8.0) -> Camera:
 
 
 # --------------------------------------------------------- measurement
+def offsets(frame: str, canvas, origin, depth, p, eye_lattice, frac):
+    """Computed points (a cell's origin and depth and the local point p, or
+    the world point p) minus the exact eye, (hi, lo) lattice units."""
+    D = canvas.max_depth
+    if frame == "local":
+        return RE.offsets_local(origin, depth, p, eye_lattice, frac, D)
+    return RE.offsets_world(p, eye_lattice, frac, canvas.root_size * 2.0**-D)
+
+
+def start_error(tree, canvas, rays: Ray, precision: str, frame: str):
+    """Each ray's computed start point against the exact eye: (w0 (hi, lo),
+    e0 = |w0| in lattice units, the start cell's depth)."""
+    _, _, d0, o0, p0 = start_points(tree, canvas, rays, precision, frame)
+    w0 = offsets(frame, canvas, o0, d0, p0, rays.eye_lattice, rays.frac)
+    return w0, np.sqrt(((w0[0] + w0[1]) ** 2).sum(axis=1)), d0
+
+
 def measure(arrays, rays: Ray, precision: str, frame: str, capacity=512, tile=512, device=None, opaque=True):
     """Trace `rays` (eyes inside the canvas) and measure every exit point up
     to where the ray ends: where it becomes opaque (T < 1/256) or leaves the
@@ -159,7 +177,6 @@ def measure(arrays, rays: Ray, precision: str, frame: str, capacity=512, tile=51
     s, rec = cast(tree, canvas, rays, precision, frame, max_steps=capacity, record=capacity, tile=tile)
     steps = s.steps
     D = canvas.max_depth
-    lu = canvas.root_size * 2.0**-D
     n, K = rec.cell.shape
     valid = np.arange(K)[None, :] < steps[:, None]
     ray_idx = np.broadcast_to(np.arange(n)[:, None], (n, K))[valid]
@@ -167,19 +184,11 @@ def measure(arrays, rays: Ray, precision: str, frame: str, capacity=512, tile=51
     frac = rays.frac[ray_idx]
     dirs = np.asarray(rays.dir_canvas)
     d_fmt = dirs.astype(fmt.numpy_dtype).astype(np.float64)
-    if frame == "local":
-        w = RE.offsets_local(rec.origin[valid], rec.depth[valid], rec.p_exit[valid], eye_l, frac, D)
-    else:
-        w = RE.offsets_world(rec.p_exit[valid], eye_l, frac, lu)
+    w = offsets(frame, canvas, rec.origin[valid], rec.depth[valid], rec.p_exit[valid], eye_l, frac)
     ang, length = RE.angles(w, d_fmt[ray_idx])
     # The final point of each ray is its last recorded exit.
     last = np.cumsum(steps) - 1
-    hit, c0, d0, o0, p0 = start_points(tree, canvas, rays, precision, frame)
-    if frame == "local":
-        w0 = RE.offsets_local(o0, d0, p0, rays.eye_lattice, rays.frac, D)
-    else:
-        w0 = RE.offsets_world(p0, rays.eye_lattice, rays.frac, lu)
-    e0 = np.sqrt(((w0[0] + w0[1]) ** 2).sum(axis=1))
+    w0, e0, d0 = start_error(tree, canvas, rays, precision, frame)
     return {
         "final_angle": ang[last],
         "length": length[last],

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -80,16 +79,12 @@ def summarise(first: int, angle: np.ndarray, within: np.ndarray, e0: np.ndarray)
     }
 
 
-def directions(first: int, count: int, stream: int = 41) -> np.ndarray:
+def directions(first: int, count: int) -> np.ndarray:
     """Unit directions of rays first .. first + count - 1, uniform on the
-    sphere, each from its global index alone."""
-    from .precision import uniform
+    sphere, each from its global index alone (a stream of its own)."""
+    from .precision import sphere_directions
 
-    i = np.arange(first, first + count, dtype=np.uint64)
-    z = 2.0 * uniform(stream, i) - 1.0
-    phi = 2.0 * math.pi * uniform(stream + 1, i)
-    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+    return sphere_directions(count, stream=41, first=first)
 
 
 class Tracer:
@@ -129,7 +124,6 @@ class Tracer:
         """Trace rays first .. first + count - 1 and summarise them."""
         from . import precision as PR
         from . import ray_error as RE
-        from .raycast import start_points
 
         n_dev = len(self.devices)
         padded = -(-count // n_dev) * n_dev
@@ -144,20 +138,10 @@ class Tracer:
         if (steps >= self.setup.max_steps).any():
             raise RuntimeError(f"rays {first}..{first + count - 1}: a ray reached --capacity {self.setup.max_steps} cells")
         pick = lambda a: np.asarray(a)[:count, 0]  # noqa: E731  (the last step's row)
-        D = self.canvas.max_depth
-        lu = self.canvas.root_size * 2.0**-D
-        if self.frame == "local":
-            w = RE.offsets_local(pick(rec.origin), pick(rec.depth), pick(rec.p_exit), rays.eye_lattice, rays.frac, D)
-        else:
-            w = RE.offsets_world(pick(rec.p_exit), rays.eye_lattice, rays.frac, lu)
+        w = PR.offsets(self.frame, self.canvas, pick(rec.origin), pick(rec.depth), pick(rec.p_exit), rays.eye_lattice, rays.frac)
         fmt_dirs = dirs.astype(PR.FORMATS[self.precision].numpy_dtype).astype(np.float64)
         angle, length = RE.angles(w, fmt_dirs)
-        _, _, d0, o0, p0 = start_points(self.tree, self.canvas, rays, self.precision, self.frame)
-        if self.frame == "local":
-            w0 = RE.offsets_local(o0, d0, p0, rays.eye_lattice, rays.frac, D)
-        else:
-            w0 = RE.offsets_world(p0, rays.eye_lattice, rays.frac, lu)
-        e0 = np.sqrt(((w0[0] + w0[1]) ** 2).sum(axis=1))
+        _, e0, _ = PR.start_error(self.tree, self.canvas, rays, self.precision, self.frame)
         within = angle <= RE.bound(e0, length, self.eps)
         return summarise(first, angle, within, e0)
 
