@@ -7,10 +7,10 @@ missing binary, Wine or display is an error that says what to run.
 from __future__ import annotations
 
 import os
+import select
 import shutil
 import subprocess
 import sys
-import time
 
 import pytest
 
@@ -65,13 +65,6 @@ class Program:
         return subprocess.Popen(self.argv + [str(a) for a in args], cwd=REPO, env=self.env, **kw)
 
 
-def _free_display() -> int:
-    for n in range(70, 200):
-        if not os.path.exists(f"/tmp/.X11-unix/X{n}") and not os.path.exists(f"/tmp/.X{n}-lock"):
-            return n
-    raise RuntimeError("no free X display number in 70..199")
-
-
 @pytest.fixture(scope="session")
 def display():
     """An X display for Wine. Wine 8 reaches Vulkan only through its X11
@@ -80,15 +73,21 @@ def display():
     gives it one."""
     if shutil.which("Xvfb") is None:
         raise FileNotFoundError("Xvfb is missing (apt-get install xvfb; make system installs it)")
-    n = _free_display()
-    proc = subprocess.Popen(["Xvfb", f":{n}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"], stderr=subprocess.DEVNULL)
-    for _ in range(100):
-        if os.path.exists(f"/tmp/.X11-unix/X{n}"):
-            break
-        time.sleep(0.05)
-    else:
+    # Xvfb picks a free display number and writes it to stdout once it
+    # accepts connections (-displayfd). -noreset: an X server resets when
+    # its last client leaves and refuses connections meanwhile, so a Wine
+    # program started just as the previous one left could not connect.
+    proc = subprocess.Popen(
+        ["Xvfb", "-displayfd", "1", "-noreset", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+    )
+    ready, _, _ = select.select([proc.stdout], [], [], 20)
+    line = proc.stdout.readline().decode().strip() if ready else ""
+    if not line.isdigit():
         proc.kill()
-        raise RuntimeError(f"Xvfb :{n} did not start")
+        raise RuntimeError(f"Xvfb did not start within 20 s (it wrote {line!r})")
+    n = int(line)
     yield f":{n}"
     # SIGTERM: Xvfb removes its lock file and socket, so the number is free
     # for the next run.

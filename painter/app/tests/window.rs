@@ -5,7 +5,6 @@
 //! must hold exactly that stroke. Needs `Xvfb` and `xdotool` (`make
 //! system` installs them); without them the test fails and says so.
 
-use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -16,11 +15,22 @@ fn octopaint() -> Command {
 struct Xvfb(Child, #[allow(dead_code)] std::sync::MutexGuard<'static, ()>);
 
 /// One X server at a time in this process: the tests run in parallel
-/// threads and would otherwise race for the same display number.
+/// threads, and two software-rendered windows at once on two cores slow
+/// each other past their timeouts.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 impl Drop for Xvfb {
+    /// SIGTERM, so that the server removes its socket and lock file
+    /// (SIGKILL leaves them in /tmp); SIGKILL after two seconds.
     fn drop(&mut self) {
+        let _ = Command::new("kill").arg(self.0.id().to_string()).status();
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(2) {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
@@ -49,24 +59,62 @@ fn start_xvfb() -> (Xvfb, String) {
     need("Xvfb");
     need("xdotool");
     let guard = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    // A display number nobody uses.
-    let base = 90 + std::process::id() % 400;
-    for n in base..base + 50 {
-        if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
+    // Xvfb picks a free display number itself and writes it to its stdout
+    // (-displayfd 1) once it accepts connections. -noreset: by default an X
+    // server resets when its last client leaves, and refuses connections
+    // meanwhile; a painter that connected just as the test's first
+    // `xdotool search` left failed so (1 run in 20).
+    let mut child = Command::new("Xvfb")
+        .args(["-displayfd", "1", "-noreset", "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let x = Xvfb(child, guard);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line);
+        let _ = tx.send(line);
+    });
+    let line = rx.recv_timeout(Duration::from_secs(20)).expect("Xvfb did not start within 20 s");
+    let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb wrote {line:?} instead of its display number"));
+    (x, format!(":{n}"))
+}
+
+/// The X window id of the painter's visible window, once it shows. A
+/// painter that exits first, or a window that does not show within a
+/// minute, fails the test with everything the painter printed.
+fn window_of(child: &mut Child, display: &str, what: &str) -> String {
+    let t0 = Instant::now();
+    loop {
+        let out = Command::new("xdotool").args(["search", "--onlyvisible", "--name", "octopaint"]).env("DISPLAY", display).output().unwrap();
+        if let Some(id) = String::from_utf8_lossy(&out.stdout).lines().next() {
+            return id.to_string();
+        }
+        let exited = child.try_wait().unwrap();
+        if exited.is_none() && t0.elapsed() < Duration::from_secs(60) {
+            std::thread::sleep(Duration::from_millis(100));
             continue;
         }
-        let child = Command::new("Xvfb")
-            .args([format!(":{n}").as_str(), "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let x = Xvfb(child, guard);
-        let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-        wait_for("Xvfb to start", Duration::from_secs(20), || socket.exists());
-        return (x, format!(":{n}"));
+        if exited.is_none() {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+        let all = Command::new("xdotool").args(["search", "--name", "octopaint"]).env("DISPLAY", display).output().unwrap();
+        let mut log = String::new();
+        let _ = std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut log);
+        panic!(
+            "no {what} after {:.1} s (painter {}); windows named octopaint, visible or not: {:?}; the painter printed:\n{log}",
+            t0.elapsed().as_secs_f64(),
+            match exited {
+                Some(st) => format!("exited: {st}"),
+                None => "still running, killed".to_string(),
+            },
+            String::from_utf8_lossy(&all.stdout).trim()
+        );
     }
-    panic!("no free X display number");
 }
 
 #[test]
@@ -92,15 +140,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let id = {
-        let mut id = String::new();
-        wait_for("the window", Duration::from_secs(60), || {
-            let out = Command::new("xdotool").args(["search", "--onlyvisible", "--name", "octopaint"]).env("DISPLAY", &display).output().unwrap();
-            id = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or("").to_string();
-            !id.is_empty()
-        });
-        id
-    };
+    let id = window_of(&mut window, &display, "the window");
     // Let the first frames through, give the window the keyboard (there is
     // no window manager), then drag across the middle of the canvas view.
     std::thread::sleep(Duration::from_secs(2));
@@ -202,12 +242,7 @@ fn vr_without_a_runtime_says_so_and_opens_the_window() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let mut id = String::new();
-    wait_for("the fallback window", Duration::from_secs(60), || {
-        let out = Command::new("xdotool").args(["search", "--onlyvisible", "--name", "octopaint"]).env("DISPLAY", &display).output().unwrap();
-        id = String::from_utf8_lossy(&out.stdout).lines().next().unwrap_or("").to_string();
-        !id.is_empty()
-    });
+    let id = window_of(&mut child, &display, "the fallback window");
     // Focus and Ctrl+Q, again every 5 s until the window is gone: on a
     // loaded machine a key sent before the event loop took the focus is
     // lost (this test once timed out so). Later sends may find no window.
