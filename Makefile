@@ -159,9 +159,11 @@ paint: setup painter
 bench-export: setup painter
 	/usr/bin/python3 painter/bench/export_vs_openvdb.py
 
-# The precision study's figures and tables (about 7 minutes), docs/precision/.
-precision: setup
+# The precision study's figures and tables (about 12 minutes), docs/precision/: the
+# study in the reference, then the painter's GPU ray caster ray by ray.
+precision: setup painter
 	$(PY) -m octopaint_ref.precision --out docs/precision
+	$(PY) -m octopaint_ref.cli gpu-probe --painter $(PAINTER) --out docs/precision
 
 # The differentiable-rendering examples and their images, docs/examples/.
 examples: setup

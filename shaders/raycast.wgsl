@@ -44,7 +44,9 @@ struct RayParams {
     // inside the canvas (then eye_rel is its fraction in [0, 1))
     misc: vec4<u32>,
     // x: 1 to skip cells whose links disagree (spec 7; 0 only in the
-    // real-time benchmark's comparison of strategies); yzw: unused
+    // real-time benchmark's comparison of strategies); y: 1 to write a
+    // probe record per ray instead of a pixel (docs/precision.md); zw:
+    // unused
     flags: vec4<u32>,
 }
 
@@ -55,7 +57,25 @@ struct RayParams {
 
 @group(2) @binding(0) var<uniform> params: RayParams;
 // One pixel per u32: r | g << 8 | b << 16 | 255 << 24, row 0 at the top.
+// With flags.y set, PROBE_WORDS per pixel instead: the probe record.
 @group(2) @binding(1) var<storage, read_write> pixels: array<u32>;
+
+// The probe record of one ray (painter/gpu/src/raycast.rs `ProbeRecord`
+// reads it): 0 status, 1 steps, 2 the last cell, 3 its depth, 4-6 its
+// origin, 7-9 the last exit point in its frame, 10-12 the direction (f32),
+// 13 the start cell's depth, 14-16 its origin, 17-19 the start point in
+// its frame. Points are `real` widened to f32 (exact).
+const PROBE_WORDS: u32 = 20u;
+
+fn probe_put(base: u32, k: u32, v: u32) {
+    pixels[base + k] = v;
+}
+
+fn probe_put3(base: u32, k: u32, v: vec3<u32>) {
+    pixels[base + k] = v.x;
+    pixels[base + k + 1u] = v.y;
+    pixels[base + k + 2u] = v.z;
+}
 
 fn g3_at(c: u32, a: u32) -> u32 {
     if (c >= cells_held) {
@@ -204,6 +224,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     p = clamp(p, vec3<real>(-0.5), vec3<real>(0.5));
     var visible = consistent(cell);
+    let probe = params.flags.y != 0u;
+    let record = (gid.y * w + gid.x) * PROBE_WORDS;
+    if (probe) {
+        probe_put3(record, 10u, bitcast<vec3<u32>>(dir));
+        probe_put(record, 13u, depth);
+        probe_put3(record, 14u, origin);
+        probe_put3(record, 17u, bitcast<vec3<u32>>(vec3<f32>(p)));
+    }
+    var last_exit = vec3<real>(real(0.0));
 
     var steps = 0u;
     loop {
@@ -240,6 +269,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 
         var p_exit = p + t * d;
         p_exit[axis] = bound[axis];
+        last_exit = p_exit;
 
         // The next cell: sibling across an inward face, g3 across an
         // outward one, root-array arithmetic for roots.
@@ -306,6 +336,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 depth = dn + 1u;
             }
         }
+    }
+    if (probe) {
+        probe_put(record, 0u, status);
+        probe_put(record, 1u, steps);
+        probe_put(record, 2u, cell);
+        probe_put(record, 3u, depth);
+        probe_put3(record, 4u, origin);
+        probe_put3(record, 7u, bitcast<vec3<u32>>(vec3<f32>(last_exit)));
+        return;
     }
     colour = colour + trans * params.background.xyz;
     let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));

@@ -121,6 +121,15 @@ def main(argv=None) -> int:
     )
     precision_scale.add_arguments(pr)
     pr.set_defaults(func=precision_scale.command)
+    from . import gpu_probe
+
+    gp = sub.add_parser(
+        "gpu-probe",
+        help="the painter's GPU ray caster against the angle bound, the emulation and mpmath, ray by ray",
+        description=gpu_probe.__doc__.split("\n\n")[0],
+    )
+    gpu_probe.add_arguments(gp)
+    gp.set_defaults(func=gpu_probe.command)
     args = ap.parse_args(argv)
     return args.func(args)
 

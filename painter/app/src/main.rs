@@ -9,6 +9,7 @@ mod bench_tree;
 mod canonical;
 mod document;
 mod export;
+mod probe;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -167,6 +168,11 @@ enum Command {
     Undo(document::StepArgs),
     /// Redo undone strokes of a document, and save it.
     Redo(document::StepArgs),
+    /// Trace every pixel's ray of a camera through a tree dump with the
+    /// GPU ray caster and write one record per ray (.npz): where it
+    /// stopped and why, where it started. The precision study compares
+    /// them with the reference and mpmath (docs/precision.md).
+    Probe(probe::Args),
     /// Benchmarks that print figures (docs/benchmarks.md).
     Bench {
         #[command(subcommand)]
@@ -425,6 +431,7 @@ fn main() -> ExitCode {
         Command::Recover { doc } => document::recover(&doc),
         Command::Record { doc, out } => document::record(&doc, &out),
         Command::Dump { doc, out } => document::dump(&doc, &out),
+        Command::Probe(args) => probe::run(&args),
         Command::Undo(args) => document::step(&args, false),
         Command::Redo(args) => document::step(&args, true),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {

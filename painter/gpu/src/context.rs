@@ -27,6 +27,8 @@ pub enum GpuError {
     NoF16,
     #[error("reading back from the GPU failed: {0}")]
     Readback(String),
+    #[error("too big for this GPU: {0}")]
+    TooBig(String),
 }
 
 /// What to install when no adapter is found.

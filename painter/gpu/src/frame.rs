@@ -136,6 +136,14 @@ impl Renderer {
         self.cast(tree, camera, precision)
     }
 
+    /// Every pixel's ray of `camera` over `tree`, traced with everything
+    /// uploaded: one probe record per ray, row by row from the top
+    /// (docs/precision.md, "The GPU's f16").
+    pub fn probe(&mut self, tree: &mut Tree, camera: &Camera, precision: Precision) -> Result<Vec<crate::raycast::ProbeRecord>, GpuError> {
+        self.sync(tree)?;
+        self.ray.probe(&self.gpu, &self.pools, &RayParams::new(&tree.lat, camera), precision)
+    }
+
     /// g3 of every used cell, as the GPU holds it (after a sync).
     pub fn read_g3(&mut self, tree: &mut Tree) -> Result<Vec<[u32; 3]>, GpuError> {
         self.sync(tree)?;

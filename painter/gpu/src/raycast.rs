@@ -50,6 +50,53 @@ impl RayParamsGpu {
     }
 }
 
+/// Words of one ray's probe record (shaders/raycast.wgsl `PROBE_WORDS`).
+pub const PROBE_WORDS: u64 = 20;
+
+/// One ray as the ray caster traced it, from the shader's probe record
+/// (docs/precision.md, "The GPU's f16"): where it stopped and why, and
+/// where it started. Points are in the frame of their cell (centre 0, edge
+/// 1), the shader's `real` values widened to f32 (exactly).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeRecord {
+    /// Why the ray stopped: 1 left the canvas, 2 opaque, 3 lost, 4 step
+    /// limit (shaders/raycast.wgsl).
+    pub status: u32,
+    /// Cells crossed.
+    pub steps: u32,
+    /// The last cell crossed, its depth and lattice origin.
+    pub cell: u32,
+    pub depth: u32,
+    pub origin: [u32; 3],
+    /// Where the ray left the last cell.
+    pub exit: [f32; 3],
+    /// The ray's direction as the shader computed it (f32, unit length).
+    pub dir: [f32; 3],
+    /// The cell the ray started in, and the start point in its frame.
+    pub start_depth: u32,
+    pub start_origin: [u32; 3],
+    pub start: [f32; 3],
+}
+
+impl ProbeRecord {
+    fn from_words(w: &[u32]) -> Self {
+        let u3 = |k: usize| [w[k], w[k + 1], w[k + 2]];
+        let f3 = |k: usize| u3(k).map(f32::from_bits);
+        ProbeRecord {
+            status: w[0],
+            steps: w[1],
+            cell: w[2],
+            depth: w[3],
+            origin: u3(4),
+            exit: f3(7),
+            dir: f3(10),
+            start_depth: w[13],
+            start_origin: u3(14),
+            start: f3(17),
+        }
+    }
+}
+
 pub struct RayCaster {
     pipelines: Vec<(Precision, wgpu::ComputePipeline)>,
     layout_params: wgpu::BindGroupLayout,
@@ -115,11 +162,17 @@ impl RayCaster {
     /// Encode the ray cast of one image into `enc`; the pixels stay on the
     /// GPU until [`RayCaster::read_image`].
     pub fn encode(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision) -> Result<(), GpuError> {
+        self.encode_words(gpu, pools, enc, params, precision, false)
+    }
+
+    fn encode_words(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, probe: bool) -> Result<(), GpuError> {
         let pipeline = self.pipelines.iter().find(|(p, _)| *p == precision).map(|(_, p)| p.clone()).ok_or(GpuError::NoF16)?;
         let n = u64::from(params.width) * u64::from(params.height);
-        let pixels = self.pixels(gpu, n);
+        let pixels = self.pixels(gpu, if probe { n * PROBE_WORDS } else { n });
         let held = pools.cells_held().min(u64::from(u32::MAX)) as u32;
-        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&RayParamsGpu::from_params(params, held)));
+        let mut uniform = RayParamsGpu::from_params(params, held);
+        uniform.flags[1] = u32::from(probe);
+        gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&uniform));
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ray params"),
             layout: &self.layout_params,
@@ -135,6 +188,25 @@ impl RayCaster {
         pass.set_bind_group(2, &group, &[]);
         pass.dispatch_workgroups(params.width.div_ceil(8), params.height.div_ceil(8), 1);
         Ok(())
+    }
+
+    /// Trace every pixel's ray of `params` and read back each ray's probe
+    /// record, row by row from the top. Refused (before any GPU work)
+    /// when the records would not fit one storage binding of the device.
+    pub fn probe(&mut self, gpu: &Gpu, pools: &GpuPools, params: &RayParams, precision: Precision) -> Result<Vec<ProbeRecord>, GpuError> {
+        let n = u64::from(params.width) * u64::from(params.height);
+        let bytes = n * PROBE_WORDS * 4;
+        let limit = u64::from(gpu.device.limits().max_storage_buffer_binding_size);
+        if bytes > limit {
+            return Err(GpuError::TooBig(format!("{n} probed rays need {bytes} bytes of records; the device binds at most {limit}")));
+        }
+        let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray probe") });
+        self.encode_words(gpu, pools, &mut enc, params, precision, true)?;
+        gpu.queue.submit([enc.finish()]);
+        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let raw = read_buffer(gpu, buf, bytes)?;
+        let words: Vec<u32> = raw.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        Ok(words.chunks_exact(PROBE_WORDS as usize).map(ProbeRecord::from_words).collect())
     }
 
     /// The buffer the last image was cast into: one u32 per pixel, sRGB

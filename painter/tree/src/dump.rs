@@ -84,6 +84,70 @@ pub fn write_npz<W: Write + Seek>(out: W, arrays: &[NpyArray]) -> std::io::Resul
     zip.finish().map_err(std::io::Error::other)
 }
 
+/// One `.npy` entry of a dump being read.
+type Npy = npyz::NpyFile<Cursor<Vec<u8>>>;
+
+/// A tree from a dump's bytes (spec 11.1; what either implementation
+/// wrote at a snapshot, or `octopaint-ref` wrote for any tree): the pools
+/// and the canvas, refused with a message naming the entry or the first
+/// problem unless every array is there with its dtype and shape, the
+/// canvas is one a trace may declare, and the tree passes every check of
+/// `octopaint-ref check` but g3 (which is not read: it follows from the
+/// links). The cell budget is the dump's length.
+pub fn read_dump(bytes: &[u8]) -> Result<Tree, String> {
+    let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| format!("not an .npz (zip) file: {e}"))?;
+    let mut entry = |name: &str, dtype: &str, shape: &[Option<u64>]| -> Result<(Vec<u64>, Npy), String> {
+        let mut data = Vec::new();
+        let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| format!("{name}.npy: {e}"))?;
+        std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
+        let npy = npyz::NpyFile::new(Cursor::new(data)).map_err(|e| format!("{name}.npy: not an .npy array: {e}"))?;
+        let got = npy.dtype().descr();
+        let want = format!("'{dtype}'");
+        // One-byte types have no byte order: numpy writes '|u1'.
+        if got.trim() != want && !(dtype == "|u1" && got.trim() == "'<u1'") {
+            return Err(format!("{name}.npy: dtype {} where {dtype} is expected", got.trim()));
+        }
+        let sh = npy.shape().to_vec();
+        if sh.len() != shape.len() || sh.iter().zip(shape).any(|(g, w)| w.is_some_and(|w| w != *g)) {
+            return Err(format!("{name}.npy: shape {sh:?} where {} is expected", fmt_shape(shape)));
+        }
+        if npy.order() != npyz::Order::C {
+            return Err(format!("{name}.npy: Fortran order is not read"));
+        }
+        Ok((sh, npy))
+    };
+    let vec = |name: &str, npy: Npy| -> Result<Vec<u8>, String> { npy.into_vec::<u8>().map_err(|e| format!("{name}.npy: {e}")) };
+    let u32s = |name: &str, npy: Npy| -> Result<Vec<u32>, String> { npy.into_vec::<u32>().map_err(|e| format!("{name}.npy: {e}")) };
+    let (_, roots) = entry("roots", "<u4", &[Some(3)])?;
+    let roots = u32s("roots", roots)?;
+    let (_, max_depth) = entry("max_depth", "<u4", &[])?;
+    let max_depth = u32s("max_depth", max_depth)?[0];
+    let (_, root_size) = entry("root_size", "<f8", &[])?;
+    let root_size = root_size.into_vec::<f64>().map_err(|e| format!("root_size.npy: {e}"))?[0];
+    let (sh, parent) = entry("parent", "<u4", &[None])?;
+    let n = sh[0];
+    if n > crate::trace::MAX_CAPACITY as u64 {
+        return Err(format!("{n} cells are more than the {} a canvas may hold", crate::trace::MAX_CAPACITY));
+    }
+    let header = serde_json::json!({"roots": roots, "max_depth": max_depth, "root_size": root_size, "capacity": n});
+    let canvas = crate::trace::parse_canvas(0, &header).map_err(|e| format!("the dump's canvas: {}", e.message))?;
+    let parent = u32s("parent", parent)?;
+    let (_, fc) = entry("first_child", "<u4", &[Some(n)])?;
+    let first_child = u32s("first_child", fc)?;
+    let (_, depth) = entry("depth", "|u1", &[Some(n)])?;
+    let depth = vec("depth", depth)?;
+    let (_, rgb) = entry("rgb", "|u1", &[Some(n), Some(3)])?;
+    let rgb: Vec<[u8; 3]> = vec("rgb", rgb)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let (_, sigma) = entry("sigma", "<f4", &[Some(n)])?;
+    let sigma = sigma.into_vec::<f32>().map_err(|e| format!("sigma.npy: {e}"))?;
+    Tree::from_pools(&canvas, parent, first_child, depth, rgb, sigma).map_err(|e| format!("not a valid tree: {e}"))
+}
+
+fn fmt_shape(shape: &[Option<u64>]) -> String {
+    let dims: Vec<String> = shape.iter().map(|d| d.map_or("N".to_string(), |d| d.to_string())).collect();
+    format!("[{}]", dims.join(", "))
+}
+
 /// Lattice origin of every cell (NONE for free cells), parents first.
 pub fn origins(tree: &Tree) -> Vec<[u32; 3]> {
     let n = tree.n_used() as usize;
@@ -194,4 +258,64 @@ mod tests {
         // The same tree gives the same bytes.
         assert_eq!(bytes, dump_bytes(&tree));
     }
+
+    #[test]
+    fn a_dump_reads_back_as_the_same_tree_and_bad_dumps_are_refused() {
+        let canvas = crate::trace::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 256 };
+        let mut tree = Tree::new(&canvas);
+        let u = tree.allocate_unit().unwrap();
+        tree.make_children(0, u);
+        tree.set_value(u + 3, [10, 20, 30], 2.5);
+        let bytes = dump_bytes(&tree);
+        let back = read_dump(&bytes).unwrap();
+        assert_eq!((&back.parent, &back.first_child, &back.depth, &back.rgb), (&tree.parent, &tree.first_child, &tree.depth, &tree.rgb));
+        assert_eq!(back.sigma.iter().map(|s| s.to_bits()).collect::<Vec<_>>(), tree.sigma.iter().map(|s| s.to_bits()).collect::<Vec<_>>());
+        assert_eq!((back.lat.roots, back.lat.max_depth, back.lat.root_size), ([2, 1, 1], 4, 0.5));
+        assert_eq!(dump_bytes(&back), bytes);
+
+        let e = read_dump(b"hello").map(|_| ()).unwrap_err();
+        assert!(e.contains("not an .npz"), "{e}");
+        // Rewrite the dump with one array changed (None: left out).
+        let n = tree.n_used() as usize;
+        let with = |name: &str, values: Option<Values>, shape: Vec<usize>| {
+            let origin = origins(&tree);
+            let g3 = g3_table(&tree);
+            let (roots, md, rs) = (tree.lat.roots, [tree.lat.max_depth], [tree.lat.root_size]);
+            let mut arrays = vec![
+                NpyArray { name: "parent", shape: vec![n], values: Values::U32(&tree.parent) },
+                NpyArray { name: "first_child", shape: vec![n], values: Values::U32(&tree.first_child) },
+                NpyArray { name: "depth", shape: vec![n], values: Values::U8(&tree.depth) },
+                NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
+                NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&tree.sigma) },
+                NpyArray { name: "g3", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&g3)) },
+                NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&origin)) },
+                NpyArray { name: "roots", shape: vec![3], values: Values::U32(&roots[..]) },
+                NpyArray { name: "max_depth", shape: vec![], values: Values::U32(&md[..]) },
+                NpyArray { name: "root_size", shape: vec![], values: Values::F64(&rs[..]) },
+            ];
+            let k = arrays.iter().position(|a| a.name == name).unwrap();
+            match values {
+                Some(v) => arrays[k] = NpyArray { name: arrays[k].name, shape, values: v },
+                None => drop(arrays.remove(k)),
+            }
+            read_dump(&write_npz(Cursor::new(Vec::new()), &arrays).unwrap().into_inner()).map(|_| ()).unwrap_err()
+        };
+        let e = with("sigma", None, vec![]);
+        assert!(e.contains("sigma.npy"), "{e}");
+        let sigma64: Vec<f64> = tree.sigma.iter().map(|&s| f64::from(s)).collect();
+        let e = with("sigma", Some(Values::F64(&sigma64)), vec![n]);
+        assert!(e.contains("sigma.npy: dtype '<f8' where <f4 is expected"), "{e}");
+        let e = with("depth", Some(Values::U8(&tree.depth[..n - 8])), vec![n - 8]);
+        assert!(e.contains("depth.npy: shape [") && e.contains("where ["), "{e}");
+        let mut parent = tree.parent.clone();
+        parent[u as usize + 5] = 1;
+        let e = with("parent", Some(Values::U32(&parent)), vec![n]);
+        assert!(e.starts_with("not a valid tree"), "{e}");
+        let e = with("max_depth", Some(Values::U32(&[40])), vec![]);
+        assert!(e.contains("the dump's canvas") && e.contains("max_depth"), "{e}");
+        let nan = [f64::NAN];
+        let e = with("root_size", Some(Values::F64(&nan)), vec![]);
+        assert!(e.contains("the dump's canvas") && e.contains("root_size"), "{e}");
+    }
+
 }
