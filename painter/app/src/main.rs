@@ -10,6 +10,7 @@ mod canonical;
 mod document;
 mod export;
 mod probe;
+mod render;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -168,6 +169,9 @@ enum Command {
     Undo(document::StepArgs),
     /// Redo undone strokes of a document, and save it.
     Redo(document::StepArgs),
+    /// Render a document to a PNG, or a turntable around the painting
+    /// (PNG frames and an animated GIF) to share (docs/render.md).
+    Render(render::Args),
     /// Trace every pixel's ray of a camera through a tree dump with the
     /// GPU ray caster and write one record per ray (.npz): where it
     /// stopped and why, where it started. The precision study compares
@@ -432,6 +436,7 @@ fn main() -> ExitCode {
         Command::Record { doc, out } => document::record(&doc, &out),
         Command::Dump { doc, out } => document::dump(&doc, &out),
         Command::Probe(args) => probe::run(&args),
+        Command::Render(args) => render::run(&args),
         Command::Undo(args) => document::step(&args, false),
         Command::Redo(args) => document::step(&args, true),
         Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {

@@ -13,12 +13,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::{DQuat, DVec3, EulerRot};
+use glam::DVec3;
 use octopaint_doc::Session;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
-use octopaint_tree::trace::{Brush, Camera, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
+use octopaint_tree::trace::{Brush, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -69,45 +70,6 @@ struct BrushUi {
 impl BrushUi {
     fn brush(&self) -> Brush {
         Brush::new(self.shape, self.mode, self.radius, self.colour.map(f64::from), self.opacity, self.hardness)
-    }
-}
-
-/// An orbit camera around `target`; flying moves the target.
-struct OrbitCamera {
-    target: DVec3,
-    distance: f64,
-    yaw: f64,
-    pitch: f64,
-    fov_y: f64,
-}
-
-impl OrbitCamera {
-    fn rotation(&self) -> DQuat {
-        DQuat::from_euler(EulerRot::YXZ, self.yaw, self.pitch, 0.0)
-    }
-    fn eye(&self) -> DVec3 {
-        self.target + self.rotation() * DVec3::new(0.0, 0.0, self.distance)
-    }
-    fn camera(&self, size: [u32; 2]) -> Camera {
-        let q = self.rotation();
-        let aspect = f64::from(size[0]) / f64::from(size[1].max(1));
-        let ty = (self.fov_y / 2.0).tan();
-        let tx = ty * aspect;
-        Camera {
-            eye: self.eye().to_array(),
-            q: [q.x, q.y, q.z, q.w],
-            fov: [-tx.atan(), tx.atan(), ty.atan(), -ty.atan()],
-            size,
-            background: [0.06, 0.06, 0.08],
-        }
-    }
-    /// The ray through window pixel (x, y), as spec 7 defines it.
-    fn ray(&self, size: [u32; 2], x: f64, y: f64) -> (DVec3, DVec3) {
-        let c = self.camera(size);
-        let (l, r, u, d) = (c.fov[0].tan(), c.fov[1].tan(), c.fov[2].tan(), c.fov[3].tan());
-        let tx = l + (x + 0.5) / f64::from(size[0]) * (r - l);
-        let ty = u - (y + 0.5) / f64::from(size[1]) * (u - d);
-        (self.eye(), (self.rotation() * DVec3::new(tx, ty, -1.0)).normalize())
     }
 }
 
@@ -347,7 +309,7 @@ impl App {
         let tree = &mut self.session.painting.tree;
         r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
-        let camera = r.camera.camera(size);
+        let camera = r.camera.camera(size, BACKGROUND);
         let params = RayParams::new(&tree.lat, &camera);
         // The panel.
         let raw = r.egui_state.take_egui_input(&r.window);
@@ -484,13 +446,6 @@ fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], for
     let raw = octopaint_gpu::pools::read_buffer(gpu, buf, u64::from(row) * u64::from(size[1])).map_err(|e| e.to_string())?;
     let rgb = octopaint_gpu::image::texels_to_rgb(&raw, row, size, format);
     octopaint_gpu::image::write_png(path, &rgb, size[0], size[1]).map_err(|e| e.to_string())
-}
-
-/// A camera looking at everything painted (or the whole canvas).
-fn frame_painting(tree: &Tree) -> OrbitCamera {
-    let (lo, hi) = tree.painted_bounds();
-    let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
-    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians() }
 }
 
 struct StatusInfo {

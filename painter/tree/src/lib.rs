@@ -12,6 +12,7 @@
 //! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
 //! | [`g3`] | g3, shader-shaped, plus brute force | g3.py |
 //! | [`raycast`] | the ray caster's CPU port, shader-shaped | raycast.py |
+//! | [`view`] | orbit cameras, the view framing the painting | camera.py (orbit_camera) |
 //! | [`dirty`] | dirty blocks, dirty cells, neighbour mask | tree.py |
 //! | [`brush`] | primitives, reach, coverage, blend modes | brush.py |
 //! | [`noise`] | hashed permutation, improved Perlin noise | noise.py |
@@ -42,6 +43,7 @@ pub mod replay;
 pub mod stroke;
 pub mod trace;
 pub mod trace_write;
+pub mod view;
 
 pub use paint::Painting;
 pub use pool::{FREE, NONE, Tree, UNIT};

@@ -1,0 +1,267 @@
+//! `octopaint render`: pictures of a document to share (docs/render.md). One
+//! PNG from a camera (by default the view that frames everything painted,
+//! the window's first view), or a turntable: N frames on a circle around the
+//! painting's centre, written as PNGs and as one looping animated GIF.
+//!
+//! Every argument is checked and the document read before anything is
+//! written; each file is written whole or not at all (a temporary file,
+//! fsync, rename). An interrupted turntable leaves the frames written so far
+//! and no GIF.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use image::codecs::gif::{GifEncoder, Repeat};
+use image::{Delay, Frame, RgbaImage};
+use indicatif::{ProgressBar, ProgressStyle};
+use octopaint_doc::Session;
+use octopaint_gpu::{Backend, Precision, Renderer};
+use octopaint_tree::Tree;
+use octopaint_tree::raycast::{RayInput, RayParams};
+use octopaint_tree::trace::{Camera, MAX_IMAGE_SIZE, parse_camera};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
+
+/// The most frames a turntable takes (one per 0.1°).
+pub const MAX_FRAMES: u32 = 3600;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The document (.octo); it is read, never changed.
+    doc: PathBuf,
+    /// The camera as a trace's camera event holds it (spec 12): a JSON
+    /// object with eye, q, fov, size and optionally background. Default:
+    /// the view that frames everything painted. Not with --turntable.
+    #[arg(long, conflicts_with = "turntable")]
+    camera: Option<String>,
+    /// Picture size, WxH pixels (default: the camera's, else 1280x720).
+    #[arg(long)]
+    size: Option<String>,
+    /// Where to write: a .png, or with --turntable a folder (created if
+    /// missing) that receives frame-000.png, frame-001.png, ... and
+    /// turntable.gif.
+    #[arg(long)]
+    out: PathBuf,
+    /// Render N frames around the painting's centre (one full turn, the
+    /// camera looking at the centre from the framing view's distance).
+    #[arg(long, value_name = "N")]
+    turntable: Option<u32>,
+    /// With --turntable: the camera's height above the centre, degrees
+    /// (default: the framing view's, about 20, so that frame 0 is the
+    /// default single picture).
+    #[arg(long, allow_negative_numbers = true, requires = "turntable")]
+    elevation: Option<f64>,
+    /// With --turntable: how long the GIF shows each frame, ms (10..10000).
+    #[arg(long, default_value_t = 50, requires = "turntable")]
+    frame_ms: u32,
+    /// Who draws: the GPU ray caster or its CPU port.
+    #[arg(long, value_enum, default_value_t = crate::RendererChoice::Gpu)]
+    renderer: crate::RendererChoice,
+    /// The graphics API of the GPU renderer.
+    #[arg(long, value_enum, default_value_t = crate::BackendChoice::Auto)]
+    backend: crate::BackendChoice,
+    /// Precision of the GPU ray caster's positions.
+    #[arg(long, value_enum, default_value_t = crate::PrecisionChoice::F32)]
+    precision: crate::PrecisionChoice,
+    /// Print nothing but errors.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// What to render, fully checked.
+struct Plan {
+    cameras: Vec<Camera>,
+    /// Some(folder) for a turntable.
+    folder: Option<PathBuf>,
+}
+
+fn refuse(msg: impl AsRef<str>) -> ExitCode {
+    eprintln!("octopaint: render: {}", msg.as_ref());
+    ExitCode::from(2)
+}
+
+fn parse_size(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s.split_once('x').ok_or_else(|| format!("--size {s:?}: expected WxH, e.g. 1280x720"))?;
+    let dim = |v: &str| v.trim().parse::<u32>().ok().filter(|&v| (1..=MAX_IMAGE_SIZE as u32).contains(&v));
+    match (dim(w), dim(h)) {
+        (Some(w), Some(h)) => Ok([w, h]),
+        _ => Err(format!("--size {s:?}: each side must be a whole number from 1 to {MAX_IMAGE_SIZE}")),
+    }
+}
+
+/// The turntable's cameras: `n` yaws evenly spread over one turn, starting
+/// at the framing view's, at `elevation` degrees, looking at its target.
+pub fn turntable(start: &OrbitCamera, n: u32, elevation_deg: f64, size: [u32; 2]) -> Vec<Camera> {
+    (0..n)
+        .map(|k| {
+            let yaw = start.yaw + std::f64::consts::TAU * f64::from(k) / f64::from(n);
+            let pitch = if (elevation_deg + start.pitch.to_degrees()).abs() < 1e-12 { start.pitch } else { -elevation_deg.to_radians() };
+            OrbitCamera { yaw, pitch, ..*start }.camera(size, BACKGROUND)
+        })
+        .collect()
+}
+
+fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
+    let size = a.size.as_deref().map(parse_size).transpose()?;
+    if let Some(n) = a.turntable {
+        if !(1..=MAX_FRAMES).contains(&n) {
+            return Err(format!("--turntable {n}: from 1 to {MAX_FRAMES} frames"));
+        }
+        let start = frame_painting(tree);
+        let elevation = a.elevation.unwrap_or(-start.pitch.to_degrees());
+        if !(elevation.is_finite() && elevation.abs() < 90.0) {
+            return Err(format!("--elevation {elevation}: must be strictly between -90 and 90 degrees"));
+        }
+        if !(10..=10_000).contains(&a.frame_ms) {
+            return Err(format!("--frame-ms {}: from 10 to 10000", a.frame_ms));
+        }
+        if a.out.is_file() {
+            return Err(format!("--out {}: with --turntable it is a folder, and a file of that name exists", a.out.display()));
+        }
+        let cameras = turntable(&start, n, elevation, size.unwrap_or([1280, 720]));
+        return Ok(Plan { cameras, folder: Some(a.out.clone()) });
+    }
+    if a.out.is_dir() {
+        return Err(format!("--out {}: is a folder; a single picture needs a file name (.png)", a.out.display()));
+    }
+    let camera = match &a.camera {
+        Some(text) => {
+            let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--camera: not JSON: {e}"))?;
+            let mut c = parse_camera(0, &v).map_err(|e| format!("--camera: {}", e.message))?;
+            if let Some(s) = size {
+                c.size = s;
+            }
+            c
+        }
+        None => frame_painting(tree).camera(size.unwrap_or([1280, 720]), BACKGROUND),
+    };
+    Ok(Plan { cameras: vec![camera], folder: None })
+}
+
+enum Draw {
+    Gpu(Box<Renderer>, Precision),
+    Cpu(Vec<[u32; 3]>),
+}
+
+impl Draw {
+    fn image(&mut self, tree: &mut Tree, camera: &Camera) -> Result<Vec<u8>, String> {
+        match self {
+            Draw::Gpu(r, precision) => r.cast(tree, camera, *precision).map_err(|e| e.to_string()),
+            Draw::Cpu(g3) => {
+                let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 };
+                Ok(octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera)))
+            }
+        }
+    }
+}
+
+fn drawer(a: &Args, tree: &mut Tree) -> Result<Draw, String> {
+    match a.renderer {
+        crate::RendererChoice::Cpu => Ok(Draw::Cpu(octopaint_tree::g3::g3_table(tree))),
+        crate::RendererChoice::None => Err("--renderer none draws nothing: use gpu or cpu".into()),
+        crate::RendererChoice::Gpu => {
+            let backend = match a.backend {
+                crate::BackendChoice::Auto => Backend::Auto,
+                crate::BackendChoice::Vulkan => Backend::Vulkan,
+                crate::BackendChoice::Gl => Backend::Gl,
+            };
+            let precision = match a.precision {
+                crate::PrecisionChoice::F32 => Precision::F32,
+                crate::PrecisionChoice::F16 => Precision::F16,
+            };
+            let mut r = Renderer::new(backend).map_err(|e| format!("{e}; --renderer cpu draws on the CPU"))?;
+            if !r.gpu.supports(precision) {
+                return Err(format!("{} has no SHADER_F16 for --precision f16", r.gpu.describe()));
+            }
+            if !a.quiet {
+                eprintln!("octopaint: rendering on {}", r.gpu.describe());
+            }
+            r.sync(tree).map_err(|e| e.to_string())?;
+            Ok(Draw::Gpu(Box::new(r), precision))
+        }
+    }
+}
+
+fn write_png(path: &Path, rgb: &[u8], size: [u32; 2]) -> Result<(), String> {
+    octopaint_gpu::image::write_png(path, rgb, size[0], size[1]).map_err(|e| format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e)))
+}
+
+pub fn run(a: &Args) -> ExitCode {
+    // Read and check everything before writing anything.
+    let mut session = match Session::open(&a.doc) {
+        Ok(s) => s,
+        Err(e) => return refuse(format!("{}: {e}", a.doc.display())),
+    };
+    let tree = &mut session.painting.tree;
+    let plan = match plan(a, tree) {
+        Ok(p) => p,
+        Err(e) => return refuse(e),
+    };
+    let mut draw = match drawer(a, tree) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("octopaint: render: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    if let Some(dir) = &plan.folder
+        && let Err(e) = std::fs::create_dir_all(dir)
+    {
+        eprintln!("octopaint: render: cannot create {}: {}", dir.display(), octopaint_tree::trace::io_reason(&e));
+        return ExitCode::from(1);
+    }
+    let bar = ProgressBar::new(plan.cameras.len() as u64);
+    bar.set_style(ProgressStyle::with_template("{spinner} rendering {pos}/{len} [{elapsed_precise}] {wide_bar}").expect("static template"));
+    if a.quiet || plan.folder.is_none() {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let t0 = Instant::now();
+    let mut gif = Vec::new();
+    let result = (|| -> Result<(), String> {
+        let mut encoder = plan.folder.as_ref().map(|_| {
+            let mut e = GifEncoder::new_with_speed(&mut gif, 10);
+            e.set_repeat(Repeat::Infinite).map(|_| e)
+        });
+        for (k, camera) in plan.cameras.iter().enumerate() {
+            let rgb = draw.image(tree, camera)?;
+            let path = match &plan.folder {
+                Some(dir) => dir.join(format!("frame-{k:03}.png")),
+                None => a.out.clone(),
+            };
+            write_png(&path, &rgb, camera.size)?;
+            if let Some(enc) = encoder.as_mut() {
+                let enc = enc.as_mut().map_err(|e| format!("GIF: {e}"))?;
+                let rgba: Vec<u8> = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 255]).collect();
+                let img = RgbaImage::from_raw(camera.size[0], camera.size[1], rgba).expect("w·h·4 bytes");
+                let frame = Frame::from_parts(img, 0, 0, Delay::from_numer_denom_ms(a.frame_ms, 1));
+                enc.encode_frame(frame).map_err(|e| format!("GIF: {e}"))?;
+            }
+            bar.inc(1);
+        }
+        drop(encoder);
+        Ok(())
+    })();
+    bar.finish_and_clear();
+    if let Err(e) = result {
+        eprintln!("octopaint: render: {e}");
+        return ExitCode::from(1);
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    let [w, h] = plan.cameras[0].size;
+    match &plan.folder {
+        Some(dir) => {
+            let path = dir.join("turntable.gif");
+            if let Err(e) = octopaint_platform::durable::write(&path, &gif) {
+                eprintln!("octopaint: render: cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e));
+                return ExitCode::from(1);
+            }
+            if !a.quiet {
+                let n = plan.cameras.len();
+                eprintln!("octopaint: {n} frames of {w}x{h} in {seconds:.1} s ({:.0} ms each): {}/frame-*.png and {}", seconds * 1e3 / n as f64, dir.display(), path.display());
+            }
+        }
+        None if !a.quiet => eprintln!("octopaint: {w}x{h} in {:.0} ms: {}", seconds * 1e3, a.out.display()),
+        None => {}
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,61 @@
+//! Views of a painting from outside: an orbit camera (the desktop
+//! window's, `octopaint render`'s and its turntables') and the view that
+//! frames everything painted.
+
+use glam::{DQuat, DVec3, EulerRot};
+
+use crate::pool::Tree;
+use crate::trace::Camera;
+
+/// The desktop window's background, and the default of renders.
+pub const BACKGROUND: [f64; 3] = [0.06, 0.06, 0.08];
+
+/// A camera on a sphere around `target`, looking at it: turned by `yaw`
+/// about the canvas's y axis, then tilted by `pitch` (radians; negative
+/// looks down), `distance` canvas units away, `fov_y` the vertical field
+/// of view (radians).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OrbitCamera {
+    pub target: DVec3,
+    pub distance: f64,
+    pub yaw: f64,
+    pub pitch: f64,
+    pub fov_y: f64,
+}
+
+impl OrbitCamera {
+    pub fn rotation(&self) -> DQuat {
+        DQuat::from_euler(EulerRot::YXZ, self.yaw, self.pitch, 0.0)
+    }
+
+    pub fn eye(&self) -> DVec3 {
+        self.target + self.rotation() * DVec3::new(0.0, 0.0, self.distance)
+    }
+
+    /// The trace camera of an image of `size` pixels (square pixels).
+    pub fn camera(&self, size: [u32; 2], background: [f64; 3]) -> Camera {
+        let q = self.rotation();
+        let aspect = f64::from(size[0]) / f64::from(size[1].max(1));
+        let ty = (self.fov_y / 2.0).tan();
+        let tx = ty * aspect;
+        Camera { eye: self.eye().to_array(), q: [q.x, q.y, q.z, q.w], fov: [-tx.atan(), tx.atan(), ty.atan(), -ty.atan()], size, background }
+    }
+
+    /// The ray through pixel (x, y) of an image of `size`, as spec 7
+    /// defines it: (eye, unit direction).
+    pub fn ray(&self, size: [u32; 2], x: f64, y: f64) -> (DVec3, DVec3) {
+        let c = self.camera(size, BACKGROUND);
+        let (l, r, u, d) = (c.fov[0].tan(), c.fov[1].tan(), c.fov[2].tan(), c.fov[3].tan());
+        let tx = l + (x + 0.5) / f64::from(size[0]) * (r - l);
+        let ty = u - (y + 0.5) / f64::from(size[1]) * (u - d);
+        (self.eye(), (self.rotation() * DVec3::new(tx, ty, -1.0)).normalize())
+    }
+}
+
+/// A camera looking at everything painted (or the whole canvas when
+/// nothing is), from a little above, with a 60° vertical field of view.
+pub fn frame_painting(tree: &Tree) -> OrbitCamera {
+    let (lo, hi) = tree.painted_bounds();
+    let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
+    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians() }
+}
