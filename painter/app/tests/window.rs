@@ -83,6 +83,16 @@ fn start_xvfb() -> (Xvfb, String) {
     (x, format!(":{n}"))
 }
 
+/// An 800x600 RGB PNG's pixels.
+fn read_rgb(path: &std::path::Path) -> Vec<u8> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!((info.width, info.height), (800, 600));
+    buf
+}
+
 /// The X window id of the painter's visible window, once it shows. A
 /// painter that exits first, or a window that does not show within a
 /// minute, fails the test with everything the painter printed.
@@ -153,8 +163,21 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     }
     xdotool(&display, &["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
+    // The brush cursor over empty canvas, away from the stroke.
+    xdotool(&display, &["mousemove", "--window", &id, "700", "120"]);
+    std::thread::sleep(Duration::from_millis(500));
     xdotool(&display, &["key", "F12"]);
     wait_for("the screenshot", Duration::from_secs(60), || shot.exists());
+    let first = read_rgb(&shot);
+    // F frames the painting: the stroke moves to the middle of the view
+    // (the cursor goes onto the panel, where no ghost is drawn).
+    std::fs::remove_file(&shot).unwrap();
+    xdotool(&display, &["mousemove", "--window", &id, "100", "500"]);
+    xdotool(&display, &["key", "f"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&display, &["key", "F12"]);
+    wait_for("the second screenshot", Duration::from_secs(60), || shot.exists());
+    let framed = read_rgb(&shot);
     xdotool(&display, &["key", "ctrl+q"]);
     let t0 = Instant::now();
     let status = loop {
@@ -174,11 +197,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
 
     // The picture: 800x600, the stroke's orange in the view, the panel's
     // light text on its dark background.
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert_eq!((info.width, info.height), (800, 600));
+    let buf = first;
     let px = |x: usize, y: usize| &buf[(y * 800 + x) * 3..][..3];
     let mut orange = 0;
     let mut text = 0;
@@ -196,6 +215,54 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     }
     assert!(orange > 1500, "the stroke covers {orange} pixels of the view");
     assert!(text > 300, "the panel shows {text} pixels of text");
+
+    // The brush cursor: a ring of the brush's orange around (700, 120),
+    // about 16 pixels across at this zoom, over the empty canvas.
+    let is_orange = |p: &[u8]| {
+        let (r, g, b) = (i32::from(p[0]), i32::from(p[1]), i32::from(p[2]));
+        r > 150 && r > g + 40 && g > b + 20
+    };
+    let (mut ring, mut far) = (0, 0);
+    for y in 60..180 {
+        for x in 640..760 {
+            let d = (((x as f64) - 700.0).powi(2) + ((y as f64) - 120.0).powi(2)).sqrt();
+            if is_orange(px(x, y)) {
+                if (8.0..26.0).contains(&d) {
+                    ring += 1;
+                } else if d >= 30.0 {
+                    far += 1;
+                }
+            }
+        }
+    }
+    assert!(ring > 40 && far == 0, "cursor ring: {ring} orange pixels near, {far} far");
+    // The axes in the view's corner, above the status line: red x, green
+    // y, blue z.
+    let (mut red, mut green, mut blue) = (0, 0, 0);
+    for y in 420..590 {
+        for x in 660..800 {
+            let (r, g, b) = (i32::from(px(x, y)[0]), i32::from(px(x, y)[1]), i32::from(px(x, y)[2]));
+            red += i32::from(r > 180 && g < 110 && b < 110);
+            green += i32::from(g > 150 && r < 130 && b < 130);
+            blue += i32::from(b > 180 && r < 130 && g < 170);
+        }
+    }
+    assert!(red > 15 && green > 15 && blue > 15, "axes: {red} red, {green} green, {blue} blue pixels");
+    // Framed: the stroke's pixels centre on the middle of the image (the
+    // framing view looks at the middle of what is painted).
+    let (mut n, mut sx, mut sy) = (0f64, 0f64, 0f64);
+    for y in 0..560 {
+        for x in 260..800 {
+            if is_orange(&framed[(y * 800 + x) * 3..][..3]) {
+                n += 1.0;
+                sx += x as f64;
+                sy += y as f64;
+            }
+        }
+    }
+    assert!(n > 1500.0, "the framed view shows {n} stroke pixels");
+    let (cx, cy) = (sx / n, sy / n);
+    assert!((cx - 400.0).abs() < 60.0 && (cy - 300.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0})");
 
     // The document: one stroke, saved, recorded as a trace that replays.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();

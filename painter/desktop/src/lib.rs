@@ -73,6 +73,90 @@ impl BrushUi {
     }
 }
 
+/// Where a sample under the cursor goes: the eye, the ray's direction and
+/// the distance along it. With *paint on the surface*, where the ray's
+/// optical depth in the paint reaches 0.7; elsewhere, and with the option
+/// off, on the plane perpendicular to the view axis at the plane depth.
+fn brush_point(r: &Running, tree: &Tree) -> (DVec3, DVec3, f64) {
+    let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
+    let forward = r.camera.rotation() * DVec3::NEG_Z;
+    let on_plane = r.brush.plane_depth / dir.dot(forward).max(1e-6);
+    let depth = if r.brush.on_surface { pick(tree, eye, dir).unwrap_or(on_plane) } else { on_plane };
+    (eye, dir, depth)
+}
+
+/// What the window draws over the view: the brush cursor, the axes and the
+/// scale (docs/desktop.md, "Aids").
+struct Overlay {
+    /// Window pixels: the cursor, the brush's radius there, its colour and
+    /// whether its shape is a box (a square ghost; a disc otherwise).
+    cursor: Option<([f32; 2], f32, [f32; 3], bool)>,
+    /// The canvas axes x, y, z in the view: screen direction (y down) and
+    /// whether the axis points away from the viewer.
+    axes: [([f32; 2], bool); 3],
+    /// Canvas units per pixel at the brush's distance, the brush radius
+    /// and the depth it paints at, with that depth's cell edge.
+    scale: (f64, f64, u32, f64),
+}
+
+impl Overlay {
+    fn new(r: &Running, tree: &Tree) -> Overlay {
+        let size = [r.config.width, r.config.height];
+        let (_, dir, depth) = brush_point(r, tree);
+        let rot = r.camera.rotation();
+        let z = depth * dir.dot(rot * DVec3::NEG_Z);
+        // Canvas units per pixel at view depth z (square pixels).
+        let per_px = 2.0 * z * (r.camera.fov_y / 2.0).tan() / f64::from(size[1].max(1));
+        let radius_px = (r.brush.radius / per_px).clamp(2.0, 4.0 * f64::from(size[1])) as f32;
+        let inside = r.cursor.0 >= 0.0 && r.cursor.1 >= 0.0 && r.cursor.0 < f64::from(size[0]) && r.cursor.1 < f64::from(size[1]);
+        let cursor = (inside && per_px.is_finite() && per_px > 0.0)
+            .then(|| ([r.cursor.0 as f32, r.cursor.1 as f32], radius_px, r.brush.colour, r.brush.shape == Shape::Box));
+        let inv = rot.inverse();
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| {
+            let v = inv * a;
+            ([v.x as f32, -v.y as f32], v.z < 0.0)
+        });
+        let d = tree.lat.target_depth(r.brush.radius);
+        Overlay { cursor, axes, scale: (per_px, r.brush.radius, d, tree.lat.size_canvas[d as usize]) }
+    }
+
+    /// Draw the cursor and the axes over the view (`view`: the part of the
+    /// window the panels leave, in points).
+    fn draw(&self, ctx: &egui::Context, view: egui::Rect) {
+        let painter = ctx.layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("overlay"))).with_clip_rect(view);
+        let ppp = ctx.pixels_per_point();
+        if let Some((at, radius, colour, square)) = self.cursor {
+            let centre = egui::pos2(at[0] / ppp, at[1] / ppp);
+            let rgb = colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            let edge = egui::Color32::from_rgb(rgb[0], rgb[1], rgb[2]);
+            let fill = egui::Color32::from_rgba_unmultiplied(rgb[0], rgb[1], rgb[2], 40);
+            let r = radius / ppp;
+            let stroke = egui::Stroke::new(2.0, edge);
+            if square {
+                let rect = egui::Rect::from_center_size(centre, egui::vec2(2.0 * r, 2.0 * r));
+                painter.rect(rect, 0.0, fill, stroke, egui::StrokeKind::Middle);
+            } else {
+                painter.circle(centre, r, fill, stroke);
+            }
+            painter.circle_filled(centre, 1.5, edge);
+        }
+        // The axes, 36 points long from a corner of the view, the far ones
+        // first so that the near ones are drawn over them.
+        let origin = egui::pos2(view.right() - 52.0, view.bottom() - 52.0);
+        painter.circle_filled(origin, 44.0, egui::Color32::from_rgba_unmultiplied(0, 0, 0, 110));
+        let colours = [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
+        let mut order = [0usize, 1, 2];
+        order.sort_by_key(|&i| !self.axes[i].1);
+        for i in order {
+            let (v, away) = self.axes[i];
+            let tip = origin + egui::vec2(v[0], v[1]) * 36.0;
+            let width = if away { 2.0 } else { 3.5 };
+            painter.line_segment([origin, tip], egui::Stroke::new(width, colours[i]));
+            painter.text(tip + egui::vec2(v[0], v[1]) * 8.0, egui::Align2::CENTER_CENTER, ["x", "y", "z"][i], egui::FontId::proportional(12.0), colours[i]);
+        }
+    }
+}
+
 /// The first point along a ray where the paint's optical depth reaches
 /// 0.7 (what looks like its surface), marching leaf to leaf.
 pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
@@ -194,12 +278,8 @@ impl App {
     }
 
     fn sample(&mut self) {
-        let Some(r) = self.running.as_mut() else { return };
-        let (eye, dir) = r.camera.ray([r.config.width, r.config.height], r.cursor.0, r.cursor.1);
-        // The plane perpendicular to the view axis at the chosen depth.
-        let forward = r.camera.rotation() * DVec3::NEG_Z;
-        let on_plane = r.brush.plane_depth / dir.dot(forward).max(1e-6);
-        let depth = if r.brush.on_surface { pick(&self.session.painting.tree, eye, dir).unwrap_or(on_plane) } else { on_plane };
+        let Some(r) = self.running.as_ref() else { return };
+        let (eye, dir, depth) = brush_point(r, &self.session.painting.tree);
         let p = eye + dir * depth;
         self.apply(EventKind::Sample(Sample::at(p.to_array())));
     }
@@ -210,6 +290,15 @@ impl App {
         }
         if self.session.in_stroke() {
             self.apply(EventKind::StrokeEnd);
+        }
+    }
+
+    /// Back to the view that frames everything painted (F, the Frame
+    /// button).
+    fn frame_view(&mut self) {
+        if let Some(r) = self.running.as_mut() {
+            r.camera = frame_painting(&self.session.painting.tree);
+            r.stats.message = "framed the painting".into();
         }
     }
 
@@ -311,6 +400,7 @@ impl App {
         let size = [r.config.width, r.config.height];
         let camera = r.camera.camera(size, BACKGROUND);
         let params = RayParams::new(&tree.lat, &camera);
+        let overlay = Overlay::new(r, tree);
         // The panel.
         let raw = r.egui_state.take_egui_input(&r.window);
         let mut actions = Vec::new();
@@ -326,7 +416,7 @@ impl App {
             message: r.stats.message.clone(),
             in_stroke: self.session.in_stroke(),
         };
-        let out = r.egui_ctx.run_ui(raw, |ui| panel(ui, &mut r.brush, &info, &mut actions));
+        let out = r.egui_ctx.run_ui(raw, |ui| panel(ui, &mut r.brush, &info, &overlay, &mut actions));
         r.egui_state.handle_platform_output(&r.window, out.platform_output);
         let jobs = r.egui_ctx.tessellate(out.shapes, out.pixels_per_point);
         let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: size, pixels_per_point: out.pixels_per_point };
@@ -431,6 +521,7 @@ impl App {
                 Action::Undo => self.apply(EventKind::Undo),
                 Action::Redo => self.apply(EventKind::Redo),
                 Action::Save => self.save(),
+                Action::Frame => self.frame_view(),
                 Action::Screenshot => {
                     if let Some(r) = self.running.as_mut() {
                         r.want_screenshot = true;
@@ -466,9 +557,10 @@ enum Action {
     Redo,
     Save,
     Screenshot,
+    Frame,
 }
 
-fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec<Action>) {
+fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) {
     status_line(root, s);
     egui::Panel::left("brush").resizable(false).show(root, |ui| {
         ui.heading("Brush");
@@ -491,6 +583,8 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec
         });
         ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
         ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
+        let (per_px, radius, depth, edge) = overlay.scale;
+        ui.label(format!("1 px = {} at the brush\nradius {} paints at depth {depth}\n(cells of {})", length(per_px), length(radius), length(edge)));
         ui.separator();
         ui.horizontal(|ui| {
             if ui.button("Undo").clicked() {
@@ -505,10 +599,53 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec
             if ui.button("Screenshot").clicked() {
                 actions.push(Action::Screenshot);
             }
+            if ui.button("Frame").on_hover_text("frame the painting (F)").clicked() {
+                actions.push(Action::Frame);
+            }
         });
         ui.separator();
-        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\n[ ]: brush size · Ctrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · [ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
     });
+    let view = root.available_rect_before_wrap();
+    overlay.draw(root.ctx(), view);
+}
+
+/// A length in canvas units, read as metres (the scene trace's canvas is
+/// 40 km wide in these units), with a unit that keeps it readable.
+fn length(x: f64) -> String {
+    let a = x.abs();
+    if !a.is_finite() {
+        return format!("{x}");
+    }
+    let (v, unit) = if a >= 1e3 {
+        (x / 1e3, "km")
+    } else if a >= 1.0 {
+        (x, "m")
+    } else if a >= 1e-2 {
+        (x * 1e2, "cm")
+    } else if a >= 1e-3 || a == 0.0 {
+        (x * 1e3, "mm")
+    } else {
+        (x * 1e6, "µm")
+    };
+    // Three significant digits.
+    let digits = if v.abs() >= 100.0 { 0 } else if v.abs() >= 10.0 { 1 } else { 2 };
+    format!("{v:.digits$} {unit}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::length;
+
+    #[test]
+    fn lengths_read_with_a_unit_and_three_digits() {
+        assert_eq!(length(40_000.0), "40.0 km");
+        assert_eq!(length(2.5), "2.50 m");
+        assert_eq!(length(0.0572), "5.72 cm");
+        assert_eq!(length(0.003667), "3.67 mm");
+        assert_eq!(length(0.0003), "300 µm");
+        assert_eq!(length(0.0), "0.00 mm");
+    }
 }
 
 fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
@@ -627,6 +764,9 @@ impl ApplicationHandler for App {
                     Key::Character("]") => r.brush.radius = (r.brush.radius * 1.25).min(1e4),
                     Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
+                    Key::Character("f") if !ctrl => {
+                        r.camera = frame_painting(&self.session.painting.tree);
+                    }
                     _ => {}
                 }
             }
