@@ -48,6 +48,11 @@ struct RayParams {
     // probe record per ray instead of a pixel (docs/precision.md); zw:
     // unused
     flags: vec4<u32>,
+    // The ground grid, a view aid behind everything (not part of the
+    // painting; docs/desktop.md): x, z the eye's position modulo ten
+    // spacings, y its height above the canvas floor (canvas units); w the
+    // spacing, 0 for no grid.
+    grid: vec4<f32>,
 }
 
 @group(1) @binding(0) var<storage, read> g3_0: array<u32>;
@@ -108,6 +113,42 @@ fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
     }
     let m = u32(-fl);
     return select(0u, base - m, m <= base);
+}
+
+// Distance of v (in spacings) to the nearest whole number, in [0, 0.5].
+fn to_line(v: f32) -> f32 {
+    return 0.5 - abs(fract(v) - 0.5);
+}
+
+// What a ray leaving everything sees: the background, or with the grid on
+// and the ray going down, the floor plane y = 0 of the canvas: a faint
+// tint, lines every spacing and brighter ones every ten, fading with
+// distance; a thin horizon line where the ray is level. Kept line for line
+// with painter/tree/src/raycast.rs `ground`.
+fn ground(dir: vec3<f32>) -> vec3<f32> {
+    let bg = params.background.xyz;
+    let g = params.grid;
+    if (g.w <= 0.0) {
+        return bg;
+    }
+    let horizon = 0.06 * clamp(1.0 - abs(dir.y) * 400.0, 0.0, 1.0);
+    if (dir.y >= 0.0 || g.y <= 0.0) {
+        return bg + vec3<f32>(horizon);
+    }
+    let t = g.y / -dir.y;
+    let x = (g.x + t * dir.x) / g.w;
+    let z = (g.z + t * dir.z) / g.w;
+    let fade = clamp(1.0 - t / (60.0 * g.w), 0.0, 1.0);
+    // A pixel's footprint on the floor, in spacings (stretched where the
+    // ray grazes): a line narrower than that is widened to it and dimmed
+    // in proportion, so that far lines fade instead of breaking up.
+    let px = t * (params.tan_fov.z - params.tan_fov.w) / f32(params.misc.x) / max(-dir.y, 0.001) / g.w;
+    let w_minor = max(0.02, px);
+    let w_major = max(0.004, px * 0.1);
+    let minor = clamp(1.0 - min(to_line(x), to_line(z)) / w_minor, 0.0, 1.0) * (0.02 / w_minor);
+    let major = clamp(1.0 - min(to_line(x * 0.1), to_line(z * 0.1)) / w_major, 0.0, 1.0) * (0.004 / w_major);
+    let tint = 0.03 * clamp(-dir.y * 20.0, 0.0, 1.0);
+    return bg + vec3<f32>(horizon + tint + fade * max(0.12 * minor, 0.3 * major));
 }
 
 // 2^-(D - depth), exact.
@@ -346,7 +387,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         probe_put3(record, 7u, bitcast<vec3<u32>>(vec3<f32>(last_exit)));
         return;
     }
-    colour = colour + trans * params.background.xyz;
+    colour = colour + trans * ground(dir);
     let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));
     pixels[gid.y * w + gid.x] = px.x | (px.y << 8u) | (px.z << 16u) | (255u << 24u);
 }

@@ -54,6 +54,10 @@ pub struct Args {
     /// With --turntable: how long the GIF shows each frame, ms (10..10000).
     #[arg(long, default_value_t = 50, requires = "turntable")]
     frame_ms: u32,
+    /// Draw the ground grid and horizon behind the painting (the desktop
+    /// window's aid; docs/desktop.md).
+    #[arg(long)]
+    grid: bool,
     /// Who draws: the GPU ray caster or its CPU port.
     #[arg(long, value_enum, default_value_t = crate::RendererChoice::Gpu)]
     renderer: crate::RendererChoice,
@@ -144,12 +148,16 @@ enum Draw {
 }
 
 impl Draw {
-    fn image(&mut self, tree: &mut Tree, camera: &Camera) -> Result<Vec<u8>, String> {
+    fn image(&mut self, tree: &Tree, camera: &Camera, grid: bool) -> Result<Vec<u8>, String> {
+        let mut params = RayParams::new(&tree.lat, camera);
+        if grid {
+            params = params.with_grid(camera.eye);
+        }
         match self {
-            Draw::Gpu(r, precision) => r.cast(tree, camera, *precision).map_err(|e| e.to_string()),
+            Draw::Gpu(r, precision) => r.cast_params(&params, *precision).map_err(|e| e.to_string()),
             Draw::Cpu(g3) => {
                 let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 };
-                Ok(octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera)))
+                Ok(octopaint_tree::raycast::render(&inp, &params))
             }
         }
     }
@@ -223,7 +231,7 @@ pub fn run(a: &Args) -> ExitCode {
             e.set_repeat(Repeat::Infinite).map(|_| e)
         });
         for (k, camera) in plan.cameras.iter().enumerate() {
-            let rgb = draw.image(tree, camera)?;
+            let rgb = draw.image(tree, camera, a.grid)?;
             let path = match &plan.folder {
                 Some(dir) => dir.join(format!("frame-{k:03}.png")),
                 None => a.out.clone(),

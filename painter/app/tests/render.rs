@@ -86,6 +86,37 @@ fn a_turntable_writes_its_frames_and_a_gif_of_them() {
 }
 
 #[test]
+fn the_ground_grid_draws_behind_the_painting_alike_on_gpu_and_cpu() {
+    let scratch = tempfile::tempdir().unwrap();
+    let doc = document(scratch.path());
+    let shot = |name: &str, args: &[&str]| {
+        let out = scratch.path().join(name);
+        let res = octopaint().arg("render").arg(&doc).args(["--size", "160x120", "--quiet", "--out"]).arg(&out).args(args).output().unwrap();
+        assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+        png(&out).2
+    };
+    let plain = shot("plain.png", &[]);
+    let grid = shot("grid.png", &["--grid"]);
+    let cpu = shot("grid_cpu.png", &["--grid", "--renderer", "cpu"]);
+    // The grid lightens background pixels (lines, the floor's tint, the
+    // horizon) and leaves the painting's pixels nearly alone.
+    let background = [plain[0], plain[1], plain[2]];
+    let (mut lit, mut kept) = (0, 0);
+    for (p, g) in plain.chunks_exact(3).zip(grid.chunks_exact(3)) {
+        if p == background {
+            lit += usize::from(g[0] > p[0] + 20);
+        } else {
+            kept += usize::from(p.iter().zip(g).all(|(a, b)| b.abs_diff(*a) <= 40));
+        }
+    }
+    assert!(lit > 400, "{lit} background pixels show grid lines");
+    let painted = plain.chunks_exact(3).filter(|p| *p != background).count();
+    assert!(kept * 10 >= painted * 9, "{kept} of {painted} painted pixels kept their colour");
+    let off = cpu.iter().zip(&grid).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(off <= 1, "the CPU port's grid is {off} steps from the GPU's");
+}
+
+#[test]
 fn a_camera_from_a_trace_renders_at_its_size() {
     let scratch = tempfile::tempdir().unwrap();
     let doc = document(scratch.path());

@@ -248,6 +248,17 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
         }
     }
     assert!(red > 15 && green > 15 && blue > 15, "axes: {red} red, {green} green, {blue} blue pixels");
+    // The ground grid (on by default): light grey lines over the dark
+    // background in the view, away from the axes' corner.
+    let mut grey = 0;
+    for y in 0..560 {
+        for x in 330..800 {
+            let (r, g, b) = (i32::from(px(x, y)[0]), i32::from(px(x, y)[1]), i32::from(px(x, y)[2]));
+            let corner = x > 690 && y > 420;
+            grey += i32::from(!corner && r > 45 && (r - g).abs() <= 6 && b >= g && b - g <= 12);
+        }
+    }
+    assert!(grey > 500, "the grid shows {grey} grey pixels");
     // Framed: the stroke's pixels centre on the middle of the image (the
     // framing view looks at the middle of what is painted).
     let (mut n, mut sx, mut sy) = (0f64, 0f64, 0f64);

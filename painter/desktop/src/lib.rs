@@ -65,6 +65,8 @@ struct BrushUi {
     /// canvas units (strokes off the surface, or with surface painting
     /// off, lie on that plane).
     plane_depth: f64,
+    /// The ground grid and horizon behind the painting (G).
+    grid: bool,
 }
 
 impl BrushUi {
@@ -362,6 +364,7 @@ impl App {
             colour: [0.9, 0.45, 0.15],
             on_surface: true,
             plane_depth: camera.distance,
+            grid: true,
         };
         Ok(Running {
             window,
@@ -399,7 +402,10 @@ impl App {
         r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
         let camera = r.camera.camera(size, BACKGROUND);
-        let params = RayParams::new(&tree.lat, &camera);
+        let mut params = RayParams::new(&tree.lat, &camera);
+        if r.brush.grid {
+            params = params.with_grid(camera.eye);
+        }
         let overlay = Overlay::new(r, tree);
         // The panel.
         let raw = r.egui_state.take_egui_input(&r.window);
@@ -583,6 +589,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
         });
         ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
         ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
+        ui.checkbox(&mut b.grid, "ground grid and horizon (G)");
         let (per_px, radius, depth, edge) = overlay.scale;
         ui.label(format!("1 px = {} at the brush\nradius {} paints at depth {depth}\n(cells of {})", length(per_px), length(radius), length(edge)));
         ui.separator();
@@ -604,7 +611,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
             }
         });
         ui.separator();
-        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · [ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
     });
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
@@ -764,6 +771,7 @@ impl ApplicationHandler for App {
                     Key::Character("]") => r.brush.radius = (r.brush.radius * 1.25).min(1e4),
                     Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
+                    Key::Character("g") if !ctrl => r.brush.grid = !r.brush.grid,
                     Key::Character("f") if !ctrl => {
                         r.camera = frame_painting(&self.session.painting.tree);
                     }

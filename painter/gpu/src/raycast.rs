@@ -27,6 +27,7 @@ pub struct RayParamsGpu {
     pub background: [f32; 4],
     pub misc: [u32; 4],
     pub flags: [u32; 4],
+    pub grid: [f32; 4],
 }
 
 impl RayParamsGpu {
@@ -46,6 +47,7 @@ impl RayParamsGpu {
             background: [p.background[0], p.background[1], p.background[2], 0.0],
             misc: [p.height, p.max_steps, p.n_roots, u32::from(p.inside)],
             flags: [u32::from(p.skip_invalid), 0, 0, 0],
+            grid: p.grid,
         }
     }
 }

@@ -34,6 +34,9 @@ pub struct RayParams {
     /// Skip cells whose parent/child links disagree (spec 7). Off only for
     /// the real-time benchmark's strategies that measure the difference.
     pub skip_invalid: bool,
+    /// The ground grid behind everything, a view aid (see
+    /// [`RayParams::with_grid`]); spacing 0: none, the background alone.
+    pub grid: [f32; 4],
 }
 
 /// Steps before a ray gives up (a broken tree caught mid-upload).
@@ -78,8 +81,57 @@ impl RayParams {
             n_roots: lat.n_roots,
             inside,
             skip_invalid: true,
+            grid: [0.0; 4],
         }
     }
+
+    /// These constants with the ground grid on the canvas floor (y = 0) for
+    /// a camera at `eye` (canvas units): lines every power of ten of
+    /// canvas units at or below the eye's height, brighter ones every ten
+    /// of those. The eye's x and z are reduced modulo ten spacings in f64,
+    /// so the shader's f32 arithmetic sees small numbers anywhere on a
+    /// 40 km canvas. No grid with the eye at or below the floor.
+    pub fn with_grid(mut self, eye: [f64; 3]) -> Self {
+        let h = eye[1];
+        if !(h > 0.0 && h.is_finite()) {
+            self.grid = [0.0; 4];
+            return self;
+        }
+        let s = 10f64.powf(h.log10().floor());
+        let m = 10.0 * s;
+        self.grid = [eye[0].rem_euclid(m) as f32, h as f32, eye[2].rem_euclid(m) as f32, s as f32];
+        self
+    }
+}
+
+/// Distance of v (in spacings) to the nearest whole number; `v -
+/// floor(v)` is WGSL's `fract` (Rust's keeps the sign).
+fn to_line(v: f32) -> f32 {
+    0.5 - ((v - v.floor()) - 0.5).abs()
+}
+
+/// The shader's `ground`: the background, or the grid on the floor.
+fn ground(pr: &RayParams, dir: [f32; 3]) -> [f32; 3] {
+    let bg = pr.background;
+    let g = pr.grid;
+    if g[3] <= 0.0 {
+        return bg;
+    }
+    let horizon = 0.06 * (1.0 - dir[1].abs() * 400.0).clamp(0.0, 1.0);
+    if dir[1] >= 0.0 || g[1] <= 0.0 {
+        return bg.map(|c| c + horizon);
+    }
+    let t = g[1] / -dir[1];
+    let x = (g[0] + t * dir[0]) / g[3];
+    let z = (g[2] + t * dir[2]) / g[3];
+    let fade = (1.0 - t / (60.0 * g[3])).clamp(0.0, 1.0);
+    let px = t * (pr.tan_fov[2] - pr.tan_fov[3]) / pr.height as f32 / (-dir[1]).max(0.001) / g[3];
+    let w_minor = px.max(0.02);
+    let w_major = (px * 0.1).max(0.004);
+    let minor = (1.0 - to_line(x).min(to_line(z)) / w_minor).clamp(0.0, 1.0) * (0.02 / w_minor);
+    let major = (1.0 - to_line(x * 0.1).min(to_line(z * 0.1)) / w_major).clamp(0.0, 1.0) * (0.004 / w_major);
+    let tint = 0.03 * (-dir[1] * 20.0).clamp(0.0, 1.0);
+    bg.map(|c| c + (horizon + tint + fade * (0.12 * minor).max(0.3 * major)))
 }
 
 /// What the shader reads: the pools and g3.
@@ -313,8 +365,9 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         }
     }
     let _ = steps;
+    let back = ground(pr, dir);
     for i in 0..3 {
-        colour[i] += trans * pr.background[i];
+        colour[i] += trans * back[i];
     }
     colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
 }
@@ -328,4 +381,42 @@ pub fn render(inp: &RayInput, params: &RayParams) -> Vec<u8> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::Canvas;
+
+    fn params() -> RayParams {
+        let lat = Lattice::new(&Canvas { roots: [4, 4, 4], max_depth: 25, root_size: 10_000.0, capacity: 1 << 20 });
+        let camera = Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.4, -0.4], size: [8, 6], background: [0.1, 0.2, 0.3] };
+        RayParams::new(&lat, &camera)
+    }
+
+    #[test]
+    fn the_grid_spacing_follows_the_eye_height_and_the_eye_is_reduced() {
+        assert_eq!(params().grid, [0.0; 4]);
+        assert_eq!(params().with_grid([0.25, 1.15, -3.5]).grid, [0.25, 1.15, 6.5, 1.0]);
+        assert_eq!(params().with_grid([12_345.625, 40.0, 7.0]).grid, [45.625, 40.0, 7.0, 10.0]);
+        let g = params().with_grid([0.0, 0.05, 0.0]).grid;
+        assert!((g[3] - 0.01).abs() < 1e-9, "{g:?}");
+        // At or below the floor, or not finite: no grid.
+        for h in [0.0, -2.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(params().with_grid([1.0, h, 1.0]).grid[3], 0.0, "{h}");
+        }
+    }
+
+    #[test]
+    fn without_the_grid_a_ray_leaving_everything_sees_the_background() {
+        let p = params();
+        for dir in [[0.0, -1.0, 0.0], [0.6, 0.0, -0.8], [0.0, 1.0, 0.0]] {
+            assert_eq!(ground(&p, dir), p.background);
+        }
+        let g = p.with_grid([0.5, 2.0, 0.5]);
+        // Straight up: the sky; straight down: the floor, tinted.
+        assert_eq!(ground(&g, [0.0, 1.0, 0.0]), g.background);
+        let down = ground(&g, [0.0, -1.0, 0.0]);
+        assert!(down.iter().zip(g.background).all(|(a, b)| *a > b), "{down:?}");
+    }
 }
