@@ -329,7 +329,14 @@ pub fn is_document(path: &Path) -> bool {
     std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut head)).is_ok() && &head == b"OCTOPAINTDOC"
 }
 
-pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) -> ExitCode {
+/// How the desktop window casts its frames (`octopaint window`'s options).
+#[derive(Default)]
+pub struct Frames {
+    pub fixed_resolution: bool,
+    pub frame_log: Option<PathBuf>,
+}
+
+pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, frames: Frames) -> ExitCode {
     let parsed: Option<Vec<u32>> = size.split('x').map(|v| v.trim().parse().ok()).collect();
     let size = match parsed.as_deref() {
         Some(&[w, h]) if (64..=16384).contains(&w) && (64..=16384).contains(&h) => [w, h],
@@ -346,6 +353,8 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>) ->
         size,
         precision: if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 },
         screenshot: screenshot.unwrap_or_else(|| doc.with_extension("png")),
+        fixed_resolution: frames.fixed_resolution,
+        frame_log: frames.frame_log,
     };
     match octopaint_desktop::run(opts) {
         Ok(()) => ExitCode::SUCCESS,
@@ -422,7 +431,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
             }
             eprintln!("octopaint: no VR here: {e}; opening the desktop window instead");
             drop(s);
-            window(doc, "1280x720", f16, None)
+            window(doc, "1280x720", f16, None, Frames::default())
         }
         Err(e) => {
             eprintln!("octopaint: VR: {e}");

@@ -102,6 +102,14 @@ enum Command {
         /// picture. Default: DOC with .png.
         #[arg(long)]
         screenshot: Option<PathBuf>,
+        /// Cast every frame at the window's size: no dynamic resolution
+        /// while the view moves (docs/desktop.md).
+        #[arg(long)]
+        fixed_resolution: bool,
+        /// Write one CSV line per frame (time, frame interval, resolution
+        /// scale, cast size, still) to this file.
+        #[arg(long, value_name = "CSV")]
+        frame_log: Option<PathBuf>,
     },
     /// Show a document in the headset through OpenXR: each eye ray cast
     /// with its own pose and field of view, paced by the runtime
@@ -428,7 +436,9 @@ fn main() -> ExitCode {
         Command::Vr { doc, frames, capture, precision, no_fallback, script } => {
             document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback)
         }
-        Command::Window { doc, size, precision, screenshot } => document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot),
+        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log } => {
+            document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log })
+        }
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::Paint(args) => document::paint(&args),
         Command::Info { doc } => document::info(&doc),

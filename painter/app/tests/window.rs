@@ -137,6 +137,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
     let doc = s.join("w.octo");
     let shot = s.join("shot.png");
+    let frame_log = s.join("frames.csv");
     let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
     let mut window = octopaint()
@@ -144,6 +145,8 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
         .arg(&doc)
         .args(["--size", "800x600", "--screenshot"])
         .arg(&shot)
+        .arg("--frame-log")
+        .arg(&frame_log)
         .env("DISPLAY", &display)
         .env("XDG_RUNTIME_DIR", &runtime)
         .env_remove("WAYLAND_DISPLAY")
@@ -274,6 +277,25 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     assert!(n > 1500.0, "the framed view shows {n} stroke pixels");
     let (cx, cy) = (sx / n, sy / n);
     assert!((cx - 400.0).abs() < 60.0 && (cy - 300.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0})");
+
+    // Dynamic resolution: one line per frame; every cast within [1/4, 1]
+    // of the window's size, exactly the window's size on still frames
+    // (progressive refinement: the screenshots above were taken still),
+    // and the window's aspect kept.
+    let log = std::fs::read_to_string(&frame_log).unwrap();
+    let mut lines = log.lines();
+    assert_eq!(lines.next(), Some("t_ms,interval_ms,scale,width,height,still"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
+    assert!(rows.len() > 10, "{log}");
+    assert!(rows.iter().any(|r| r[5] == 1.0) && rows.iter().any(|r| r[5] == 0.0), "both still and moving frames: {log}");
+    for r in &rows {
+        let (scale, w, h, still) = (r[2], r[3], r[4], r[5] == 1.0);
+        assert!((0.25..=1.0).contains(&scale), "{r:?}");
+        assert!((w - 800.0 * scale).abs() <= 1.0 && (h - 600.0 * scale).abs() <= 1.0, "{r:?}");
+        if still {
+            assert_eq!((scale, w, h), (1.0, 800.0, 600.0), "{r:?}");
+        }
+    }
 
     // The document: one stroke, saved, recorded as a trace that replays.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();

@@ -9,6 +9,7 @@
 //! dirty blocks, runs the g3 pass, casts the image at the window's size and
 //! draws it with the panel on top.
 
+use std::io::Write as _;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -33,6 +34,60 @@ pub struct Options {
     pub precision: Precision,
     /// Where F12 writes the window's picture (PNG).
     pub screenshot: PathBuf,
+    /// Cast every frame at the window's full size (no dynamic resolution).
+    pub fixed_resolution: bool,
+    /// Write one CSV line per frame here: time, frame interval, resolution
+    /// scale, cast size, whether the view was still.
+    pub frame_log: Option<PathBuf>,
+}
+
+/// The frame time the dynamic resolution aims at on the desktop (60 Hz).
+pub const TARGET_FRAME_MS: f64 = 16.7;
+/// The smallest share of the window's width and height cast while moving.
+pub const MIN_SCALE: f64 = 0.25;
+
+/// Dynamic resolution (docs/desktop.md): while the view changes (camera,
+/// painting, size, grid), rays are cast for `scale` of the window's width
+/// and height, `scale` following the frame time towards
+/// [`TARGET_FRAME_MS`]; once a frame changes nothing, it is cast at full
+/// size (progressive refinement: the still picture is always exact).
+struct Resolution {
+    scale: f64,
+    /// What the last frame showed, to tell a still frame.
+    last_view: Option<(OrbitCamera, [u32; 2], bool)>,
+    /// When the last frame began, and whether the view was moving then
+    /// (its interval then tells how long a frame at `scale` takes).
+    last_frame: Option<(Instant, bool)>,
+    fixed: bool,
+    log: Option<(std::io::BufWriter<std::fs::File>, Instant)>,
+}
+
+impl Resolution {
+    /// The cast size of this frame of a `window`-sized view, given whether
+    /// the scene changed since the last one; learns from the last frame's
+    /// interval when that frame was scaled.
+    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, grid: bool, tree_changed: bool) -> ([u32; 2], bool) {
+        let now = Instant::now();
+        let view = (*camera, window, grid);
+        let still = !tree_changed && self.last_view == Some(view);
+        self.last_view = Some(view);
+        let interval = self.last_frame.map(|(t, moving)| ((now - t).as_secs_f64() * 1e3, moving));
+        if let Some((ms, true)) = interval
+            && !self.fixed
+        {
+            // Pixels cast scale with scale², time roughly with pixels.
+            let want = (self.scale * (TARGET_FRAME_MS / ms.max(0.1)).sqrt()).clamp(MIN_SCALE, 1.0);
+            self.scale = ((0.6 * self.scale + 0.4 * want) * 32.0).round() / 32.0;
+        }
+        let scale = if still || self.fixed { 1.0 } else { self.scale };
+        let size = window.map(|v| ((f64::from(v) * scale).round() as u32).clamp(1, v.max(1)));
+        self.last_frame = Some((now, !still));
+        if let Some((log, t0)) = self.log.as_mut() {
+            let ms = interval.map_or(0.0, |(ms, _)| ms);
+            let _ = writeln!(log, "{:.1},{ms:.2},{scale:.4},{},{},{}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still));
+        }
+        (size, still)
+    }
 }
 
 /// Open the window on `opts.doc` and run until it is closed (closing saves).
@@ -237,6 +292,7 @@ struct Running {
     painting: bool,
     orbiting: bool,
     want_screenshot: bool,
+    resolution: Resolution,
 }
 
 struct App {
@@ -391,6 +447,21 @@ impl App {
             painting: false,
             orbiting: false,
             want_screenshot: false,
+            resolution: Resolution {
+                scale: 1.0,
+                last_view: None,
+                last_frame: None,
+                fixed: self.opts.fixed_resolution,
+                log: match &self.opts.frame_log {
+                    Some(p) => {
+                        let f = std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
+                        let mut w = std::io::BufWriter::new(f);
+                        let _ = writeln!(w, "t_ms,interval_ms,scale,width,height,still");
+                        Some((w, Instant::now()))
+                    }
+                    None => None,
+                },
+            },
         })
     }
 
@@ -399,9 +470,10 @@ impl App {
         let screenshot_path = self.opts.screenshot.clone();
         let Some(r) = self.running.as_mut() else { return Ok(()) };
         let tree = &mut self.session.painting.tree;
-        r.renderer.sync(tree).map_err(|e| e.to_string())?;
+        let synced = r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
-        let camera = r.camera.camera(size, BACKGROUND);
+        let (cast, _) = r.resolution.next(size, &r.camera, r.brush.grid, synced.blocks > 0);
+        let camera = r.camera.camera(cast, BACKGROUND);
         let mut params = RayParams::new(&tree.lat, &camera);
         if r.brush.grid {
             params = params.with_grid(camera.eye);
@@ -412,6 +484,7 @@ impl App {
         let mut actions = Vec::new();
         let info = StatusInfo {
             fps: r.stats.fps,
+            resolution: f64::from(cast[0]) / f64::from(size[0].max(1)),
             latency_ms: r.stats.latency_ms,
             busy_ms: r.stats.busy_ms,
             cells: tree.n_used(),
@@ -446,7 +519,7 @@ impl App {
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?;
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
-        let group = r.blit.bind(gpu, pixels, size[0], size[1]);
+        let group = r.blit.bind_scaled(gpu, pixels, cast, size);
         r.egui_renderer.update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);
         let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
         let shot = r.want_screenshot.then(|| {
@@ -547,6 +620,8 @@ fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], for
 
 struct StatusInfo {
     fps: f64,
+    /// The share of the window's width the rays were cast for.
+    resolution: f64,
     latency_ms: Option<f64>,
     busy_ms: f64,
     cells: u32,
@@ -659,6 +734,8 @@ fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
     egui::Panel::bottom("status").show(root, |ui| {
         ui.horizontal(|ui| {
             ui.label(format!("{:.0} fps", s.fps));
+            ui.separator();
+            ui.label(format!("resolution {:.0}%", s.resolution * 100.0));
             ui.separator();
             ui.label(match s.latency_ms {
                 Some(l) => format!("latency {l:.1} ms"),
