@@ -112,24 +112,16 @@ def main(argv=None) -> int:
     )
     ex.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors (no summary line)")
     ex.set_defaults(func=_cmd_export)
-    from . import precision_scale
+    # The study's commands: each module gives its arguments and its command.
+    from . import gpu_probe, precision_scale
 
-    pr = sub.add_parser(
-        "precision",
-        help="the angle bound on N rays from a depth-24 leaf, sharded over devices and processes, resumable",
-        description=precision_scale.__doc__.split("\n\n")[0],
-    )
-    precision_scale.add_arguments(pr)
-    pr.set_defaults(func=precision_scale.command)
-    from . import gpu_probe
-
-    gp = sub.add_parser(
-        "gpu-probe",
-        help="the painter's GPU ray caster against the angle bound, the emulation and mpmath, ray by ray",
-        description=gpu_probe.__doc__.split("\n\n")[0],
-    )
-    gpu_probe.add_arguments(gp)
-    gp.set_defaults(func=gpu_probe.command)
+    for name, module, text in (
+        ("precision", precision_scale, "the angle bound on N rays from a depth-24 leaf, sharded over devices and processes, resumable"),
+        ("gpu-probe", gpu_probe, "the painter's GPU ray caster against the angle bound, the emulation and mpmath, ray by ray"),
+    ):
+        p = sub.add_parser(name, help=text, description=module.__doc__.split("\n\n")[0])
+        module.add_arguments(p)
+        p.set_defaults(func=module.command)
     args = ap.parse_args(argv)
     return args.func(args)
 
