@@ -267,15 +267,24 @@ impl ReplayObserver for Reporter<'_> {
 
     fn render(&mut self, name: &str, camera: &Camera, painting: &mut Painting, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
         let [w, h] = camera.size;
+        let cpu = |tree: &octopaint_tree::Tree| {
+            let g3 = octopaint_tree::g3::g3_table(tree);
+            let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3: &g3 };
+            octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera))
+        };
         let rgb = match &mut self.draw {
             Draw::Nobody => return Ok(None),
-            Draw::Gpu(renderer, precision) => renderer.render(&mut painting.tree, camera, *precision).map_err(std::io::Error::other)?,
-            Draw::Cpu => {
-                let tree = &painting.tree;
-                let g3 = octopaint_tree::g3::g3_table(tree);
-                let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3: &g3 };
-                octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera))
-            }
+            Draw::Gpu(renderer, precision) => match renderer.render(&mut painting.tree, camera, *precision) {
+                Ok(rgb) => rgb,
+                // An image the GPU cannot hold in one binding (a trace may
+                // ask for 16384 x 16384): the CPU port draws it.
+                Err(octopaint_gpu::GpuError::TooBig(why)) => {
+                    self.bar.suspend(|| eprintln!("octopaint: render {name:?}: {why}; drawn by the CPU port instead"));
+                    cpu(&painting.tree)
+                }
+                Err(e) => return Err(std::io::Error::other(format!("render {name:?}: {e}"))),
+            },
+            Draw::Cpu => cpu(&painting.tree),
         };
         let Some(dir) = out_dir else { return Ok(None) };
         let path = dir.join(format!("{name}.png"));

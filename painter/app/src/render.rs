@@ -6,7 +6,8 @@
 //! Every argument is checked and the document read before anything is
 //! written; each file is written whole or not at all (a temporary file,
 //! fsync, rename). An interrupted turntable leaves the frames written so far
-//! and no GIF.
+//! and no GIF; the GIF streams into its temporary file frame by frame, so a
+//! long turntable does not hold its frames in memory.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -154,7 +155,17 @@ impl Draw {
             params = params.with_grid(camera.eye);
         }
         match self {
-            Draw::Gpu(r, precision) => r.cast_params(&params, *precision).map_err(|e| e.to_string()),
+            Draw::Gpu(r, precision) => match r.cast_params(&params, *precision) {
+                Ok(rgb) => Ok(rgb),
+                // Larger than the GPU can bind: the CPU port draws this and
+                // every later frame (they have the same size).
+                Err(octopaint_gpu::GpuError::TooBig(why)) => {
+                    eprintln!("octopaint: render: {why}; drawn by the CPU port instead");
+                    *self = Draw::Cpu(octopaint_tree::g3::g3_table(tree));
+                    self.image(tree, camera, grid)
+                }
+                Err(e) => Err(e.to_string()),
+            },
             Draw::Cpu(g3) => {
                 let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 };
                 Ok(octopaint_tree::raycast::render(&inp, &params))
@@ -224,31 +235,47 @@ pub fn run(a: &Args) -> ExitCode {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
     let t0 = Instant::now();
-    let mut gif = Vec::new();
-    let result = (|| -> Result<(), String> {
-        let mut encoder = plan.folder.as_ref().map(|_| {
-            let mut e = GifEncoder::new_with_speed(&mut gif, 10);
-            e.set_repeat(Repeat::Infinite).map(|_| e)
-        });
-        for (k, camera) in plan.cameras.iter().enumerate() {
-            let rgb = draw.image(tree, camera, a.grid)?;
-            let path = match &plan.folder {
-                Some(dir) => dir.join(format!("frame-{k:03}.png")),
-                None => a.out.clone(),
-            };
-            write_png(&path, &rgb, camera.size)?;
-            if let Some(enc) = encoder.as_mut() {
-                let enc = enc.as_mut().map_err(|e| format!("GIF: {e}"))?;
-                let rgba: Vec<u8> = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 255]).collect();
-                let img = RgbaImage::from_raw(camera.size[0], camera.size[1], rgba).expect("w·h·4 bytes");
-                let frame = Frame::from_parts(img, 0, 0, Delay::from_numer_denom_ms(a.frame_ms, 1));
-                enc.encode_frame(frame).map_err(|e| format!("GIF: {e}"))?;
-            }
-            bar.inc(1);
+    // Each frame: drawn, written as a PNG, and (turntables) encoded into
+    // the GIF, which streams into a temporary file that replaces
+    // turntable.gif only once every frame is in (durable::write_with).
+    let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut std::io::BufWriter<std::fs::File>>>| -> Result<(), String> {
+        let rgb = draw.image(tree, camera, a.grid)?;
+        let path = match &plan.folder {
+            Some(dir) => dir.join(format!("frame-{k:03}.png")),
+            None => a.out.clone(),
+        };
+        write_png(&path, &rgb, camera.size)?;
+        if let Some(enc) = gif {
+            let rgba: Vec<u8> = rgb.chunks_exact(3).flat_map(|p| [p[0], p[1], p[2], 255]).collect();
+            let img = RgbaImage::from_raw(camera.size[0], camera.size[1], rgba).expect("w·h·4 bytes");
+            enc.encode_frame(Frame::from_parts(img, 0, 0, Delay::from_numer_denom_ms(a.frame_ms, 1))).map_err(|e| format!("GIF: {e}"))?;
         }
-        drop(encoder);
+        bar.inc(1);
         Ok(())
-    })();
+    };
+    let gif_path = plan.folder.as_ref().map(|dir| dir.join("turntable.gif"));
+    let result = match &gif_path {
+        None => frame(0, &plan.cameras[0], None),
+        Some(path) => {
+            let mut failed = None;
+            let written = octopaint_platform::durable::write_with(path, |w| {
+                let mut enc = GifEncoder::new_with_speed(w, 10);
+                enc.set_repeat(Repeat::Infinite).map_err(std::io::Error::other)?;
+                for (k, camera) in plan.cameras.iter().enumerate() {
+                    if let Err(e) = frame(k, camera, Some(&mut enc)) {
+                        failed = Some(e.clone());
+                        return Err(std::io::Error::other(e));
+                    }
+                }
+                Ok(())
+            });
+            match (written, failed) {
+                (Ok(_), _) => Ok(()),
+                (Err(_), Some(e)) => Err(e),
+                (Err(e), None) => Err(format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e))),
+            }
+        }
+    };
     bar.finish_and_clear();
     if let Err(e) = result {
         eprintln!("octopaint: render: {e}");
@@ -258,11 +285,7 @@ pub fn run(a: &Args) -> ExitCode {
     let [w, h] = plan.cameras[0].size;
     match &plan.folder {
         Some(dir) => {
-            let path = dir.join("turntable.gif");
-            if let Err(e) = octopaint_platform::durable::write(&path, &gif) {
-                eprintln!("octopaint: render: cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e));
-                return ExitCode::from(1);
-            }
+            let path = gif_path.as_ref().expect("a turntable writes a GIF");
             if !a.quiet {
                 let n = plan.cameras.len();
                 eprintln!("octopaint: {n} frames of {w}x{h} in {seconds:.1} s ({:.0} ms each): {}/frame-*.png and {}", seconds * 1e3 / n as f64, dir.display(), path.display());

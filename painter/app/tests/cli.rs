@@ -311,3 +311,35 @@ fn with_no_command_it_paints_on_the_default_document() {
     let res = octopaint().arg("info").arg(home.join("painting.octo")).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
 }
+
+#[test]
+fn a_render_larger_than_the_gpu_binds_is_drawn_by_the_cpu_port() {
+    // 6000 x 5800 pixels need 139 MB, above lavapipe's 128 MiB storage
+    // binding (a trace may ask for up to 16384 a side): the GPU path used
+    // to panic in wgpu's validation; now the CPU port draws that image.
+    let scratch = tempfile::tempdir().unwrap();
+    let trace = scratch.path().join("big.jsonl");
+    std::fs::write(
+        &trace,
+        concat!(
+            r#"{"format": "ddo-trace", "version": 1, "canvas": {"roots": [1, 1, 1], "max_depth": 6, "root_size": 1, "capacity": 4096}}"#,
+            "\n",
+            r#"{"ev": "camera", "t": 0, "eye": [0.5, 0.5, 3], "q": [0, 0, 0, 1], "fov": [-0.5, 0.5, 0.5, -0.5], "size": [6000, 5800]}"#,
+            "\n",
+            r#"{"ev": "render", "t": 0, "name": "big"}"#,
+            "\n"
+        ),
+    )
+    .unwrap();
+    let out = scratch.path().join("out");
+    let res = octopaint().arg("replay").arg(&trace).arg("--out").arg(&out).arg("--quiet").env("NODEVICE_SELECT", "1").output().unwrap();
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let info = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(out.join("big.png")).unwrap())).read_info().unwrap().info().clone();
+    assert_eq!((info.width, info.height), (6000, 5800));
+    // Where the GPU could not bind it, the painter said who drew it.
+    if err.contains("binds at most") {
+        assert!(err.contains("drawn by the CPU port instead"), "{err}");
+    }
+}

@@ -170,7 +170,22 @@ impl RayCaster {
     fn encode_words(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, probe: bool) -> Result<(), GpuError> {
         let pipeline = self.pipelines.iter().find(|(p, _)| *p == precision).map(|(_, p)| p.clone()).ok_or(GpuError::NoF16)?;
         let n = u64::from(params.width) * u64::from(params.height);
-        let pixels = self.pixels(gpu, if probe { n * PROBE_WORDS } else { n });
+        let words = if probe { n * PROBE_WORDS } else { n };
+        // One binding holds every pixel (or record): refuse what the device
+        // cannot bind before asking it to (wgpu would panic).
+        let limits = gpu.device.limits();
+        let limit = u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        if words * 4 > limit {
+            let what = if probe { "probe records" } else { "pixels" };
+            return Err(GpuError::TooBig(format!(
+                "an image of {}x{} needs {} bytes of {what}; this GPU binds at most {limit} bytes ({:.1} megapixels)",
+                params.width,
+                params.height,
+                words * 4,
+                limit as f64 / 4e6 / if probe { PROBE_WORDS as f64 } else { 1.0 }
+            )));
+        }
+        let pixels = self.pixels(gpu, words);
         let held = pools.cells_held().min(u64::from(u32::MAX)) as u32;
         let mut uniform = RayParamsGpu::from_params(params, held);
         uniform.flags[1] = u32::from(probe);
@@ -196,12 +211,7 @@ impl RayCaster {
     /// record, row by row from the top. Refused (before any GPU work)
     /// when the records would not fit one storage binding of the device.
     pub fn probe(&mut self, gpu: &Gpu, pools: &GpuPools, params: &RayParams, precision: Precision) -> Result<Vec<ProbeRecord>, GpuError> {
-        let n = u64::from(params.width) * u64::from(params.height);
-        let bytes = n * PROBE_WORDS * 4;
-        let limit = u64::from(gpu.device.limits().max_storage_buffer_binding_size);
-        if bytes > limit {
-            return Err(GpuError::TooBig(format!("{n} probed rays need {bytes} bytes of records; the device binds at most {limit}")));
-        }
+        let bytes = u64::from(params.width) * u64::from(params.height) * PROBE_WORDS * 4;
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray probe") });
         self.encode_words(gpu, pools, &mut enc, params, precision, true)?;
         gpu.queue.submit([enc.finish()]);
