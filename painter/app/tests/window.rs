@@ -262,8 +262,9 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
         }
     }
     assert!(grey > 500, "the grid shows {grey} grey pixels");
-    // Framed: the stroke's pixels centre on the middle of the image (the
-    // framing view looks at the middle of what is painted).
+    // Framed: the stroke's pixels centre on the middle of the view, the
+    // part of the window right of the panel (the framing view looks at the
+    // middle of what is painted, and the frustum is shifted by the panel).
     let (mut n, mut sx, mut sy) = (0f64, 0f64, 0f64);
     for y in 0..560 {
         for x in 260..800 {
@@ -276,7 +277,12 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     }
     assert!(n > 1500.0, "the framed view shows {n} stroke pixels");
     let (cx, cy) = (sx / n, sy / n);
-    assert!((cx - 400.0).abs() < 60.0 && (cy - 300.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0})");
+    // The panel's right edge: the first column, left to right, of the
+    // view's blue-tinted background (row 560, above the status line; the
+    // panel is neutral grey).
+    let panel_edge = (0..800).find(|&x| i32::from(framed[(560 * 800 + x) * 3 + 2]) > i32::from(framed[(560 * 800 + x) * 3]) + 2).expect("the view's background") as f64;
+    let centre = (panel_edge + 800.0) / 2.0;
+    assert!(panel_edge > 150.0 && (cx - centre).abs() < 60.0 && (cy - 290.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0}), the view's centre is ({centre:.0}, 290)");
 
     // Dynamic resolution: one line per frame; every cast within [1/4, 1]
     // of the window's size, exactly the window's size on still frames

@@ -355,7 +355,7 @@ impl App {
     /// button).
     fn frame_view(&mut self) {
         if let Some(r) = self.running.as_mut() {
-            r.camera = frame_painting(&self.session.painting.tree);
+            r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting.tree) };
             r.stats.message = "framed the painting".into();
         }
     }
@@ -495,7 +495,12 @@ impl App {
             message: r.stats.message.clone(),
             in_stroke: self.session.in_stroke(),
         };
-        let out = r.egui_ctx.run_ui(raw, |ui| panel(ui, &mut r.brush, &info, &overlay, &mut actions));
+        let mut view = None;
+        let out = r.egui_ctx.run_ui(raw, |ui| view = Some(panel(ui, &mut r.brush, &info, &overlay, &mut actions)));
+        // The next frames centre the view on the part the panel leaves.
+        if let Some(v) = view {
+            r.camera.covered = (f64::from(v.left() * out.pixels_per_point) / f64::from(size[0].max(1))).clamp(0.0, 0.9);
+        }
         r.egui_state.handle_platform_output(&r.window, out.platform_output);
         let jobs = r.egui_ctx.tessellate(out.shapes, out.pixels_per_point);
         let screen = egui_wgpu::ScreenDescriptor { size_in_pixels: size, pixels_per_point: out.pixels_per_point };
@@ -641,7 +646,9 @@ enum Action {
     Frame,
 }
 
-fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) {
+/// The panel, the status line and the overlay; returns the part of the
+/// window they leave for the view (points).
+fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) -> egui::Rect {
     status_line(root, s);
     egui::Panel::left("brush").resizable(false).show(root, |ui| {
         ui.heading("Brush");
@@ -690,6 +697,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
     });
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
+    view
 }
 
 /// A length in canvas units, read as metres (the scene trace's canvas is
@@ -850,7 +858,7 @@ impl ApplicationHandler for App {
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
                     Key::Character("g") if !ctrl => r.brush.grid = !r.brush.grid,
                     Key::Character("f") if !ctrl => {
-                        r.camera = frame_painting(&self.session.painting.tree);
+                        r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting.tree) };
                     }
                     _ => {}
                 }

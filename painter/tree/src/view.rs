@@ -13,7 +13,9 @@ pub const BACKGROUND: [f64; 3] = [0.06, 0.06, 0.08];
 /// A camera on a sphere around `target`, looking at it: turned by `yaw`
 /// about the canvas's y axis, then tilted by `pitch` (radians; negative
 /// looks down), `distance` canvas units away, `fov_y` the vertical field
-/// of view (radians).
+/// of view (radians). `covered` is the share of the image's width that a
+/// panel hides on the left (0 to 0.9): the frustum is shifted so that the
+/// target sits in the middle of the part that shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OrbitCamera {
     pub target: DVec3,
@@ -21,6 +23,7 @@ pub struct OrbitCamera {
     pub yaw: f64,
     pub pitch: f64,
     pub fov_y: f64,
+    pub covered: f64,
 }
 
 impl OrbitCamera {
@@ -38,7 +41,11 @@ impl OrbitCamera {
         let aspect = f64::from(size[0]) / f64::from(size[1].max(1));
         let ty = (self.fov_y / 2.0).tan();
         let tx = ty * aspect;
-        Camera { eye: self.eye().to_array(), q: [q.x, q.y, q.z, q.w], fov: [-tx.atan(), tx.atan(), ty.atan(), -ty.atan()], size, background }
+        // Tangents from -(1+s)tx to (1-s)tx: the same width, the centre of
+        // the uncovered part [s, 1] of the image on the view axis.
+        let s = self.covered.clamp(0.0, 0.9);
+        let fov = [(-(1.0 + s) * tx).atan(), ((1.0 - s) * tx).atan(), ty.atan(), -ty.atan()];
+        Camera { eye: self.eye().to_array(), q: [q.x, q.y, q.z, q.w], fov, size, background }
     }
 
     /// The ray through pixel (x, y) of an image of `size`, as spec 7
@@ -57,5 +64,5 @@ impl OrbitCamera {
 pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     let (lo, hi) = tree.painted_bounds();
     let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
-    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians() }
+    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
