@@ -41,9 +41,10 @@ import numpy as np
 from . import precision as P
 from . import ray_error as RE
 from .arith import FORMATS
+from .camera import split_eye
 from .dump import dump_bytes, load_dump, write_atomic
 from .oracle import exact_path
-from .raycast import LEFT, OPAQUE, OVERFLOW, STATUS_NAMES, Ray, cast, device_tree
+from .raycast import LEFT, OPAQUE, OVERFLOW, STATUS_NAMES, Ray, cast, device_tree, start_points
 
 CAPACITY = 512  # steps recorded by the emulation (the study's rays need < 200)
 
@@ -86,8 +87,6 @@ def compare(arrays: dict, cam, probe: dict, precision: str, device=None, exact_r
     d_fmt = probe["dir"].astype(fmt.numpy_dtype).astype(np.float64)
     # The exact eye (f64 split of the camera's eye), for every error.
     lu = canvas.root_size * 2.0**-D
-    from .camera import split_eye
-
     eye_l, eye_f = split_eye(cam.eye, lu)
     eye_l = np.broadcast_to(np.asarray(eye_l, np.int64), (n, 3))
     eye_f = np.broadcast_to(np.asarray(eye_f, np.float64), (n, 3))
@@ -115,8 +114,6 @@ def compare(arrays: dict, cam, probe: dict, precision: str, device=None, exact_r
     rays = Ray(em_eye, em_frac, dirs)
     s, rec = cast(tree, canvas, rays, precision, "local", max_steps=CAPACITY, record=CAPACITY)
     em_cell, em_depth, em_origin, em_exit = _last(rec, s.steps)
-    from .raycast import start_points
-
     _, _, sd, so, sp = start_points(tree, canvas, rays, precision, "local")
     same_start = (sd == probe["start_depth"]) & np.all(so == probe["start_origin"], axis=1) & np.all(sp == probe["start"].astype(np.float64), axis=1)
     same_path = (s.steps == steps) & (em_cell == probe["cell"]) & (s.status == probe["status"])
@@ -135,19 +132,13 @@ def compare(arrays: dict, cam, probe: dict, precision: str, device=None, exact_r
     sample = sample[np.linspace(0, len(sample) - 1, min(exact_rays, len(sample))).astype(int)] if len(sample) else sample
     exact_same, exact_err = 0, []
     if int(probe["inside"]):
-        import mpmath
-
         for i in sample:
             k = int(steps[i])
             ex = exact_path(arrays, eye_l[i], eye_f[i], d_fmt[i], max_steps=k)
             if len(ex.cells) != k or ex.cells[-1] != int(probe["cell"][i]):
                 continue
             exact_same += 1
-            with mpmath.workdps(60):
-                x = ex.exit[-1]
-                rel = [x[a] - (mpmath.mpf(int(eye_l[i][a])) + mpmath.mpf(float(eye_f[i][a]))) for a in range(3)]
-                hi = np.array([[float(v) for v in rel]])
-                lo = np.array([[float(v - mpmath.mpf(float(v))) for v in rel]])
+            hi, lo = P.exact_offsets(ex.exit[-1:], eye_l[i], eye_f[i])
             wi = (w[0][i : i + 1], w[1][i : i + 1])
             exact_err.append(float(RE.position_error(wi, (hi, lo))[0] / 2.0 ** (D - int(probe["depth"][i]))))
     statuses = {STATUS_NAMES[k]: int((probe["status"] == k).sum()) for k in (LEFT, OPAQUE, OVERFLOW)}

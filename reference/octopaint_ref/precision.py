@@ -248,14 +248,25 @@ def within_bound(m: dict) -> np.ndarray:
     return m["final_angle"] <= RE.bound(m["e0"], m["length"], m["eps"])
 
 
+def exact_offsets(points, eye_lattice, frac):
+    """Exact points (mpf triples, lattice coordinates) minus the exact eye
+    (eye_lattice + frac), as (hi, lo) f64 [n, 3] for ray_error."""
+    import mpmath
+
+    with mpmath.workdps(60):
+        eye = [mpmath.mpf(int(eye_lattice[a])) + mpmath.mpf(float(frac[a])) for a in range(3)]
+        rel = [[x[a] - eye[a] for a in range(3)] for x in points]
+        hi = np.array([[float(v) for v in r] for r in rel]).reshape(-1, 3)
+        lo = np.array([[float(v - mpmath.mpf(float(v))) for v in r] for r in rel]).reshape(-1, 3)
+    return hi, lo
+
+
 def compare_exact(arrays, rays: Ray, m: dict, precision: str, which) -> dict:
     """Against the mpmath ray, over the ray indices `which`: how many rays
     cross a different cell sequence, and for the others the largest
     distance between a computed exit point and the exact one, in edges of
     the cell exited (the local-frame position error). Exact paths run to
     the same length as the measured ones."""
-    import mpmath
-
     fmt = FORMATS[precision]
     first = np.concatenate([[0], np.cumsum(m["steps"])[:-1]])
     bad, worst = 0, 0.0
@@ -267,11 +278,7 @@ def compare_exact(arrays, rays: Ray, m: dict, precision: str, which) -> dict:
         if got != ex.cells:
             bad += 1
             continue
-        with mpmath.workdps(60):
-            eye = [mpmath.mpf(int(rays.eye_lattice[i][a])) + mpmath.mpf(float(rays.frac[i][a])) for a in range(3)]
-            rel = [[x[a] - eye[a] for a in range(3)] for x in ex.exit]
-            hi = np.array([[float(v) for v in r] for r in rel])
-            lo = np.array([[float(v - mpmath.mpf(float(v))) for v in r] for r in rel])
+        hi, lo = exact_offsets(ex.exit, rays.eye_lattice[i], rays.frac[i])
         sl = slice(first[i], first[i] + k)
         err = RE.position_error((m["w"][0][sl], m["w"][1][sl]), (hi, lo)) / m["edge"][sl]
         worst = max(worst, float(err.max()))

@@ -212,6 +212,32 @@ enum PrecisionChoice {
     F16,
 }
 
+impl From<BackendChoice> for Backend {
+    fn from(c: BackendChoice) -> Backend {
+        match c {
+            BackendChoice::Auto => Backend::Auto,
+            BackendChoice::Vulkan => Backend::Vulkan,
+            BackendChoice::Gl => Backend::Gl,
+        }
+    }
+}
+
+impl From<PrecisionChoice> for Precision {
+    fn from(c: PrecisionChoice) -> Precision {
+        match c {
+            PrecisionChoice::F32 => Precision::F32,
+            PrecisionChoice::F16 => Precision::F16,
+        }
+    }
+}
+
+/// A camera given on the command line as a trace's camera event (JSON),
+/// checked by the trace reader's rules.
+fn camera_arg(text: &str) -> Result<Camera, String> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--camera: not JSON: {e}"))?;
+    octopaint_tree::trace::parse_camera(0, &v).map_err(|e| format!("--camera: {}", e.message))
+}
+
 #[derive(Subcommand)]
 enum Bench {
     /// Stamping and refinement throughput on a deterministic stroke set.
@@ -269,7 +295,7 @@ impl ReplayObserver for Reporter<'_> {
         let [w, h] = camera.size;
         let cpu = |tree: &octopaint_tree::Tree| {
             let g3 = octopaint_tree::g3::g3_table(tree);
-            let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3: &g3 };
+            let inp = RayInput::of(tree, &g3);
             octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera))
         };
         let rgb = match &mut self.draw {
@@ -323,16 +349,8 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, 
         RendererChoice::None => Draw::Nobody,
         RendererChoice::Cpu => Draw::Cpu,
         RendererChoice::Gpu => {
-            let backend = match opts.backend {
-                BackendChoice::Auto => Backend::Auto,
-                BackendChoice::Vulkan => Backend::Vulkan,
-                BackendChoice::Gl => Backend::Gl,
-            };
-            let precision = match opts.precision {
-                PrecisionChoice::F32 => Precision::F32,
-                PrecisionChoice::F16 => Precision::F16,
-            };
-            match Renderer::new(backend) {
+            let precision = Precision::from(opts.precision);
+            match Renderer::new(opts.backend.into()) {
                 Ok(r) if r.gpu.supports(precision) => {
                     if !quiet {
                         eprintln!("octopaint: rendering on {}", r.gpu.describe());

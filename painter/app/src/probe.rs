@@ -8,7 +8,7 @@ use std::io::Cursor;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use octopaint_gpu::{Backend, Precision, Renderer};
+use octopaint_gpu::{Precision, Renderer};
 use octopaint_tree::dump::{NpyArray, Values, read_dump, write_npz};
 use octopaint_tree::raycast::RayParams;
 
@@ -46,23 +46,12 @@ pub fn run(a: &Args) -> ExitCode {
         Ok(t) => t,
         Err(e) => return fail(format!("{}: {e}", a.dump.display()), 2),
     };
-    let camera = match serde_json::from_str::<serde_json::Value>(&a.camera)
-        .map_err(|e| e.to_string())
-        .and_then(|v| octopaint_tree::trace::parse_camera(0, &v).map_err(|e| e.message))
-    {
+    let camera = match crate::camera_arg(&a.camera) {
         Ok(c) => c,
-        Err(e) => return fail(format!("--camera: {e}"), 2),
+        Err(e) => return fail(e, 2),
     };
-    let precision = match a.precision {
-        crate::PrecisionChoice::F32 => Precision::F32,
-        crate::PrecisionChoice::F16 => Precision::F16,
-    };
-    let backend = match a.backend {
-        crate::BackendChoice::Auto => Backend::Auto,
-        crate::BackendChoice::Vulkan => Backend::Vulkan,
-        crate::BackendChoice::Gl => Backend::Gl,
-    };
-    let mut renderer = match Renderer::new(backend) {
+    let precision = Precision::from(a.precision);
+    let mut renderer = match Renderer::new(a.backend.into()) {
         Ok(r) => r,
         Err(e) => return fail(e.to_string(), 1),
     };

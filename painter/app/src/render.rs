@@ -17,10 +17,10 @@ use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame, RgbaImage};
 use indicatif::{ProgressBar, ProgressStyle};
 use octopaint_doc::Session;
-use octopaint_gpu::{Backend, Precision, Renderer};
+use octopaint_gpu::{Precision, Renderer};
 use octopaint_tree::Tree;
 use octopaint_tree::raycast::{RayInput, RayParams};
-use octopaint_tree::trace::{Camera, MAX_IMAGE_SIZE, parse_camera};
+use octopaint_tree::trace::{Camera, MAX_IMAGE_SIZE};
 use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
 
 /// The most frames a turntable takes (one per 0.1°).
@@ -95,13 +95,12 @@ fn parse_size(s: &str) -> Result<[u32; 2], String> {
 }
 
 /// The turntable's cameras: `n` yaws evenly spread over one turn, starting
-/// at the framing view's, at `elevation` degrees, looking at its target.
-pub fn turntable(start: &OrbitCamera, n: u32, elevation_deg: f64, size: [u32; 2]) -> Vec<Camera> {
+/// at `start`'s, at its pitch, looking at its target.
+pub fn turntable(start: &OrbitCamera, n: u32, size: [u32; 2]) -> Vec<Camera> {
     (0..n)
         .map(|k| {
             let yaw = start.yaw + std::f64::consts::TAU * f64::from(k) / f64::from(n);
-            let pitch = if (elevation_deg + start.pitch.to_degrees()).abs() < 1e-12 { start.pitch } else { -elevation_deg.to_radians() };
-            OrbitCamera { yaw, pitch, ..*start }.camera(size, BACKGROUND)
+            OrbitCamera { yaw, ..*start }.camera(size, BACKGROUND)
         })
         .collect()
 }
@@ -112,10 +111,13 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
         if !(1..=MAX_FRAMES).contains(&n) {
             return Err(format!("--turntable {n}: from 1 to {MAX_FRAMES} frames"));
         }
-        let start = frame_painting(tree);
-        let elevation = a.elevation.unwrap_or(-start.pitch.to_degrees());
-        if !(elevation.is_finite() && elevation.abs() < 90.0) {
-            return Err(format!("--elevation {elevation}: must be strictly between -90 and 90 degrees"));
+        // The framing view, raised to --elevation when given.
+        let mut start = frame_painting(tree);
+        if let Some(elevation) = a.elevation {
+            if !(elevation.is_finite() && elevation.abs() < 90.0) {
+                return Err(format!("--elevation {elevation}: must be strictly between -90 and 90 degrees"));
+            }
+            start.pitch = -elevation.to_radians();
         }
         if !(10..=10_000).contains(&a.frame_ms) {
             return Err(format!("--frame-ms {}: from 10 to 10000", a.frame_ms));
@@ -123,7 +125,7 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
         if a.out.is_file() {
             return Err(format!("--out {}: with --turntable it is a folder, and a file of that name exists", a.out.display()));
         }
-        let cameras = turntable(&start, n, elevation, size.unwrap_or([1280, 720]));
+        let cameras = turntable(&start, n, size.unwrap_or([1280, 720]));
         return Ok(Plan { cameras, folder: Some(a.out.clone()) });
     }
     if a.out.is_dir() {
@@ -131,8 +133,7 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
     }
     let camera = match &a.camera {
         Some(text) => {
-            let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--camera: not JSON: {e}"))?;
-            let mut c = parse_camera(0, &v).map_err(|e| format!("--camera: {}", e.message))?;
+            let mut c = crate::camera_arg(text)?;
             if let Some(s) = size {
                 c.size = s;
             }
@@ -167,7 +168,7 @@ impl Draw {
                 Err(e) => Err(e.to_string()),
             },
             Draw::Cpu(g3) => {
-                let inp = RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 };
+                let inp = RayInput::of(tree, g3);
                 Ok(octopaint_tree::raycast::render(&inp, &params))
             }
         }
@@ -179,16 +180,8 @@ fn drawer(a: &Args, tree: &mut Tree) -> Result<Draw, String> {
         crate::RendererChoice::Cpu => Ok(Draw::Cpu(octopaint_tree::g3::g3_table(tree))),
         crate::RendererChoice::None => Err("--renderer none draws nothing: use gpu or cpu".into()),
         crate::RendererChoice::Gpu => {
-            let backend = match a.backend {
-                crate::BackendChoice::Auto => Backend::Auto,
-                crate::BackendChoice::Vulkan => Backend::Vulkan,
-                crate::BackendChoice::Gl => Backend::Gl,
-            };
-            let precision = match a.precision {
-                crate::PrecisionChoice::F32 => Precision::F32,
-                crate::PrecisionChoice::F16 => Precision::F16,
-            };
-            let mut r = Renderer::new(backend).map_err(|e| format!("{e}; --renderer cpu draws on the CPU"))?;
+            let precision = Precision::from(a.precision);
+            let mut r = Renderer::new(a.backend.into()).map_err(|e| format!("{e}; --renderer cpu draws on the CPU"))?;
             if !r.gpu.supports(precision) {
                 return Err(format!("{} has no SHADER_F16 for --precision f16", r.gpu.describe()));
             }

@@ -64,8 +64,8 @@ struct Resolution {
 
 impl Resolution {
     /// The cast size of this frame of a `window`-sized view, given whether
-    /// the scene changed since the last one; learns from the last frame's
-    /// interval when that frame was scaled.
+    /// the tree changed since the last one, and whether the view is still;
+    /// learns from the last frame's interval when that frame was moving.
     fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, grid: bool, tree_changed: bool) -> ([u32; 2], bool) {
         let now = Instant::now();
         let view = (*camera, window, grid);
@@ -857,9 +857,7 @@ impl ApplicationHandler for App {
                     Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
                     Key::Character("g") if !ctrl => r.brush.grid = !r.brush.grid,
-                    Key::Character("f") if !ctrl => {
-                        r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting.tree) };
-                    }
+                    Key::Character("f") if !ctrl => self.frame_view(),
                     _ => {}
                 }
             }

@@ -14,7 +14,7 @@ use octopaint_tree::raycast::{RayInput, RayParams, render};
 fn cpu_image(painting: &octopaint_tree::paint::Painting, camera: &octopaint_tree::trace::Camera) -> Vec<u8> {
     let t = &painting.tree;
     let g3 = g3_table(t);
-    let inp = RayInput { parent: &t.parent, first_child: &t.first_child, depth: &t.depth, rgb: &t.rgb, sigma: &t.sigma, g3: &g3 };
+    let inp = RayInput::of(t, &g3);
     render(&inp, &RayParams::new(&t.lat, camera))
 }
 

@@ -84,8 +84,30 @@ pub fn write_npz<W: Write + Seek>(out: W, arrays: &[NpyArray]) -> std::io::Resul
     zip.finish().map_err(std::io::Error::other)
 }
 
-/// One `.npy` entry of a dump being read.
-type Npy = npyz::NpyFile<Cursor<Vec<u8>>>;
+/// One entry of a dump: `name.npy` with dtype `dtype` (numpy's descr,
+/// e.g. `<u4`) and a shape whose given dimensions (None: any) it must
+/// have; its shape and values in C order.
+fn read_entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str, dtype: &str, shape: &[Option<u64>]) -> Result<(Vec<u64>, Vec<T>), String> {
+    let mut data = Vec::new();
+    let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| format!("{name}.npy: {e}"))?;
+    std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
+    let npy = npyz::NpyFile::new(&data[..]).map_err(|e| format!("{name}.npy: not an .npy array: {e}"))?;
+    let got = npy.dtype().descr();
+    let want = format!("'{dtype}'");
+    // One-byte types have no byte order: numpy writes '|u1'.
+    if got.trim() != want && !(dtype == "|u1" && got.trim() == "'<u1'") {
+        return Err(format!("{name}.npy: dtype {} where {dtype} is expected", got.trim()));
+    }
+    let sh = npy.shape().to_vec();
+    if sh.len() != shape.len() || sh.iter().zip(shape).any(|(g, w)| w.is_some_and(|w| w != *g)) {
+        return Err(format!("{name}.npy: shape {sh:?} where {} is expected", fmt_shape(shape)));
+    }
+    if npy.order() != npyz::Order::C {
+        return Err(format!("{name}.npy: Fortran order is not read"));
+    }
+    let values = npy.into_vec::<T>().map_err(|e| format!("{name}.npy: {e}"))?;
+    Ok((sh, values))
+}
 
 /// A tree from a dump's bytes (spec 11.1; what either implementation
 /// wrote at a snapshot, or `octopaint-ref` wrote for any tree): the pools
@@ -96,50 +118,21 @@ type Npy = npyz::NpyFile<Cursor<Vec<u8>>>;
 /// links). The cell budget is the dump's length.
 pub fn read_dump(bytes: &[u8]) -> Result<Tree, String> {
     let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| format!("not an .npz (zip) file: {e}"))?;
-    let mut entry = |name: &str, dtype: &str, shape: &[Option<u64>]| -> Result<(Vec<u64>, Npy), String> {
-        let mut data = Vec::new();
-        let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| format!("{name}.npy: {e}"))?;
-        std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
-        let npy = npyz::NpyFile::new(Cursor::new(data)).map_err(|e| format!("{name}.npy: not an .npy array: {e}"))?;
-        let got = npy.dtype().descr();
-        let want = format!("'{dtype}'");
-        // One-byte types have no byte order: numpy writes '|u1'.
-        if got.trim() != want && !(dtype == "|u1" && got.trim() == "'<u1'") {
-            return Err(format!("{name}.npy: dtype {} where {dtype} is expected", got.trim()));
-        }
-        let sh = npy.shape().to_vec();
-        if sh.len() != shape.len() || sh.iter().zip(shape).any(|(g, w)| w.is_some_and(|w| w != *g)) {
-            return Err(format!("{name}.npy: shape {sh:?} where {} is expected", fmt_shape(shape)));
-        }
-        if npy.order() != npyz::Order::C {
-            return Err(format!("{name}.npy: Fortran order is not read"));
-        }
-        Ok((sh, npy))
-    };
-    let vec = |name: &str, npy: Npy| -> Result<Vec<u8>, String> { npy.into_vec::<u8>().map_err(|e| format!("{name}.npy: {e}")) };
-    let u32s = |name: &str, npy: Npy| -> Result<Vec<u32>, String> { npy.into_vec::<u32>().map_err(|e| format!("{name}.npy: {e}")) };
-    let (_, roots) = entry("roots", "<u4", &[Some(3)])?;
-    let roots = u32s("roots", roots)?;
-    let (_, max_depth) = entry("max_depth", "<u4", &[])?;
-    let max_depth = u32s("max_depth", max_depth)?[0];
-    let (_, root_size) = entry("root_size", "<f8", &[])?;
-    let root_size = root_size.into_vec::<f64>().map_err(|e| format!("root_size.npy: {e}"))?[0];
-    let (sh, parent) = entry("parent", "<u4", &[None])?;
+    let (_, roots) = read_entry::<u32>(&mut zip, "roots", "<u4", &[Some(3)])?;
+    let (_, max_depth) = read_entry::<u32>(&mut zip, "max_depth", "<u4", &[])?;
+    let (_, root_size) = read_entry::<f64>(&mut zip, "root_size", "<f8", &[])?;
+    let (sh, parent) = read_entry::<u32>(&mut zip, "parent", "<u4", &[None])?;
     let n = sh[0];
     if n > crate::trace::MAX_CAPACITY as u64 {
         return Err(format!("{n} cells are more than the {} a canvas may hold", crate::trace::MAX_CAPACITY));
     }
-    let header = serde_json::json!({"roots": roots, "max_depth": max_depth, "root_size": root_size, "capacity": n});
+    let header = serde_json::json!({"roots": roots, "max_depth": max_depth[0], "root_size": root_size[0], "capacity": n});
     let canvas = crate::trace::parse_canvas(0, &header).map_err(|e| format!("the dump's canvas: {}", e.message))?;
-    let parent = u32s("parent", parent)?;
-    let (_, fc) = entry("first_child", "<u4", &[Some(n)])?;
-    let first_child = u32s("first_child", fc)?;
-    let (_, depth) = entry("depth", "|u1", &[Some(n)])?;
-    let depth = vec("depth", depth)?;
-    let (_, rgb) = entry("rgb", "|u1", &[Some(n), Some(3)])?;
-    let rgb: Vec<[u8; 3]> = vec("rgb", rgb)?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    let (_, sigma) = entry("sigma", "<f4", &[Some(n)])?;
-    let sigma = sigma.into_vec::<f32>().map_err(|e| format!("sigma.npy: {e}"))?;
+    let (_, first_child) = read_entry::<u32>(&mut zip, "first_child", "<u4", &[Some(n)])?;
+    let (_, depth) = read_entry::<u8>(&mut zip, "depth", "|u1", &[Some(n)])?;
+    let (_, rgb) = read_entry::<u8>(&mut zip, "rgb", "|u1", &[Some(n), Some(3)])?;
+    let rgb: Vec<[u8; 3]> = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let (_, sigma) = read_entry::<f32>(&mut zip, "sigma", "<f4", &[Some(n)])?;
     Tree::from_pools(&canvas, parent, first_child, depth, rgb, sigma).map_err(|e| format!("not a valid tree: {e}"))
 }
 
@@ -178,25 +171,27 @@ pub fn dump_bytes(tree: &Tree) -> Vec<u8> {
 
 /// The dump of a tree with a given g3 table (read back from the GPU).
 pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
-    let n = tree.n_used() as usize;
-    assert_eq!(g3.len(), n, "one g3 row per cell");
+    assert_eq!(g3.len(), tree.n_used() as usize, "one g3 row per cell");
     let origin = origins(tree);
-    let roots = tree.lat.roots;
-    let max_depth = [tree.lat.max_depth];
-    let root_size = [tree.lat.root_size];
-    let arrays = [
+    write_npz(Cursor::new(Vec::new()), &dump_arrays(tree, g3, &origin)).expect("writing to memory cannot fail").into_inner()
+}
+
+/// The arrays of a dump in the order of spec 11.1, borrowing the tree, its
+/// g3 table and its cells' origins.
+fn dump_arrays<'a>(tree: &'a Tree, g3: &'a [[u32; 3]], origin: &'a [[u32; 3]]) -> Vec<NpyArray<'a>> {
+    let n = tree.n_used() as usize;
+    vec![
         NpyArray { name: "parent", shape: vec![n], values: Values::U32(&tree.parent) },
         NpyArray { name: "first_child", shape: vec![n], values: Values::U32(&tree.first_child) },
         NpyArray { name: "depth", shape: vec![n], values: Values::U8(&tree.depth) },
         NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
         NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&tree.sigma) },
         NpyArray { name: "g3", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(g3)) },
-        NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&origin)) },
-        NpyArray { name: "roots", shape: vec![3], values: Values::U32(&roots[..]) },
-        NpyArray { name: "max_depth", shape: vec![], values: Values::U32(&max_depth[..]) },
-        NpyArray { name: "root_size", shape: vec![], values: Values::F64(&root_size[..]) },
-    ];
-    write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory cannot fail").into_inner()
+        NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(origin)) },
+        NpyArray { name: "roots", shape: vec![3], values: Values::U32(&tree.lat.roots[..]) },
+        NpyArray { name: "max_depth", shape: vec![], values: Values::U32(std::slice::from_ref(&tree.lat.max_depth)) },
+        NpyArray { name: "root_size", shape: vec![], values: Values::F64(std::slice::from_ref(&tree.lat.root_size)) },
+    ]
 }
 
 #[cfg(test)]
@@ -277,22 +272,9 @@ mod tests {
         assert!(e.contains("not an .npz"), "{e}");
         // Rewrite the dump with one array changed (None: left out).
         let n = tree.n_used() as usize;
+        let (origin, g3) = (origins(&tree), g3_table(&tree));
         let with = |name: &str, values: Option<Values>, shape: Vec<usize>| {
-            let origin = origins(&tree);
-            let g3 = g3_table(&tree);
-            let (roots, md, rs) = (tree.lat.roots, [tree.lat.max_depth], [tree.lat.root_size]);
-            let mut arrays = vec![
-                NpyArray { name: "parent", shape: vec![n], values: Values::U32(&tree.parent) },
-                NpyArray { name: "first_child", shape: vec![n], values: Values::U32(&tree.first_child) },
-                NpyArray { name: "depth", shape: vec![n], values: Values::U8(&tree.depth) },
-                NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
-                NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&tree.sigma) },
-                NpyArray { name: "g3", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&g3)) },
-                NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(&origin)) },
-                NpyArray { name: "roots", shape: vec![3], values: Values::U32(&roots[..]) },
-                NpyArray { name: "max_depth", shape: vec![], values: Values::U32(&md[..]) },
-                NpyArray { name: "root_size", shape: vec![], values: Values::F64(&rs[..]) },
-            ];
+            let mut arrays = dump_arrays(&tree, &g3, &origin);
             let k = arrays.iter().position(|a| a.name == name).unwrap();
             match values {
                 Some(v) => arrays[k] = NpyArray { name: arrays[k].name, shape, values: v },

@@ -144,6 +144,13 @@ pub struct RayInput<'a> {
     pub g3: &'a [[u32; 3]],
 }
 
+impl<'a> RayInput<'a> {
+    /// The pools of `tree` with its g3 table.
+    pub fn of(tree: &'a crate::pool::Tree, g3: &'a [[u32; 3]]) -> Self {
+        RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 }
+    }
+}
+
 impl RayInput<'_> {
     // Reads past the pools (NONE included) give a free cell, as on the GPU
     // (shared/pools.wgsl `cell_at`).
