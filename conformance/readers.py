@@ -139,6 +139,8 @@ def canonical(path: str) -> list:
             row += [list(v.p), v.pressure, list(v.q)]
         elif ev.kind == "camera":
             row += [list(v.eye), list(v.q), list(v.fov), list(v.size), list(v.background)]
+        elif ev.kind == "light":
+            row += [True, list(v.dir), v.intensity, v.ambient, v.shadows] if v.on else [False]
         elif ev.kind in ("render", "snapshot"):
             row.append(v)
         out.append(row)

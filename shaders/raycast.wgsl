@@ -45,14 +45,19 @@ struct RayParams {
     misc: vec4<u32>,
     // x: 1 to skip cells whose links disagree (spec 7; 0 only in the
     // real-time benchmark's comparison of strategies); y: 1 to write a
-    // probe record per ray instead of a pixel (docs/precision.md); zw:
-    // unused
+    // probe record per ray instead of a pixel (docs/precision.md); z: 0
+    // unlit, 1 lit, 2 lit with a shadow ray (spec 6.1); w: unused
     flags: vec4<u32>,
     // The ground grid, a view aid behind everything (not part of the
     // painting; docs/desktop.md): x, z the eye's position modulo ten
     // spacings, y its height above the canvas floor (canvas units); w the
     // spacing, 0 for no grid.
     grid: vec4<f32>,
+    // Lighting (spec 6.1), used when flags.z is 1 (lit) or 2 (lit, with a
+    // shadow ray): xyz the unit direction towards the light, w intensity.
+    light: vec4<f32>,
+    // x: the ambient term; yzw unused.
+    shade: vec4<f32>,
 }
 
 @group(1) @binding(0) var<storage, read> g3_0: array<u32>;
@@ -156,6 +161,245 @@ fn inv_edge(depth: u32) -> f32 {
     return ldexp(1.0, -i32(params.roots.w - depth));
 }
 
+// What a cell sees across its face on side `side` (+1/-1) of axis `a`
+// (spec 6.1): x the sigma there, y the distance between centres in edges
+// of the cell. A same-depth leaf: its sigma at 1; a same-depth cell with
+// children: the mean of its four children on the face at 3/4; a coarser
+// leaf: its sigma at 3/2; nothing (outside the canvas, another depth): an
+// empty cell at 1. Kept line for line with painter/tree/src/raycast.rs
+// `face` and reference/octopaint_ref/raycast.py `_face`.
+fn face(cell: u32, depth: u32, origin: vec3<u32>, a: u32, side: i32) -> vec2<f32> {
+    var nb = NONE;
+    if (cell < params.misc.z) {
+        var r = vec3<i32>(origin >> vec3<u32>(params.roots.w));
+        r[a] = r[a] + side;
+        if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
+            nb = u32(r.x) + params.roots.x * (u32(r.y) + params.roots.y * u32(r.z));
+        }
+    } else if ((((cell >> a) & 1u) == 1u) == (side > 0)) {
+        nb = g3_at(cell, a);
+    } else {
+        nb = cell ^ (1u << a);
+    }
+    if (nb == NONE) {
+        return vec2<f32>(0.0, 1.0);
+    }
+    let n = cell_at(nb);
+    let dn = depth_of(n);
+    if (dn == depth) {
+        if (n.first_child == NONE) {
+            return vec2<f32>(n.sigma, 1.0);
+        }
+        // The children whose bit a is on the face, by increasing index.
+        let want = select(1u, 0u, side > 0);
+        var kid = vec4<f32>(0.0);
+        for (var j = 0u; j < 4u; j = j + 1u) {
+            let lo = j & ((1u << a) - 1u);
+            let k = ((j >> a) << (a + 1u)) | (want << a) | lo;
+            kid[j] = cell_at(n.first_child + k).sigma;
+        }
+        return vec2<f32>(((kid.x + kid.y) + (kid.z + kid.w)) * 0.25, 0.75);
+    }
+    if (dn + 1u == depth) {
+        return vec2<f32>(n.sigma, 1.5);
+    }
+    return vec2<f32>(0.0, 1.0);
+}
+
+// Spec 6.1: the relative gradient below which a cell is unlit, and above
+// which it is fully lit.
+const R_UNLIT: f32 = 0.004;
+const R_LIT: f32 = 0.02;
+
+// The factors of a lit cell's emitted colour (spec 6.1): x the part that
+// needs no light, y the direct part (before the shadow ray).
+fn shade(cell: u32, depth: u32, origin: vec3<u32>, sigma: f32) -> vec2<f32> {
+    var delta = vec3<f32>(0.0);
+    var top = sigma;
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        let hi = face(cell, depth, origin, a, 1);
+        let lo = face(cell, depth, origin, a, -1);
+        delta[a] = (hi.x - lo.x) / (hi.y + lo.y);
+        top = max(top, max(hi.x, lo.x));
+    }
+    let g = sqrt(delta.x * delta.x + delta.y * delta.y + delta.z * delta.z);
+    let r = select(0.0, g / top, top > 0.0);
+    let w = clamp((r - R_UNLIT) / (R_LIT - R_UNLIT), 0.0, 1.0);
+    let l = params.light.xyz;
+    let n_dot_l = -(delta.x * l.x + delta.y * l.y + delta.z * l.z) / select(1.0, g, g > 0.0);
+    return vec2<f32>((1.0 - w) + w * params.shade.x, w * (params.light.w * max(n_dot_l, 0.0)));
+}
+
+// One walk through the cells: a pixel's ray, or a shadow ray.
+struct Walk {
+    cell: u32,
+    depth: u32,
+    origin: vec3<u32>,
+    p: vec3<real>,
+    // composite this cell (false: skipped, spec 7)
+    visible: bool,
+    // unlit: the colour; lit: the part that needs no light (C0)
+    colour: vec3<f32>,
+    // lit: the directly lit part (C1), before the shadow ray
+    direct: vec3<f32>,
+    trans: f32,
+    steps: u32,
+    status: u32,
+    last_exit: vec3<real>,
+    // lit with shadows: where the opacity first passed 1/2
+    found: bool,
+    s_cell: u32,
+    s_depth: u32,
+    s_origin: vec3<u32>,
+    s_p: vec3<real>,
+}
+
+fn start_walk(cell: u32, depth: u32, origin: vec3<u32>, p: vec3<real>, status: u32) -> Walk {
+    return Walk(cell, depth, origin, p, consistent(cell), vec3<f32>(0.0), vec3<f32>(0.0), 1.0, 0u, status,
+        vec3<real>(real(0.0)), false, NONE, 0u, vec3<u32>(0u), vec3<real>(real(0.0)));
+}
+
+// Walk along d from w0 until the ray stops (spec 7 'Step', 'Next cell'),
+// compositing as it goes (spec 6, 6.1). shadow: only attenuate.
+fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
+    var w = w0;
+    let D = params.roots.w;
+    let rx = params.roots.x;
+    let ry = params.roots.y;
+    let lit = params.flags.z;
+    loop {
+        if (w.status != RUNNING) {
+            break;
+        }
+        let cell = w.cell;
+        let depth = w.depth;
+        let origin = w.origin;
+        let p = w.p;
+        let here = cell_at(cell);
+        // Exit distances, clamped at 0; the smallest, ties to the lowest axis.
+        var t_axes = vec3<real>(real(60000.0));
+        var bound = vec3<real>(real(-0.5));
+        for (var a = 0; a < 3; a = a + 1) {
+            bound[a] = select(real(-0.5), real(0.5), d[a] > real(0.0));
+            if (d[a] != real(0.0)) {
+                t_axes[a] = max((bound[a] - p[a]) / d[a], real(0.0));
+            }
+        }
+        var axis = 0u;
+        if (t_axes.y < t_axes[axis]) {
+            axis = 1u;
+        }
+        if (t_axes.z < t_axes[axis]) {
+            axis = 2u;
+        }
+        let t = t_axes[axis];
+
+        // Emission-absorption over the segment (f32; spec 6).
+        if (w.visible) {
+            let edge = ldexp(params.eye_rel.w, i32(D - depth));
+            let len_canvas = f32(t) * edge;
+            let ext = exp(-here.sigma * len_canvas);
+            if (shadow) {
+                w.trans = w.trans * ext;
+            } else {
+                let rgb = vec3<f32>(f32(here.rgbd & 255u), f32((here.rgbd >> 8u) & 255u), f32((here.rgbd >> 16u) & 255u)) / 255.0;
+                if (lit == 0u) {
+                    w.colour = w.colour + w.trans * (1.0 - ext) * rgb;
+                } else {
+                    let emitted = w.trans * (1.0 - ext) * rgb;
+                    if (here.sigma > 0.0) {
+                        let f = shade(cell, depth, origin, here.sigma);
+                        w.colour = w.colour + emitted * f.x;
+                        w.direct = w.direct + emitted * f.y;
+                    }
+                    // The shadow ray starts where T = 1/2 (spec 6.1).
+                    if (!w.found && w.trans >= 0.5 && w.trans * ext < 0.5) {
+                        let per_unit = here.sigma * edge;
+                        let t_half = min(log(2.0 * w.trans) / select(1.0, per_unit, per_unit > 0.0), f32(t));
+                        w.found = true;
+                        w.s_cell = cell;
+                        w.s_depth = depth;
+                        w.s_origin = origin;
+                        w.s_p = clamp(p + real(t_half) * d, vec3<real>(real(-0.5)), vec3<real>(real(0.5)));
+                    }
+                }
+                w.trans = w.trans * ext;
+            }
+        }
+
+        var p_exit = p + t * d;
+        p_exit[axis] = bound[axis];
+        w.last_exit = p_exit;
+
+        // The next cell: sibling across an inward face, g3 across an
+        // outward one, root-array arithmetic for roots.
+        let sgn = select(-1, 1, d[axis] > real(0.0));
+        let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
+        let size = 1u << (D - depth);
+        var nxt = NONE;
+        if (cell < params.misc.z) {
+            var r = vec3<i32>(origin >> vec3<u32>(D));
+            r[axis] = r[axis] + sgn;
+            if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
+                nxt = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+            }
+        } else if ((bits[axis] == 1u) == (sgn > 0)) {
+            nxt = g3_at(cell, axis);
+        } else {
+            nxt = cell ^ (1u << axis);
+        }
+        w.steps = w.steps + 1u;
+        if (w.trans < T_MIN) {
+            w.status = OPAQUE;
+            break;
+        }
+        if (nxt == NONE) {
+            w.status = LEFT;
+            break;
+        }
+        let next = cell_at(nxt);
+        let dn = depth_of(next);
+        let coarser = dn + 1u == depth;
+        if (dn != depth && !coarser) {
+            w.status = LOST; // a freed or unbalanced cell: only mid-upload
+            break;
+        }
+        if (w.steps >= params.misc.y) {
+            w.status = OVERFLOW;
+            break;
+        }
+        // Into the next frame: p' = p * scale + shift (spec 7).
+        let entry = real(-0.5) * real(sgn);
+        var p_next = p_exit;
+        var o_next = origin;
+        if (coarser) {
+            p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+            o_next = origin - bits * size;
+            o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
+        } else {
+            o_next[axis] = o_next[axis] + u32(sgn) * size;
+        }
+        p_next[axis] = entry;
+        w.visible = consistent(nxt);
+        // At most one descent, into the child holding the entry point.
+        w.cell = nxt;
+        w.depth = dn;
+        w.origin = o_next;
+        w.p = p_next;
+        if (w.visible && next.first_child != NONE) {
+            let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
+            let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+            if (params.flags.x == 0u || cell_at(child).parent == nxt) {
+                w.p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+                w.origin = o_next + cbits * (1u << (D - dn - 1u));
+                w.cell = child;
+                w.depth = dn + 1u;
+            }
+        }
+    }
+    return w;
+}
+
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     cells_held = params.extent_max.w;
@@ -206,8 +450,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         t_out = min(t_out, far);
     }
     let inside = params.misc.w == 1u;
-    var colour = vec3<f32>(0.0);
-    var trans = 1.0;
     var status = RUNNING;
     if (!inside && !(t_in <= t_out && t_out > 0.0)) {
         status = LEFT;
@@ -264,7 +506,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         p[ax] = select(real(0.5), real(-0.5), dir[ax] > 0.0);
     }
     p = clamp(p, vec3<real>(-0.5), vec3<real>(0.5));
-    var visible = consistent(cell);
     let probe = params.flags.y != 0u;
     let record = (gid.y * w + gid.x) * PROBE_WORDS;
     if (probe) {
@@ -273,121 +514,28 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         probe_put3(record, 14u, origin);
         probe_put3(record, 17u, bitcast<vec3<u32>>(vec3<f32>(p)));
     }
-    var last_exit = vec3<real>(real(0.0));
 
-    var steps = 0u;
-    loop {
-        if (status != RUNNING) {
-            break;
-        }
-        let here = cell_at(cell);
-        // Exit distances, clamped at 0; the smallest, ties to the lowest axis.
-        var t_axes = vec3<real>(real(60000.0));
-        var bound = vec3<real>(real(-0.5));
-        for (var a = 0; a < 3; a = a + 1) {
-            bound[a] = select(real(-0.5), real(0.5), d[a] > real(0.0));
-            if (d[a] != real(0.0)) {
-                t_axes[a] = max((bound[a] - p[a]) / d[a], real(0.0));
-            }
-        }
-        var axis = 0u;
-        if (t_axes.y < t_axes[axis]) {
-            axis = 1u;
-        }
-        if (t_axes.z < t_axes[axis]) {
-            axis = 2u;
-        }
-        let t = t_axes[axis];
-
-        // Emission-absorption over the segment (f32; spec 6).
-        if (visible) {
-            let len_canvas = f32(t) * ldexp(params.eye_rel.w, i32(D - depth));
-            let ext = exp(-here.sigma * len_canvas);
-            let rgb = vec3<f32>(f32(here.rgbd & 255u), f32((here.rgbd >> 8u) & 255u), f32((here.rgbd >> 16u) & 255u)) / 255.0;
-            colour = colour + trans * (1.0 - ext) * rgb;
-            trans = trans * ext;
-        }
-
-        var p_exit = p + t * d;
-        p_exit[axis] = bound[axis];
-        last_exit = p_exit;
-
-        // The next cell: sibling across an inward face, g3 across an
-        // outward one, root-array arithmetic for roots.
-        let sgn = select(-1, 1, d[axis] > real(0.0));
-        let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
-        let size = 1u << (D - depth);
-        var nxt = NONE;
-        if (cell < params.misc.z) {
-            var r = vec3<i32>(origin >> vec3<u32>(D));
-            r[axis] = r[axis] + sgn;
-            if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
-                nxt = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
-            }
-        } else if ((bits[axis] == 1u) == (sgn > 0)) {
-            nxt = g3_at(cell, axis);
-        } else {
-            nxt = cell ^ (1u << axis);
-        }
-        steps = steps + 1u;
-        if (trans < T_MIN) {
-            status = OPAQUE;
-            break;
-        }
-        if (nxt == NONE) {
-            status = LEFT;
-            break;
-        }
-        let next = cell_at(nxt);
-        let dn = depth_of(next);
-        let coarser = dn + 1u == depth;
-        if (dn != depth && !coarser) {
-            status = LOST; // a freed or unbalanced cell: only mid-upload
-            break;
-        }
-        if (steps >= params.misc.y) {
-            status = OVERFLOW;
-            break;
-        }
-        // Into the next frame: p' = p * scale + shift (spec 7).
-        let entry = real(-0.5) * real(sgn);
-        var p_next = p_exit;
-        var o_next = origin;
-        if (coarser) {
-            p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
-            o_next = origin - bits * size;
-            o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
-        } else {
-            o_next[axis] = o_next[axis] + u32(sgn) * size;
-        }
-        p_next[axis] = entry;
-        visible = consistent(nxt);
-        // At most one descent, into the child holding the entry point.
-        cell = nxt;
-        depth = dn;
-        origin = o_next;
-        p = p_next;
-        if (visible && next.first_child != NONE) {
-            let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
-            let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
-            if (params.flags.x == 0u || cell_at(child).parent == nxt) {
-                p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
-                origin = o_next + cbits * (1u << (D - dn - 1u));
-                cell = child;
-                depth = dn + 1u;
-            }
-        }
-    }
+    let ray = walk(start_walk(cell, depth, origin, p, status), d, false);
     if (probe) {
-        probe_put(record, 0u, status);
-        probe_put(record, 1u, steps);
-        probe_put(record, 2u, cell);
-        probe_put(record, 3u, depth);
-        probe_put3(record, 4u, origin);
-        probe_put3(record, 7u, bitcast<vec3<u32>>(vec3<f32>(last_exit)));
+        probe_put(record, 0u, ray.status);
+        probe_put(record, 1u, ray.steps);
+        probe_put(record, 2u, ray.cell);
+        probe_put(record, 3u, ray.depth);
+        probe_put3(record, 4u, ray.origin);
+        probe_put3(record, 7u, bitcast<vec3<u32>>(vec3<f32>(ray.last_exit)));
         return;
     }
-    colour = colour + trans * ground(dir);
+    var colour = ray.colour;
+    if (params.flags.z == 1u) {
+        colour = colour + ray.direct;
+    } else if (params.flags.z == 2u) {
+        // One shadow ray towards the light from where the opacity passed
+        // 1/2: the same walk in another direction (spec 6.1).
+        let start = start_walk(ray.s_cell, ray.s_depth, ray.s_origin, ray.s_p, select(LEFT, RUNNING, ray.found));
+        let shadow = walk(start, vec3<real>(params.light.xyz), true);
+        colour = colour + shadow.trans * ray.direct;
+    }
+    colour = colour + ray.trans * ground(dir);
     let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));
     pixels[gid.y * w + gid.x] = px.x | (px.y << 8u) | (px.z << 16u) | (255u << 24u);
 }

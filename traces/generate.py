@@ -275,7 +275,44 @@ def scene() -> str:
     w.ev("render", 0.1, name="scene_close")
     w.camera([c[0], c[1] + 500, c[2] + 6000], c, size=(320, 240))
     w.ev("render", 0.1, name="scene_far")
+    # The close view again, lit with shadows: shading across the depth
+    # changes of real brush work (depths 0 to 25).
+    w.ev("light", 0.1, dir=[0.3, 1.0, 0.6], intensity=0.9, ambient=0.25, shadows=True)
+    w.camera([c[0], c[1], c[2] + 1.5], base, size=(320, 240))
+    w.ev("render", 0.1, name="scene_lit")
     w.ev("snapshot", 0.0, name="scene")
+    return w.text()
+
+
+def lit() -> str:
+    """Lighting (spec 6.1): a slab, a ball resting above it, a thin tube
+    (finer cells beside coarser ones), a noise blob and a faint haze, drawn
+    unlit, lit, lit with shadow rays (the ball shades the slab), from the
+    side, and with the light switched off again (the unlit pixels)."""
+    w = Writer({"roots": [2, 2, 2], "max_depth": 8, "root_size": 0.5, "capacity": 4194304}, "Lit shapes")
+    w.brush("box", "paint", 0.3, [0.8, 0.78, 0.7], opacity=0.95, hardness=0.9, aspect=[1.0, 0.12, 1.0])
+    w.stroke([[0.5, 0.25, 0.5]])
+    w.brush("sphere", "paint", 0.13, [0.9, 0.45, 0.15], opacity=0.95, hardness=0.85)
+    w.stroke([[0.42, 0.52, 0.5]])
+    w.brush("sphere", "paint", 0.035, [0.2, 0.5, 0.9], opacity=0.9, hardness=0.6, spacing=0.3)
+    w.stroke([[0.62 + 0.2 * math.sin(i / 10), 0.45 + 0.1 * i / 30, 0.35 + 0.3 * i / 30] for i in range(31)])
+    w.brush("noise", "paint", 0.1, [0.4, 0.8, 0.3], opacity=0.8, hardness=0.5,
+            noise={"frequency": 3.0, "octaves": 3, "seed": 11, "gain": 0.5})
+    w.stroke([[0.25, 0.4, 0.3]])
+    w.brush("sphere", "paint", 0.22, [0.7, 0.75, 0.95], opacity=0.05, hardness=0.0)
+    w.stroke([[0.75, 0.7, 0.7]])
+    w.camera([0.5, 0.75, 1.6], [0.5, 0.4, 0.5], size=(256, 192))
+    w.ev("render", 0.1, name="lit_unlit")
+    w.ev("light", 0.1, dir=[0.45, 1.0, 0.35], intensity=0.8, ambient=0.3)
+    w.ev("render", 0.1, name="lit_lambert")
+    w.ev("light", 0.1, dir=[-0.5, 1.0, 0.2], intensity=1.2, ambient=0.2, shadows=True)
+    w.ev("render", 0.1, name="lit_shadows")
+    w.camera([1.6, 0.6, 0.5], [0.5, 0.4, 0.5], size=(192, 192))
+    w.ev("render", 0.1, name="lit_side")
+    w.ev("light", 0.1, on=False)
+    w.camera([0.5, 0.75, 1.6], [0.5, 0.4, 0.5], size=(256, 192))
+    w.ev("render", 0.1, name="lit_off")
+    w.ev("snapshot", 0.0, name="lit")
     return w.text()
 
 
@@ -286,6 +323,7 @@ TRACES = {
     "capacity_limit.jsonl": capacity_limit,
     "edges.jsonl": edges,
     "scene.jsonl": scene,
+    "lit.jsonl": lit,
 }
 
 # --------------------------------------------------------------- malformed
@@ -383,6 +421,12 @@ MALFORMED = {
     "float_beyond_f64": ([H, BR, SB, '{"ev": "sample", "t": 0, "p": [0, 0, 1.8e308]}'], 4, "json"),
     "lone_surrogate_key": ([H, '{"ev": "undo", "t": 0, "\\udc00": 1}'], 2, "json"),
     "bom": (["\ufeff" + H], 1, "json"),
+    "light_dir_zero": ([H, '{"ev": "light", "t": 0, "dir": [0, 0, 0]}'], 2, "range"),
+    "light_missing_dir": ([H, '{"ev": "light", "t": 0, "intensity": 1}'], 2, "missing"),
+    "light_on_string": ([H, '{"ev": "light", "t": 0, "on": "yes", "dir": [0, 1, 0]}'], 2, "type"),
+    "light_intensity_absurd": ([H, '{"ev": "light", "t": 0, "dir": [0, 1, 0], "intensity": 1e9}'], 2, "range"),
+    "light_shadows_number": ([H, '{"ev": "light", "t": 0, "dir": [0, 1, 0], "shadows": 1}'], 2, "type"),
+    "light_dir_overflow": ([H, '{"ev": "light", "t": 0, "dir": [1e200, 1e200, 0]}'], 2, "range"),
 }
 
 

@@ -75,10 +75,13 @@ def start_from_eye(paths: Paths, eye_canvas, canvas: Canvas):
     return rel / size - 0.5
 
 
-def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background):
+def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, shade=None):
     """Colours [R, 3] (background added, not rounded) of the recorded paths
     with cell values rgb f64 [N, 3] (in [0, 1]) and sigma f64 [N], start
-    positions p0 [R, 3] and unit directions dirs [R, 3]."""
+    positions p0 [R, 3] and unit directions dirs [R, 3]. shade f64 [N]:
+    lit without shadows (spec 6.1), each cell's a0 + a1 from
+    raycast.shading (computed from the same sigma to differentiate through
+    the normals); None: unlit."""
     lu = canvas.root_size * 2.0**-canvas.max_depth
     K = paths.cell.shape[1]
     steps = jnp.asarray(paths.steps)
@@ -98,7 +101,8 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background):
         length = t * jnp.exp2((canvas.max_depth - depth).astype(jnp.float64)) * lu
         e = jnp.exp(-sigma[cell] * length)
         live = (k < steps) & jnp.asarray(paths.visible)[:, k] & (trans >= T_MIN)
-        colour = colour + jnp.where(live, trans * (1.0 - e), 0.0)[:, None] * rgb[cell]
+        emitted = rgb[cell] if shade is None else rgb[cell] * shade[cell][:, None]
+        colour = colour + jnp.where(live, trans * (1.0 - e), 0.0)[:, None] * emitted
         trans = jnp.where(live, trans * e, trans)
         p_exit = jnp.where(on_axis, bound[:, None], p + t[:, None] * d)
         p_next = p_exit * jnp.asarray(paths.scale)[:, k][:, None] + jnp.asarray(paths.shift)[:, k]

@@ -121,11 +121,29 @@ class State(NamedTuple):
     origin: jax.Array  # i64 [3], lattice units: carried, never looked up
     p: jax.Array  # f64 [3] holding a value of the working format
     visible: jax.Array  # bool: composite this cell (False: skipped, spec 7)
-    colour: jax.Array  # f64 [3]
+    colour: jax.Array  # f64 [3]; lit: the part that needs no light (C0, spec 6.1)
     trans: jax.Array  # f64
     steps: jax.Array  # i32
     skipped: jax.Array  # i32: cells crossed without compositing
     status: jax.Array  # i32
+    # Lit rays only (spec 6.1); zeros otherwise.
+    direct: jax.Array  # f64 [3]: the directly lit part (C1), before shadows
+    found: jax.Array  # bool: the opacity passed 0.5 (the shadow ray's start)
+    s_cell: jax.Array  # u32: where it did: the cell,
+    s_depth: jax.Array  # i32
+    s_origin: jax.Array  # i64 [3]
+    s_p: jax.Array  # f64 [3]: and the point in its frame
+
+
+class Lighting(NamedTuple):
+    """Per-cell factors of the emitted colour (spec 6.1), f64 [N]: a0 the
+    part that needs no light (unlit cells 1; lit ones the ambient), a1 the
+    direct part (w * intensity * max(n.l, 0)), scaled by the pixel's shadow
+    transmittance; and the unit direction towards the light, f64 [3]."""
+
+    a0: jax.Array
+    a1: jax.Array
+    to_light: jax.Array
 
 
 class Record(NamedTuple):
@@ -155,6 +173,7 @@ class Setup:
     frame: str  # "local" or "world"
     max_steps: int
     record: int  # K, 0 for none
+    lit: int = 0  # 0 unlit (spec 6), 1 lit, 2 lit with a shadow ray (spec 6.1)
 
     @property
     def n_roots(self) -> int:
@@ -270,9 +289,12 @@ def _exit(m: Arith, p, d, lo, hi):
     return t_axes[axis], axis, bound[axis]
 
 
-def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State):
+def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, shadow: bool = False):
     """Composite the current cell over its exit distance, move to the exit
-    point and into the next cell (spec 7 'Step' and 'Next cell')."""
+    point and into the next cell (spec 7 'Step' and 'Next cell'). Lit
+    (setup.lit, spec 6.1): the emitted colour is split into C0 and C1 by the
+    cell's factors, and the point where the opacity first passes 0.5 is
+    kept for the shadow ray. shadow: a shadow ray, which only attenuates."""
     D = setup.canvas.max_depth
     local = setup.frame == "local"
     size = _size_lattice(setup, s.depth)
@@ -288,8 +310,29 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State):
     length = t * (size.astype(jnp.float64) * lu) if local else t
     e = jnp.exp(-tree.sigma[s.cell] * length)
     w = jnp.where(s.visible, s.trans * (1.0 - e), 0.0)
-    colour = s.colour + w * tree.rgb[s.cell]
     trans = jnp.where(s.visible, s.trans * e, s.trans)
+    direct, found, s_cell, s_depth, s_origin, s_p = s.direct, s.found, s.s_cell, s.s_depth, s.s_origin, s.s_p
+    if shadow:
+        colour = s.colour
+    elif setup.lit:
+        emitted = w * tree.rgb[s.cell]
+        colour = s.colour + emitted * lighting.a0[s.cell]
+        direct = s.direct + emitted * lighting.a1[s.cell]
+        # The shadow ray starts where T = 1/2: ln(2 T_before) / sigma canvas
+        # units into this cell, at most its exit distance.
+        cross = s.visible & ~s.found & (s.trans >= 0.5) & (trans < 0.5)
+        per_unit = tree.sigma[s.cell] * ((size.astype(jnp.float64) * lu) if local else 1.0)
+        t_half = jnp.minimum(jnp.log(2.0 * s.trans) / jnp.where(per_unit > 0, per_unit, 1.0), t)
+        p_half = m.add(s.p, m.mul(m.rnd(t_half), d))
+        if local:
+            p_half = jnp.clip(p_half, -0.5, 0.5)
+        found = s.found | cross
+        s_cell = jnp.where(cross, s.cell, s.s_cell)
+        s_depth = jnp.where(cross, s.depth, s.s_depth)
+        s_origin = jnp.where(cross, s.origin, s.s_origin)
+        s_p = jnp.where(cross, p_half, s.s_p)
+    else:
+        colour = s.colour + w * tree.rgb[s.cell]
 
     on_axis = jnp.arange(3, dtype=jnp.int32) == axis
     p_exit = jnp.where(on_axis, face, m.add(s.p, m.mul(t, d)))
@@ -369,18 +412,19 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State):
         steps=steps,
         skipped=s.skipped + jnp.where(s.visible, 0, 1),
         status=status,
+        direct=direct,
+        found=found,
+        s_cell=s_cell,
+        s_depth=s_depth,
+        s_origin=s_origin,
+        s_p=s_p,
     )
     return new, (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
 
 
-def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_only: bool = False):
-    """One ray. Returns (State at the end, Record or None); the State's
-    colour already includes the background (spec 6). last_only: the Record
-    holds only the last step (one row), for callers that need no more."""
-    m = Arith(setup.fmt, guard)
-    d = m.rnd(ray.dir_canvas)
-    hit, cell, depth, origin, p = _start(tree, setup, ray, m, d)
-    s0 = State(
+def _state(tree: DeviceTree, setup: Setup, cell, depth, origin, p, running) -> State:
+    """A walk about to start in `cell` at `p`."""
+    return State(
         cell=cell,
         depth=depth,
         origin=origin,
@@ -390,8 +434,26 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_
         trans=jnp.float64(1.0),
         steps=jnp.int32(0),
         skipped=jnp.int32(0),
-        status=jnp.where(hit, RUNNING, LEFT).astype(jnp.int32),
+        status=jnp.where(running, RUNNING, LEFT).astype(jnp.int32),
+        direct=jnp.zeros(3),
+        found=jnp.bool_(False),
+        s_cell=jnp.uint32(NONE),
+        s_depth=jnp.int32(0),
+        s_origin=jnp.zeros(3, jnp.int64),
+        s_p=jnp.zeros(3),
     )
+
+
+def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_only: bool = False, lighting=None):
+    """One ray. Returns (State at the end, Record or None); the State's
+    colour already includes the background (spec 6), and lit (setup.lit)
+    the direct light times the shadow ray's transmittance (spec 6.1).
+    last_only: the Record holds only the last step (one row), for callers
+    that need no more."""
+    m = Arith(setup.fmt, guard)
+    d = m.rnd(ray.dir_canvas)
+    hit, cell, depth, origin, p = _start(tree, setup, ray, m, d)
+    s0 = _state(tree, setup, cell, depth, origin, p, hit)
     K = 1 if last_only else setup.record
     if K:
         rec0 = Record(
@@ -408,23 +470,99 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_
 
         def body(c):
             s, rec = c
-            new, r = _step(tree, setup, m, d, s)
+            new, r = _step(tree, setup, m, d, s, lighting)
             i = 0 if last_only else s.steps
             rec = Record(*(a.at[i].set(v) for a, v in zip(rec, r)))
             return new, rec
 
         s, rec = lax.while_loop(lambda c: c[0].status == RUNNING, body, (s0, rec0))
     else:
-        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, s)[0], s0)
+        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, s, lighting)[0], s0)
         rec = None
+    if setup.lit == 1:
+        s = s._replace(colour=s.colour + s.direct)
+    elif setup.lit == 2:
+        # One shadow ray towards the light from where the opacity passed
+        # 1/2, the same walk with another direction; no start, no light.
+        ld = m.rnd(lighting.to_light)
+        s1 = _state(tree, setup, s.s_cell, s.s_depth, s.s_origin, s.s_p, s.found)
+        s1 = lax.while_loop(lambda q: q.status == RUNNING, lambda q: _step(tree, setup, m, ld, q, shadow=True)[0], s1)
+        s = s._replace(colour=s.colour + s1.trans * s.direct)
     s = s._replace(colour=s.colour + s.trans * background)
     return s, rec
 
 
 @partial(jax.jit, static_argnums=(1,))
-def trace_rays(tree: DeviceTree, setup: Setup, rays: Ray, background, guard):
+def trace_rays(tree: DeviceTree, setup: Setup, rays: Ray, background, guard, lighting=None):
     """trace_ray over R rays (vmap): (State [R], Record [R, K] or None)."""
-    return jax.vmap(trace_ray, in_axes=(None, None, 0, None, None))(tree, setup, rays, background, guard)
+    one = lambda t, r, b, g, li: trace_ray(t, setup, r, b, g, lighting=li)  # noqa: E731
+    return jax.vmap(one, in_axes=(None, 0, None, None, None))(tree, rays, background, guard, lighting)
+
+
+# ---------------------------------------------------------------- lighting
+# The ramp of the shading weight over the relative gradient r (spec 6.1):
+# unlit below R_UNLIT, fully lit above R_LIT.
+R_UNLIT = 0.004
+R_LIT = 0.02
+
+
+def _face(tree: DeviceTree, canvas: Canvas, a: int, side: int):
+    """What every cell sees across its face on side `side` (+1/-1) of axis
+    `a` (spec 6.1): (sigma f64 [N], distance between centres in edges of
+    the cell f64 [N]). A same-depth leaf gives its sigma at 1; a same-depth
+    cell with children the mean of the four children on the face at 3/4; a
+    coarser leaf its sigma at 3/2; nothing (outside the canvas, or a cell
+    of another depth) an empty cell at 1."""
+    n = tree.parent.shape[0]
+    c = jnp.arange(n, dtype=jnp.uint32)
+    rx, ry, rz = canvas.roots
+    ci = c.astype(jnp.int64)
+    rc = [ci % rx, (ci // rx) % ry, ci // (rx * ry)]
+    rc[a] = rc[a] + side
+    ok = (rc[a] >= 0) & (rc[a] < canvas.roots[a])
+    root_nb = jnp.where(ok, (rc[0] + rx * (rc[1] + ry * rc[2])).astype(jnp.uint32), jnp.uint32(NONE))
+    bit = (c >> jnp.uint32(a)) & jnp.uint32(1)
+    outward = (bit == 1) == (side > 0)
+    nb = jnp.where(c < rx * ry * rz, root_nb, jnp.where(outward, tree.g3[:, a], c ^ jnp.uint32(1 << a)))
+    gone = nb == NONE
+    safe = jnp.where(gone, jnp.uint32(0), nb)
+    dn = tree.depth[safe]
+    same = ~gone & (dn == tree.depth)
+    coarser = ~gone & (dn == tree.depth - 1)
+    fc = tree.first_child[safe]
+    kids = fc != NONE
+    want = 0 if side > 0 else 1
+    ks = [k for k in range(8) if (k >> a) & 1 == want]
+    kid = [tree.sigma[jnp.where(kids, fc + jnp.uint32(k), jnp.uint32(0))] for k in ks]
+    mean = ((kid[0] + kid[1]) + (kid[2] + kid[3])) * 0.25
+    sigma = jnp.where(same, jnp.where(kids, mean, tree.sigma[safe]), jnp.where(coarser, tree.sigma[safe], 0.0))
+    dist = jnp.where(same & kids, 0.75, jnp.where(coarser, 1.5, 1.0))
+    return sigma, dist
+
+
+def shading(tree: DeviceTree, canvas: Canvas, light) -> Lighting:
+    """Every cell's lighting factors (spec 6.1) for `light` (trace.Light),
+    in f64 jnp: differentiable in sigma and in the light's parameters.
+    Free and empty cells get factors too; they are never composited."""
+    ld = np.asarray(light.dir, np.float64)
+    ld = ld / np.sqrt(ld[0] * ld[0] + ld[1] * ld[1] + ld[2] * ld[2])
+    top = tree.sigma
+    delta = []
+    for a in range(3):
+        s_hi, h_hi = _face(tree, canvas, a, 1)
+        s_lo, h_lo = _face(tree, canvas, a, -1)
+        delta.append((s_hi - s_lo) / (h_hi + h_lo))
+        top = jnp.maximum(top, jnp.maximum(s_hi, s_lo))
+    g2 = delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]
+    # sqrt's derivative at 0 is infinite: keep it out of the gradient.
+    g = jnp.where(g2 > 0, jnp.sqrt(jnp.where(g2 > 0, g2, 1.0)), 0.0)
+    r = jnp.where(top > 0, g / jnp.where(top > 0, top, 1.0), 0.0)
+    w = jnp.clip((r - R_UNLIT) / (R_LIT - R_UNLIT), 0.0, 1.0)
+    # n = -grad / |grad|: the normal points out of the paint.
+    n_dot_l = -(delta[0] * ld[0] + delta[1] * ld[1] + delta[2] * ld[2]) / jnp.where(g > 0, g, 1.0)
+    a0 = (1.0 - w) + w * light.ambient
+    a1 = w * (light.intensity * jnp.maximum(n_dot_l, 0.0))
+    return Lighting(a0, a1, jnp.asarray(ld))
 
 
 # ---------------------------------------------------------------- images
@@ -454,10 +592,13 @@ def camera_rays(camera, canvas: Canvas) -> Ray:
     return Ray(np.broadcast_to(e, (n, 3)).copy(), np.broadcast_to(f, (n, 3)).copy(), dirs)
 
 
-def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS):
+def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS, light=None):
     """Trace numpy rays in tiles of `tile` (the last one padded with rays
-    that miss). Returns (State, Record or None) as numpy arrays [R, ...]."""
-    setup = Setup(canvas, FORMATS[precision], frame, int(max_steps), int(record))
+    that miss). Returns (State, Record or None) as numpy arrays [R, ...].
+    light: a trace.Light (spec 6.1); None or off: unlit."""
+    lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
+    lighting = shading(tree, canvas, light) if lit else None
+    setup = Setup(canvas, FORMATS[precision], frame, int(max_steps), int(record), lit)
     n = len(rays.dir_canvas)
     tile = min(tile, _bucket(n)) if n else 1
     bg = jnp.asarray(np.asarray(background, np.float64))
@@ -477,16 +618,17 @@ def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="lo
             padded(rays.frac, np.zeros(3)),
             padded(rays.dir_canvas, np.array([-1.0, 0.0, 0.0])),
         )
-        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0))
+        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting)
         parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 
-def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None) -> Rendered:
-    """The image of the tree `arrays` (dump arrays) seen by `camera`."""
+def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None) -> Rendered:
+    """The image of the tree `arrays` (dump arrays) seen by `camera`, lit
+    by `light` (a trace.Light; None or off: unlit, spec 6)."""
     tree, canvas = device if device is not None else device_tree(arrays)
     rays = camera_rays(camera, canvas)
-    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile)
+    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile, light)
     w, h = camera.size
     colour = s.colour.reshape(h, w, 3)
     return Rendered(to_pixels(colour), colour, s.steps.reshape(h, w), s.status.reshape(h, w), int(s.skipped.sum()))

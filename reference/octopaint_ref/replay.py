@@ -58,6 +58,7 @@ def replay(
     painting.after_segment = after_segment
     brush = None
     camera = None
+    light = None  # unlit until a `light` event (spec 6.1)
     if out_dir is not None:
         os.makedirs(out_dir, exist_ok=True)
     t0 = time.perf_counter()
@@ -86,11 +87,13 @@ def replay(
                 stats.written.append(path)
         elif k == "camera":
             camera = ev.value
+        elif k == "light":
+            light = ev.value
         elif k == "render" and renders and (out_dir is not None or on_render):
             # Every event before this one has been applied: the tree is the
             # one all pending work leads to.
             r0 = time.perf_counter()
-            image = render(tree_arrays(painting.tree), camera)
+            image = render(tree_arrays(painting.tree), camera, light=light)
             stats.render_seconds += time.perf_counter() - r0
             if image.count(OVERFLOW):
                 _warn(f"line {ev.line}: {image.count(OVERFLOW)} ray(s) of render {ev.value!r} reached the step limit")

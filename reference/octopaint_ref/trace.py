@@ -34,6 +34,7 @@ ASPECT_RANGE = (1e-3, 1e3)
 NOISE_OCTAVES_RANGE = (1, 8)
 NOISE_FREQUENCY_MAX = 1e6
 HALF_PI = math.pi / 2
+LIGHT_INTENSITY_MAX = 16.0
 
 
 # What went wrong, as a short stable code (spec 12.2): both readers must give
@@ -100,9 +101,23 @@ class Camera:
 
 
 @dataclass(frozen=True)
+class Light:
+    """The `light` event (spec 6.1): lighting on or off; when on, the
+    direction towards the light in canvas space (as given: normalised when
+    rendering), its intensity, the ambient term and whether shadow rays are
+    cast."""
+
+    on: bool = True
+    dir: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    intensity: float = 0.8
+    ambient: float = 0.3
+    shadows: bool = False
+
+
+@dataclass(frozen=True)
 class Event:
     """One event. `kind` is the `ev` string; `value` is a Brush, Sample,
-    Camera, a name (render/snapshot) or None."""
+    Camera, Light, a name (render/snapshot) or None."""
 
     line: int
     t: float
@@ -283,6 +298,30 @@ def parse_camera(line: int, obj: dict) -> Camera:
     if "background" in obj:
         kw["background"] = _vec_unit(line, "background", obj["background"], 3)
     return Camera(eye, q, fov, size, **kw)
+
+
+def _bool(line: int, fld: str, v) -> bool:
+    if not isinstance(v, bool):
+        raise _fail(line, fld, f"expected true or false, got {json.dumps(v)}", "type")
+    return v
+
+
+def parse_light(line: int, obj: dict) -> Light:
+    on = _bool(line, "on", obj["on"]) if "on" in obj else True
+    if not on:
+        return Light(on=False)
+    d = _vec_finite(line, "dir", _require(line, obj, "dir"), 3)
+    n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    if not math.isfinite(n2) or math.sqrt(n2) < 1e-12:
+        raise _fail(line, "dir", "zero or non-finite direction")
+    kw = {}
+    if "intensity" in obj:
+        kw["intensity"] = _ranged(line, "intensity", obj["intensity"], 0.0, LIGHT_INTENSITY_MAX)
+    if "ambient" in obj:
+        kw["ambient"] = _ranged(line, "ambient", obj["ambient"], 0.0, 1.0)
+    if "shadows" in obj:
+        kw["shadows"] = _bool(line, "shadows", obj["shadows"])
+    return Light(True, d, **kw)
 
 
 def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> float:
@@ -478,6 +517,8 @@ def parse_trace(text: str) -> Trace:
             undone = 0
         elif ev == "camera":
             value = parse_camera(lineno, obj)
+        elif ev == "light":
+            value = parse_light(lineno, obj)
         elif ev in ("render", "snapshot"):
             value = _name(lineno, _require(lineno, obj, "name"))
             if value in names[ev]:

@@ -1,8 +1,8 @@
 //! `octopaint bench gpu TRACE`: the GPU pipeline's figures on a painted
 //! trace (docs/benchmarks.md): upload MB/s per block size, the g3 pass over
 //! every region and over one brush sample's regions, and ray casting at
-//! 1280×720 from each of the trace's cameras (f32, and f16 where the
-//! adapter has it). Wall-clock times around submit-and-wait, median of
+//! 1280×720 from each of the trace's cameras (f32 unlit, lit and lit with
+//! shadow rays, and f16 unlit where the adapter has it). Wall-clock times around submit-and-wait, median of
 //! several runs, after one warm-up.
 
 use std::path::PathBuf;
@@ -12,7 +12,8 @@ use anyhow::Context;
 use octopaint_gpu::pools::stage_range;
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::replay::replay;
-use octopaint_tree::trace::{EventKind, Sample, read_trace};
+use octopaint_tree::raycast::RayParams;
+use octopaint_tree::trace::{EventKind, Light, Sample, read_trace};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -116,8 +117,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     );
 
     println!();
-    println!("| camera | precision | ms per frame | rays/s |");
-    println!("| --- | --- | ---: | ---: |");
+    // Unlit, lit, and lit with a shadow ray per pixel (spec 6.1), in f32;
+    // unlit in f16 too.
+    let sun = Light { dir: [0.45, 1.0, 0.35], ..Light::default() };
+    let shadowed = Light { shadows: true, ..sun };
+    println!("| camera | precision | light | ms per frame | rays/s |");
+    println!("| --- | --- | --- | ---: | ---: |");
     for (i, cam) in cameras.iter().enumerate() {
         let mut cam = *cam;
         // Keep the field of view's aspect: widen or narrow the horizontal angles.
@@ -127,20 +132,23 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         let centre_h = (l.tan() + rr.tan()) / 2.0;
         let half_h = half_v * f64::from(a.width) / f64::from(a.height);
         cam.fov = [(centre_h - half_h).atan(), (centre_h + half_h).atan(), u, d];
-        for precision in [Precision::F32, Precision::F16] {
+        let runs: [(Precision, &str, Option<&Light>); 4] =
+            [(Precision::F32, "unlit", None), (Precision::F32, "lit", Some(&sun)), (Precision::F32, "lit, shadows", Some(&shadowed)), (Precision::F16, "unlit", None)];
+        for (precision, what, light) in runs {
             if !r.gpu.supports(precision) {
                 continue;
             }
+            let params = RayParams::new(&painting.tree.lat, &cam).with_light(light);
             let mut times = Vec::new();
             for _ in 0..a.runs.max(1) + 1 {
                 let t0 = Instant::now();
-                r.cast(&painting.tree, &cam, precision)?;
+                r.cast_params(&params, precision)?;
                 times.push(t0.elapsed().as_secs_f64());
             }
             times.remove(0);
             let ms = median(times);
             let rays = f64::from(a.width) * f64::from(a.height);
-            println!("| {i} | {precision:?} | {:.1} | {:.2} M |", ms * 1e3, rays / ms / 1e6);
+            println!("| {i} | {precision:?} | {what} | {:.1} | {:.2} M |", ms * 1e3, rays / ms / 1e6);
         }
     }
     Ok(())

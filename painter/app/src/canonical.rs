@@ -37,6 +37,8 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
             ],
             EventKind::Sample(s) => vec![json!(s.p), json!(s.pressure), json!(s.q)],
             EventKind::Camera(c) => vec![json!(c.eye), json!(c.q), json!(c.fov), json!(c.size), json!(c.background)],
+            EventKind::Light(l) if l.on => vec![json!(true), json!(l.dir), json!(l.intensity), json!(l.ambient), json!(l.shadows)],
+            EventKind::Light(_) => vec![json!(false)],
             EventKind::Render(n) | EventKind::Snapshot(n) => vec![json!(n)],
             EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => vec![],
         };

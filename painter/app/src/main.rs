@@ -22,7 +22,7 @@ use octopaint_tree::pool::CellRecord;
 use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::raycast::{RayInput, RayParams};
-use octopaint_tree::trace::{Camera, Event, read_trace};
+use octopaint_tree::trace::{Camera, Event, Light, read_trace};
 
 #[derive(Parser)]
 #[command(
@@ -291,16 +291,17 @@ impl ReplayObserver for Reporter<'_> {
         }
     }
 
-    fn render(&mut self, name: &str, camera: &Camera, painting: &mut Painting, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+    fn render(&mut self, name: &str, camera: &Camera, light: Option<&Light>, painting: &mut Painting, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
         let [w, h] = camera.size;
+        let params = RayParams::new(&painting.tree.lat, camera).with_light(light);
         let cpu = |tree: &octopaint_tree::Tree| {
             let g3 = octopaint_tree::g3::g3_table(tree);
             let inp = RayInput::of(tree, &g3);
-            octopaint_tree::raycast::render(&inp, &RayParams::new(&tree.lat, camera))
+            octopaint_tree::raycast::render(&inp, &params)
         };
         let rgb = match &mut self.draw {
             Draw::Nobody => return Ok(None),
-            Draw::Gpu(renderer, precision) => match renderer.render(&mut painting.tree, camera, *precision) {
+            Draw::Gpu(renderer, precision) => match renderer.sync(&mut painting.tree).and_then(|_| renderer.cast_params(&params, *precision)) {
                 Ok(rgb) => rgb,
                 // An image the GPU cannot hold in one binding (a trace may
                 // ask for 16384 x 16384): the CPU port draws it.

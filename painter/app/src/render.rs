@@ -20,8 +20,8 @@ use octopaint_doc::Session;
 use octopaint_gpu::{Precision, Renderer};
 use octopaint_tree::Tree;
 use octopaint_tree::raycast::{RayInput, RayParams};
-use octopaint_tree::trace::{Camera, MAX_IMAGE_SIZE};
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
+use octopaint_tree::trace::{Camera, Light, MAX_IMAGE_SIZE};
+use octopaint_tree::view::{BACKGROUND, DEFAULT_LIGHT, OrbitCamera, frame_painting};
 
 /// The most frames a turntable takes (one per 0.1°).
 pub const MAX_FRAMES: u32 = 3600;
@@ -59,6 +59,18 @@ pub struct Args {
     /// window's aid; docs/desktop.md).
     #[arg(long)]
     grid: bool,
+    /// Light the painting (docs/spec.md 6.1) with the desktop window's
+    /// default light: from above, slightly right and in front.
+    #[arg(long)]
+    lit: bool,
+    /// Light the painting with this light: a JSON object as a trace's
+    /// light event holds it, e.g. '{"dir": [0.4, 1, 0.3], "intensity": 1,
+    /// "ambient": 0.25, "shadows": true}'.
+    #[arg(long, conflicts_with = "lit")]
+    light: Option<String>,
+    /// Cast a shadow ray per pixel (implies --lit without --light).
+    #[arg(long)]
+    shadows: bool,
     /// Who draws: the GPU ray caster or its CPU port.
     #[arg(long, value_enum, default_value_t = crate::RendererChoice::Gpu)]
     renderer: crate::RendererChoice,
@@ -76,6 +88,8 @@ pub struct Args {
 /// What to render, fully checked.
 struct Plan {
     cameras: Vec<Camera>,
+    /// None: unlit.
+    light: Option<Light>,
     /// Some(folder) for a turntable.
     folder: Option<PathBuf>,
 }
@@ -105,8 +119,30 @@ pub fn turntable(start: &OrbitCamera, n: u32, size: [u32; 2]) -> Vec<Camera> {
         .collect()
 }
 
+/// The light of --lit, --light and --shadows; None: unlit.
+fn light_arg(a: &Args) -> Result<Option<Light>, String> {
+    let mut light = match &a.light {
+        Some(text) => {
+            let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--light: not JSON: {e}"))?;
+            if !v.is_object() {
+                return Err("--light: expected a JSON object, e.g. '{\"dir\": [0.4, 1, 0.3]}'".into());
+            }
+            Some(octopaint_tree::trace::parse_light(0, &v).map_err(|e| format!("--light: {}", e.message))?)
+        }
+        None if a.lit || a.shadows => Some(DEFAULT_LIGHT),
+        None => None,
+    };
+    if a.shadows
+        && let Some(l) = light.as_mut()
+    {
+        l.shadows = true;
+    }
+    Ok(light)
+}
+
 fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
     let size = a.size.as_deref().map(parse_size).transpose()?;
+    let light = light_arg(a)?;
     if let Some(n) = a.turntable {
         if !(1..=MAX_FRAMES).contains(&n) {
             return Err(format!("--turntable {n}: from 1 to {MAX_FRAMES} frames"));
@@ -126,7 +162,7 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
             return Err(format!("--out {}: with --turntable it is a folder, and a file of that name exists", a.out.display()));
         }
         let cameras = turntable(&start, n, size.unwrap_or([1280, 720]));
-        return Ok(Plan { cameras, folder: Some(a.out.clone()) });
+        return Ok(Plan { cameras, light, folder: Some(a.out.clone()) });
     }
     if a.out.is_dir() {
         return Err(format!("--out {}: is a folder; a single picture needs a file name (.png)", a.out.display()));
@@ -141,7 +177,7 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
         }
         None => frame_painting(tree).camera(size.unwrap_or([1280, 720]), BACKGROUND),
     };
-    Ok(Plan { cameras: vec![camera], folder: None })
+    Ok(Plan { cameras: vec![camera], light, folder: None })
 }
 
 enum Draw {
@@ -150,8 +186,8 @@ enum Draw {
 }
 
 impl Draw {
-    fn image(&mut self, tree: &Tree, camera: &Camera, grid: bool) -> Result<Vec<u8>, String> {
-        let mut params = RayParams::new(&tree.lat, camera);
+    fn image(&mut self, tree: &Tree, camera: &Camera, grid: bool, light: Option<&Light>) -> Result<Vec<u8>, String> {
+        let mut params = RayParams::new(&tree.lat, camera).with_light(light);
         if grid {
             params = params.with_grid(camera.eye);
         }
@@ -163,7 +199,7 @@ impl Draw {
                 Err(octopaint_gpu::GpuError::TooBig(why)) => {
                     eprintln!("octopaint: render: {why}; drawn by the CPU port instead");
                     *self = Draw::Cpu(octopaint_tree::g3::g3_table(tree));
-                    self.image(tree, camera, grid)
+                    self.image(tree, camera, grid, light)
                 }
                 Err(e) => Err(e.to_string()),
             },
@@ -232,7 +268,7 @@ pub fn run(a: &Args) -> ExitCode {
     // the GIF, which streams into a temporary file that replaces
     // turntable.gif only once every frame is in (durable::write_with).
     let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut std::io::BufWriter<std::fs::File>>>| -> Result<(), String> {
-        let rgb = draw.image(tree, camera, a.grid)?;
+        let rgb = draw.image(tree, camera, a.grid, plan.light.as_ref())?;
         let path = match &plan.folder {
             Some(dir) => dir.join(format!("frame-{k:03}.png")),
             None => a.out.clone(),

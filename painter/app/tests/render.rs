@@ -117,6 +117,30 @@ fn the_ground_grid_draws_behind_the_painting_alike_on_gpu_and_cpu() {
 }
 
 #[test]
+fn lighting_shades_the_painting_alike_on_gpu_and_cpu() {
+    let scratch = tempfile::tempdir().unwrap();
+    let doc = document(scratch.path());
+    let shot = |name: &str, args: &[&str]| {
+        let out = scratch.path().join(name);
+        let res = octopaint().arg("render").arg(&doc).args(["--size", "160x120", "--quiet", "--out"]).arg(&out).args(args).output().unwrap();
+        assert!(res.status.success(), "{args:?}: {}", String::from_utf8_lossy(&res.stderr));
+        png(&out).2
+    };
+    let plain = shot("plain.png", &[]);
+    let lit = shot("lit.png", &["--lit"]);
+    let shadows = shot("shadows.png", &["--shadows"]);
+    let off = shot("off.png", &["--light", r#"{"on": false}"#]);
+    let cpu = shot("shadows_cpu.png", &["--shadows", "--renderer", "cpu"]);
+    assert_eq!(plain, off, "a light that is off draws the unlit picture");
+    let changed = plain.chunks_exact(3).zip(lit.chunks_exact(3)).filter(|(a, b)| a.iter().zip(*b).any(|(x, y)| x.abs_diff(*y) > 8)).count();
+    assert!(changed > 200, "lighting changed {changed} pixels");
+    // Shadow rays only take light away.
+    assert!(lit.iter().zip(&shadows).all(|(a, b)| b <= a), "a shadowed pixel is brighter than lit");
+    let worst = cpu.iter().zip(&shadows).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
+    assert!(worst <= 2, "the CPU port's lit picture is {worst} steps from the GPU's");
+}
+
+#[test]
 fn a_camera_from_a_trace_renders_at_its_size() {
     let scratch = tempfile::tempdir().unwrap();
     let doc = document(scratch.path());
@@ -135,7 +159,7 @@ fn bad_arguments_are_refused_before_anything_is_written() {
     let scratch = tempfile::tempdir().unwrap();
     let doc = document(scratch.path());
     let out = scratch.path().join("out");
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 12] = [
         (&["--turntable", "0"], "--turntable 0"),
         (&["--turntable", "4000"], "from 1 to 3600"),
         (&["--turntable", "3", "--elevation", "95"], "--elevation 95"),
@@ -145,6 +169,9 @@ fn bad_arguments_are_refused_before_anything_is_written() {
         (&["--size", "100"], "expected WxH"),
         (&["--camera", "{\"eye\": [0, 0, \"x\"]}"], "--camera: eye"),
         (&["--camera", "{"], "--camera: not JSON"),
+        (&["--light", "{\"dir\": [0, 0, 0]}"], "--light: dir: zero"),
+        (&["--light", "{\"dir\": [0, 1, 0], \"intensity\": 99}"], "--light: intensity"),
+        (&["--light", "[1, 2]"], "--light: expected a JSON object"),
     ];
     for (args, says) in cases {
         let res = octopaint().arg("render").arg(&doc).args(args).arg("--out").arg(&out).output().unwrap();

@@ -181,6 +181,14 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     xdotool(&display, &["key", "F12"]);
     wait_for("the second screenshot", Duration::from_secs(60), || shot.exists());
     let framed = read_rgb(&shot);
+    // L switches the light off (it is on by default): the same view, the
+    // stroke unlit.
+    std::fs::remove_file(&shot).unwrap();
+    xdotool(&display, &["key", "l"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&display, &["key", "F12"]);
+    wait_for("the unlit screenshot", Duration::from_secs(60), || shot.exists());
+    let unlit = read_rgb(&shot);
     xdotool(&display, &["key", "ctrl+q"]);
     let t0 = Instant::now();
     let status = loop {
@@ -283,6 +291,24 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     let panel_edge = (0..800).find(|&x| i32::from(framed[(560 * 800 + x) * 3 + 2]) > i32::from(framed[(560 * 800 + x) * 3]) + 2).expect("the view's background") as f64;
     let centre = (panel_edge + 800.0) / 2.0;
     assert!(panel_edge > 150.0 && (cx - centre).abs() < 60.0 && (cy - 290.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0}), the view's centre is ({centre:.0}, 290)");
+
+    // Lighting: the lit stroke is shaded (its pixels differ from the
+    // unlit ones, by more than 8 steps in places), the background is not.
+    let (mut shaded, mut elsewhere) = (0, 0);
+    for y in 0..560 {
+        for x in 330..800 {
+            let i = (y * 800 + x) * 3;
+            let d = (0..3).map(|k| framed[i + k].abs_diff(unlit[i + k])).max().unwrap();
+            if is_orange(&unlit[i..i + 3]) {
+                shaded += i32::from(d > 8);
+            } else if !(x > 690 && y > 420) && unlit[i + 2] >= unlit[i] {
+                // The background and the grid (blue-grey, where no paint
+                // tints them): not lit.
+                elsewhere += i32::from(d > 8);
+            }
+        }
+    }
+    assert!(shaded > 300 && elsewhere < 50, "lighting changed {shaded} stroke pixels and {elsewhere} others");
 
     // Dynamic resolution: one line per frame; every cast within [1/4, 1]
     // of the window's size, exactly the window's size on still frames

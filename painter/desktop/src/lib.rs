@@ -14,11 +14,11 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use octopaint_doc::Session;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
-use octopaint_tree::trace::{Brush, Event, EventKind, MODES, Mode, SHAPES, Sample, Shape};
+use octopaint_tree::trace::{Brush, Event, EventKind, Light, MODES, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
 use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
 use winit::application::ApplicationHandler;
@@ -46,15 +46,18 @@ pub const TARGET_FRAME_MS: f64 = 16.7;
 /// The smallest share of the window's width and height cast while moving.
 pub const MIN_SCALE: f64 = 0.25;
 
+/// What the view shows besides the camera: the grid, the light.
+type Look = (bool, Option<Light>);
+
 /// Dynamic resolution (docs/desktop.md): while the view changes (camera,
-/// painting, size, grid), rays are cast for `scale` of the window's width
+/// painting, size, grid, light), rays are cast for `scale` of the window's width
 /// and height, `scale` following the frame time towards
 /// [`TARGET_FRAME_MS`]; once a frame changes nothing, it is cast at full
 /// size (progressive refinement: the still picture is always exact).
 struct Resolution {
     scale: f64,
     /// What the last frame showed, to tell a still frame.
-    last_view: Option<(OrbitCamera, [u32; 2], bool)>,
+    last_view: Option<(OrbitCamera, [u32; 2], Look)>,
     /// When the last frame began, and whether the view was moving then
     /// (its interval then tells how long a frame at `scale` takes).
     last_frame: Option<(Instant, bool)>,
@@ -66,9 +69,9 @@ impl Resolution {
     /// The cast size of this frame of a `window`-sized view, given whether
     /// the tree changed since the last one, and whether the view is still;
     /// learns from the last frame's interval when that frame was moving.
-    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, grid: bool, tree_changed: bool) -> ([u32; 2], bool) {
+    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, look: Look, tree_changed: bool) -> ([u32; 2], bool) {
         let now = Instant::now();
-        let view = (*camera, window, grid);
+        let view = (*camera, window, look);
         let still = !tree_changed && self.last_view == Some(view);
         self.last_view = Some(view);
         let interval = self.last_frame.map(|(t, moving)| ((now - t).as_secs_f64() * 1e3, moving));
@@ -122,6 +125,45 @@ struct BrushUi {
     plane_depth: f64,
     /// The ground grid and horizon behind the painting (G).
     grid: bool,
+    /// The view's lighting (L, Shift+L).
+    light: LightUi,
+}
+
+/// The lighting of the view as the panel edits it (docs/spec.md 6.1,
+/// docs/desktop.md "Lighting"): a directional light given by azimuth and
+/// elevation, in the view's frame (it turns with the camera, as a studio
+/// light in a sculpting tool) or in the canvas's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct LightUi {
+    on: bool,
+    shadows: bool,
+    follows_view: bool,
+    /// Degrees: azimuth from the view axis (or canvas +z) towards the
+    /// right (+x), elevation above the horizontal.
+    azimuth: f64,
+    elevation: f64,
+    intensity: f64,
+    ambient: f64,
+}
+
+impl Default for LightUi {
+    fn default() -> Self {
+        LightUi { on: true, shadows: false, follows_view: true, azimuth: 27.0, elevation: 30.0, intensity: 0.8, ambient: 0.3 }
+    }
+}
+
+impl LightUi {
+    /// The light for a view turned by `view` (camera to canvas), or None
+    /// when lighting is off.
+    fn light(&self, view: DQuat) -> Option<Light> {
+        if !self.on {
+            return None;
+        }
+        let (az, el) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        let local = DVec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+        let dir = if self.follows_view { view * local } else { local };
+        Some(Light { on: true, dir: dir.to_array(), intensity: self.intensity, ambient: self.ambient, shadows: self.shadows })
+    }
 }
 
 impl BrushUi {
@@ -421,6 +463,7 @@ impl App {
             on_surface: true,
             plane_depth: camera.distance,
             grid: true,
+            light: LightUi::default(),
         };
         Ok(Running {
             window,
@@ -472,9 +515,10 @@ impl App {
         let tree = &mut self.session.painting.tree;
         let synced = r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
-        let (cast, _) = r.resolution.next(size, &r.camera, r.brush.grid, synced.blocks > 0);
+        let light = r.brush.light.light(r.camera.rotation());
+        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), synced.blocks > 0);
         let camera = r.camera.camera(cast, BACKGROUND);
-        let mut params = RayParams::new(&tree.lat, &camera);
+        let mut params = RayParams::new(&tree.lat, &camera).with_light(light.as_ref());
         if r.brush.grid {
             params = params.with_grid(camera.eye);
         }
@@ -672,6 +716,17 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
         ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
         ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
         ui.checkbox(&mut b.grid, "ground grid and horizon (G)");
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut b.light.on, "light (L)");
+            ui.add_enabled(b.light.on, egui::Checkbox::new(&mut b.light.shadows, "shadows (Shift+L)"));
+        });
+        ui.add_enabled_ui(b.light.on, |ui| {
+            ui.checkbox(&mut b.light.follows_view, "light turns with the view");
+            ui.add(egui::Slider::new(&mut b.light.azimuth, -180.0..=180.0).text("light azimuth °"));
+            ui.add(egui::Slider::new(&mut b.light.elevation, -90.0..=90.0).text("light elevation °"));
+            ui.add(egui::Slider::new(&mut b.light.intensity, 0.0..=2.0).text("intensity"));
+            ui.add(egui::Slider::new(&mut b.light.ambient, 0.0..=1.0).text("ambient"));
+        });
         let (per_px, radius, depth, edge) = overlay.scale;
         ui.label(format!("1 px = {} at the brush\nradius {} paints at depth {depth}\n(cells of {})", length(per_px), length(radius), length(edge)));
         ui.separator();
@@ -693,7 +748,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
             }
         });
         ui.separator();
-        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\nL: light · Shift+L: shadows\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
     });
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
@@ -857,6 +912,11 @@ impl ApplicationHandler for App {
                     Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
                     Key::Character("g") if !ctrl => r.brush.grid = !r.brush.grid,
+                    Key::Character("l") if !ctrl => r.brush.light.on = !r.brush.light.on,
+                    Key::Character("L") if !ctrl => {
+                        r.brush.light.shadows = !r.brush.light.shadows;
+                        r.brush.light.on |= r.brush.light.shadows;
+                    }
                     Key::Character("f") if !ctrl => self.frame_view(),
                     _ => {}
                 }

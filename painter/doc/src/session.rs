@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use octopaint_platform::durable;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
-    Brush, Canvas, Event, EventKind, Meta, Sample, Trace, parse_brush, parse_camera, parse_sample, parse_trace, segment_too_long,
+    Brush, Canvas, Event, EventKind, Meta, Sample, Trace, parse_brush, parse_camera, parse_light, parse_sample, parse_trace, segment_too_long,
 };
 use octopaint_tree::trace_write::{event_line, header_line};
 
@@ -209,7 +209,7 @@ impl Session {
                 self.painting.redo();
             }
             EventKind::Camera(_) => self.has_camera = true,
-            EventKind::Render(_) | EventKind::Snapshot(_) => {}
+            EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
         }
         self.last_t = ev.t;
     }
@@ -262,6 +262,7 @@ impl Session {
             EventKind::StrokeEnd if !self.in_stroke => return bad("stroke_end outside a stroke".into()),
             EventKind::Undo | EventKind::Redo if self.in_stroke => return bad("undo or redo inside a stroke".into()),
             EventKind::Camera(_) => check(parse_camera(0, &obj).map(drop))?,
+            EventKind::Light(_) => check(parse_light(0, &obj).map(drop))?,
             EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
             EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
             _ => {}

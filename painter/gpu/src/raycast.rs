@@ -28,6 +28,8 @@ pub struct RayParamsGpu {
     pub misc: [u32; 4],
     pub flags: [u32; 4],
     pub grid: [f32; 4],
+    pub light: [f32; 4],
+    pub shade: [f32; 4],
 }
 
 impl RayParamsGpu {
@@ -46,8 +48,10 @@ impl RayParamsGpu {
             rot2: row(p.rot[2]),
             background: [p.background[0], p.background[1], p.background[2], 0.0],
             misc: [p.height, p.max_steps, p.n_roots, u32::from(p.inside)],
-            flags: [u32::from(p.skip_invalid), 0, 0, 0],
+            flags: [u32::from(p.skip_invalid), 0, p.lit, 0],
             grid: p.grid,
+            light: p.light,
+            shade: [p.ambient, 0.0, 0.0, 0.0],
         }
     }
 }

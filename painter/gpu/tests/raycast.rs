@@ -10,6 +10,7 @@ use octopaint_gpu::{Backend, Precision};
 use octopaint_tree::g3::g3_table;
 use octopaint_tree::pool::NONE;
 use octopaint_tree::raycast::{RayInput, RayParams, render};
+use octopaint_tree::trace::Light;
 
 fn cpu_image(painting: &octopaint_tree::paint::Painting, camera: &octopaint_tree::trace::Camera) -> Vec<u8> {
     let t = &painting.tree;
@@ -33,6 +34,43 @@ fn gpu_images_match_the_cpu_port() {
             assert!(cpu.chunks(3).filter(|p| *p != bg.as_slice()).count() > 100, "{name}: nothing painted in view");
         }
     }
+}
+
+/// The lit trace's light with shadows on or off (spec 6.1).
+fn light(shadows: bool) -> Light {
+    Light { dir: [-0.5, 1.0, 0.2], intensity: 1.2, ambient: 0.2, shadows, ..Light::default() }
+}
+
+#[test]
+fn lit_gpu_images_match_the_cpu_port_and_light_changes_them() {
+    let mut r = renderer(Backend::Vulkan);
+    let (mut painting, camera) = painted("lit");
+    r.sync(&mut painting.tree).unwrap();
+    let t = &painting.tree;
+    let g3 = g3_table(t);
+    let inp = RayInput::of(t, &g3);
+    let plain = RayParams::new(&t.lat, &camera);
+    let unlit = render(&inp, &plain);
+    let mut images = Vec::new();
+    for shadows in [false, true] {
+        let params = plain.with_light(Some(&light(shadows)));
+        let cpu = render(&inp, &params);
+        let gpu = r.cast_params(&params, Precision::F32).unwrap();
+        let (within, worst) = closeness(&gpu, &cpu, 1);
+        assert!(within >= 0.999 && worst <= 2, "shadows {shadows}: {within} within a step, worst {worst}");
+        let f16 = r.cast_params(&params, Precision::F16).unwrap();
+        let (within, _) = closeness(&f16, &cpu, 2);
+        assert!(within >= 0.999, "f16, shadows {shadows}: {within} within 2 steps");
+        images.push(cpu);
+    }
+    // Light changes what unlit shows; shadows only take light away.
+    let changed = |a: &[u8], b: &[u8]| a.chunks(3).zip(b.chunks(3)).filter(|(x, y)| x != y).count();
+    assert!(changed(&unlit, &images[0]) > 1000, "lighting changed {} pixels", changed(&unlit, &images[0]));
+    let darker = images[0].chunks(3).zip(images[1].chunks(3)).filter(|(a, b)| b.iter().zip(a.iter()).all(|(x, y)| x <= y) && a != b).count();
+    let brighter = images[0].chunks(3).zip(images[1].chunks(3)).filter(|(a, b)| b.iter().zip(a.iter()).any(|(x, y)| x > y)).count();
+    assert!(darker > 500 && brighter == 0, "shadows darkened {darker} pixels and brightened {brighter}");
+    // Off again: the unlit pixels, exactly.
+    assert_eq!(render(&inp, &plain.with_light(Some(&Light::OFF))), unlit);
 }
 
 #[test]

@@ -147,7 +147,7 @@ pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
             EventKind::StrokeEnd => out.push((ev.t, Job::EndStroke)),
             EventKind::Undo => out.push((ev.t, Job::Undo)),
             EventKind::Redo => out.push((ev.t, Job::Redo)),
-            EventKind::Camera(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
+            EventKind::Camera(_) | EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
         }
     }
     out

@@ -8,7 +8,7 @@
 use crate::brush::quat_to_rows;
 use crate::lattice::Lattice;
 use crate::pool::{FREE, NONE};
-use crate::trace::Camera;
+use crate::trace::{Camera, Light};
 
 /// The per-frame constants of the ray caster, as the shader's uniform
 /// holds them (painter/gpu/src/raycast.rs uploads exactly these fields).
@@ -37,6 +37,12 @@ pub struct RayParams {
     /// The ground grid behind everything, a view aid (see
     /// [`RayParams::with_grid`]); spacing 0: none, the background alone.
     pub grid: [f32; 4],
+    /// 0 unlit, 1 lit, 2 lit with a shadow ray (spec 6.1; see
+    /// [`RayParams::with_light`]).
+    pub lit: u32,
+    /// The unit direction towards the light, and its intensity.
+    pub light: [f32; 4],
+    pub ambient: f32,
 }
 
 /// Steps before a ray gives up (a broken tree caught mid-upload).
@@ -82,7 +88,30 @@ impl RayParams {
             inside,
             skip_invalid: true,
             grid: [0.0; 4],
+            lit: 0,
+            light: [0.0; 4],
+            ambient: 0.0,
         }
+    }
+
+    /// These constants lit by `light` (spec 6.1): its direction normalised
+    /// in f64 and rounded once to f32. None or off: unlit.
+    pub fn with_light(mut self, light: Option<&Light>) -> Self {
+        match light {
+            Some(l) if l.on => {
+                let [x, y, z] = l.dir;
+                let n = (x * x + y * y + z * z).sqrt();
+                self.lit = if l.shadows { 2 } else { 1 };
+                self.light = [(x / n) as f32, (y / n) as f32, (z / n) as f32, l.intensity as f32];
+                self.ambient = l.ambient as f32;
+            }
+            _ => {
+                self.lit = 0;
+                self.light = [0.0; 4];
+                self.ambient = 0.0;
+            }
+        }
+        self
     }
 
     /// These constants with the ground grid on the canvas floor (y = 0) for
@@ -154,6 +183,12 @@ impl<'a> RayInput<'a> {
 impl RayInput<'_> {
     // Reads past the pools (NONE included) give a free cell, as on the GPU
     // (shared/pools.wgsl `cell_at`).
+    fn sigma_of(&self, c: u32) -> f32 {
+        self.sigma.get(c as usize).copied().unwrap_or(0.0)
+    }
+    fn g3_of(&self, c: u32, a: usize) -> u32 {
+        self.g3.get(c as usize).map_or(NONE, |row| row[a])
+    }
     fn depth_of(&self, c: u32) -> u32 {
         self.depth.get(c as usize).map_or(u32::from(FREE), |&d| u32::from(d))
     }
@@ -185,6 +220,230 @@ fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
         let m = (-fl) as u32;
         if m <= base { base - m } else { 0 }
     }
+}
+
+/// The shader's `face`: what `cell` sees across its face on side `side` of
+/// axis `a` (spec 6.1): the sigma there and the distance between centres in
+/// edges of the cell.
+fn face(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u32; 3], a: usize, side: i32) -> [f32; 2] {
+    let mut nb = NONE;
+    if cell < pr.n_roots {
+        let mut r = origin.map(|v| (v >> pr.max_depth) as i32);
+        r[a] += side;
+        if r.iter().all(|&v| v >= 0) && (0..3).all(|k| (r[k] as u32) < pr.roots[k]) {
+            nb = r[0] as u32 + pr.roots[0] * (r[1] as u32 + pr.roots[1] * r[2] as u32);
+        }
+    } else if ((cell >> a) & 1 == 1) == (side > 0) {
+        nb = inp.g3_of(cell, a);
+    } else {
+        nb = cell ^ (1 << a);
+    }
+    if nb == NONE {
+        return [0.0, 1.0];
+    }
+    let dn = inp.depth_of(nb);
+    if dn == depth {
+        let fc = inp.first_child_of(nb);
+        if fc == NONE {
+            return [inp.sigma_of(nb), 1.0];
+        }
+        // The children whose bit a is on the face, by increasing index.
+        let want = if side > 0 { 0 } else { 1 };
+        let kid = [0u32, 1, 2, 3].map(|j| {
+            let lo = j & ((1 << a) - 1);
+            let k = ((j >> a) << (a + 1)) | (want << a) | lo;
+            inp.sigma_of(fc.wrapping_add(k))
+        });
+        return [((kid[0] + kid[1]) + (kid[2] + kid[3])) * 0.25, 0.75];
+    }
+    if dn + 1 == depth {
+        return [inp.sigma_of(nb), 1.5];
+    }
+    [0.0, 1.0]
+}
+
+/// Spec 6.1: the relative gradient below which a cell is unlit, and above
+/// which it is fully lit.
+const R_UNLIT: f32 = 0.004;
+const R_LIT: f32 = 0.02;
+
+/// The shader's `shade`: the factors of a lit cell's emitted colour, the
+/// part that needs no light and the direct part (spec 6.1).
+fn shade(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u32; 3], sigma: f32) -> [f32; 2] {
+    let mut delta = [0f32; 3];
+    let mut top = sigma;
+    for a in 0..3 {
+        let hi = face(inp, pr, cell, depth, origin, a, 1);
+        let lo = face(inp, pr, cell, depth, origin, a, -1);
+        delta[a] = (hi[0] - lo[0]) / (hi[1] + lo[1]);
+        top = top.max(hi[0].max(lo[0]));
+    }
+    let g = (delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]).sqrt();
+    let r = if top > 0.0 { g / top } else { 0.0 };
+    let w = ((r - R_UNLIT) / (R_LIT - R_UNLIT)).clamp(0.0, 1.0);
+    let l = pr.light;
+    let n_dot_l = -(delta[0] * l[0] + delta[1] * l[1] + delta[2] * l[2]) / if g > 0.0 { g } else { 1.0 };
+    [(1.0 - w) + w * pr.ambient, w * (l[3] * n_dot_l.max(0.0))]
+}
+
+/// The shader's `Walk`: one walk through the cells, a pixel's ray or a
+/// shadow ray.
+#[derive(Clone, Copy)]
+struct Walk {
+    cell: u32,
+    depth: u32,
+    origin: [u32; 3],
+    p: [f32; 3],
+    visible: bool,
+    colour: [f32; 3],
+    direct: [f32; 3],
+    trans: f32,
+    running: bool,
+    found: bool,
+    s_cell: u32,
+    s_depth: u32,
+    s_origin: [u32; 3],
+    s_p: [f32; 3],
+}
+
+fn start_walk(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u32; 3], p: [f32; 3], running: bool) -> Walk {
+    Walk {
+        cell,
+        depth,
+        origin,
+        p,
+        visible: consistent(inp, pr, cell),
+        colour: [0.0; 3],
+        direct: [0.0; 3],
+        trans: 1.0,
+        running,
+        found: false,
+        s_cell: NONE,
+        s_depth: 0,
+        s_origin: [0; 3],
+        s_p: [0.0; 3],
+    }
+}
+
+/// The shader's `walk`: along `d` from `w` until the ray stops,
+/// compositing as it goes; `shadow`: only attenuate.
+fn walk(inp: &RayInput, pr: &RayParams, mut w: Walk, d: [f32; 3], shadow: bool) -> Walk {
+    let dd = pr.max_depth;
+    let (rx, ry) = (pr.roots[0], pr.roots[1]);
+    let mut steps = 0u32;
+    while w.running {
+        let (cell, depth, origin, p) = (w.cell, w.depth, w.origin, w.p);
+        let mut t_axes = [60000f32; 3];
+        let mut bound = [-0.5f32; 3];
+        for a in 0..3 {
+            bound[a] = if d[a] > 0.0 { 0.5 } else { -0.5 };
+            if d[a] != 0.0 {
+                t_axes[a] = ((bound[a] - p[a]) / d[a]).max(0.0);
+            }
+        }
+        let mut axis = 0usize;
+        if t_axes[1] < t_axes[axis] {
+            axis = 1;
+        }
+        if t_axes[2] < t_axes[axis] {
+            axis = 2;
+        }
+        let t = t_axes[axis];
+
+        if w.visible {
+            let edge = ldexp(pr.lattice_unit, (dd - depth) as i32);
+            let len_canvas = t * edge;
+            let sigma = inp.sigma_of(cell);
+            let ext = (-sigma * len_canvas).exp();
+            if shadow {
+                w.trans *= ext;
+            } else {
+                let rgb = inp.rgb.get(cell as usize).copied().unwrap_or([0; 3]).map(|c| c as f32 / 255.0);
+                if pr.lit == 0 {
+                    for i in 0..3 {
+                        w.colour[i] += w.trans * (1.0 - ext) * rgb[i];
+                    }
+                } else {
+                    let emitted = rgb.map(|c| w.trans * (1.0 - ext) * c);
+                    if sigma > 0.0 {
+                        let f = shade(inp, pr, cell, depth, origin, sigma);
+                        for i in 0..3 {
+                            w.colour[i] += emitted[i] * f[0];
+                            w.direct[i] += emitted[i] * f[1];
+                        }
+                    }
+                    if !w.found && w.trans >= 0.5 && w.trans * ext < 0.5 {
+                        let per_unit = sigma * edge;
+                        let t_half = ((2.0 * w.trans).ln() / if per_unit > 0.0 { per_unit } else { 1.0 }).min(t);
+                        w.found = true;
+                        w.s_cell = cell;
+                        w.s_depth = depth;
+                        w.s_origin = origin;
+                        w.s_p = [0, 1, 2].map(|a| (p[a] + t_half * d[a]).clamp(-0.5, 0.5));
+                    }
+                }
+                w.trans *= ext;
+            }
+        }
+
+        let mut p_exit = [0, 1, 2].map(|a| p[a] + t * d[a]);
+        p_exit[axis] = bound[axis];
+
+        let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
+        let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
+        let size = 1u32 << (dd - depth);
+        let mut nxt = NONE;
+        if cell < pr.n_roots {
+            let mut r = origin.map(|v| (v >> dd) as i32);
+            r[axis] += sgn;
+            if r.iter().all(|&v| v >= 0) && (0..3).all(|a| (r[a] as u32) < pr.roots[a]) {
+                nxt = r[0] as u32 + rx * (r[1] as u32 + ry * r[2] as u32);
+            }
+        } else if (bits[axis] == 1) == (sgn > 0) {
+            nxt = inp.g3_of(cell, axis);
+        } else {
+            nxt = cell ^ (1 << axis);
+        }
+        steps += 1;
+        w.running = false;
+        if w.trans < T_MIN || nxt == NONE {
+            break;
+        }
+        let dn = inp.depth_of(nxt);
+        let coarser = dn + 1 == depth;
+        if (dn != depth && !coarser) || steps >= pr.max_steps {
+            break;
+        }
+        w.running = true;
+        let entry = -0.5 * sgn as f32;
+        let mut p_next = p_exit;
+        let mut o_next = origin;
+        if coarser {
+            p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+            o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
+            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
+        } else {
+            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
+        }
+        p_next[axis] = entry;
+        w.visible = consistent(inp, pr, nxt);
+        w.cell = nxt;
+        w.depth = dn;
+        w.origin = o_next;
+        w.p = p_next;
+        let fc = inp.first_child_of(nxt);
+        if w.visible && fc != NONE {
+            let cbits = p_next.map(|v| u32::from(v >= 0.0));
+            let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+            if !pr.skip_invalid || inp.parent_of(child) == nxt {
+                w.p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
+                w.origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
+                w.cell = child;
+                w.depth = dn + 1;
+            }
+        }
+    }
+    w
 }
 
 /// One pixel, as the shader's `main` computes it: 8-bit sRGB.
@@ -223,8 +482,6 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         t_out = t_out.min(far);
     }
     let inside = pr.inside;
-    let mut colour = [0f32; 3];
-    let mut trans = 1f32;
     let mut running = true;
     if !inside && !(t_in <= t_out && t_out > 0.0) {
         running = false;
@@ -279,102 +536,25 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         p[ax] = if dir[ax] > 0.0 { -0.5 } else { 0.5 };
     }
     p = p.map(|v| v.clamp(-0.5, 0.5));
-    let mut visible = consistent(inp, pr, cell);
-
-    let mut steps = 0u32;
-    while running {
-        let mut t_axes = [60000f32; 3];
-        let mut bound = [-0.5f32; 3];
-        for a in 0..3 {
-            bound[a] = if d[a] > 0.0 { 0.5 } else { -0.5 };
-            if d[a] != 0.0 {
-                t_axes[a] = ((bound[a] - p[a]) / d[a]).max(0.0);
-            }
+    let ray = walk(inp, pr, start_walk(inp, pr, cell, depth, origin, p, running), d, false);
+    let mut colour = ray.colour;
+    if pr.lit == 1 {
+        for i in 0..3 {
+            colour[i] += ray.direct[i];
         }
-        let mut axis = 0usize;
-        if t_axes[1] < t_axes[axis] {
-            axis = 1;
-        }
-        if t_axes[2] < t_axes[axis] {
-            axis = 2;
-        }
-        let t = t_axes[axis];
-
-        if visible {
-            let len_canvas = t * ldexp(pr.lattice_unit, (dd - depth) as i32);
-            let ext = (-inp.sigma.get(cell as usize).copied().unwrap_or(0.0) * len_canvas).exp();
-            let rgb = inp.rgb.get(cell as usize).copied().unwrap_or([0; 3]).map(|c| c as f32 / 255.0);
-            for i in 0..3 {
-                colour[i] += trans * (1.0 - ext) * rgb[i];
-            }
-            trans *= ext;
-        }
-
-        let mut p_exit = [0, 1, 2].map(|a| p[a] + t * d[a]);
-        p_exit[axis] = bound[axis];
-
-        let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
-        let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
-        let size = 1u32 << (dd - depth);
-        let mut nxt = NONE;
-        if cell < pr.n_roots {
-            let mut r = origin.map(|v| (v >> dd) as i32);
-            r[axis] += sgn;
-            if r.iter().all(|&v| v >= 0) && (0..3).all(|a| (r[a] as u32) < pr.roots[a]) {
-                nxt = r[0] as u32 + rx * (r[1] as u32 + ry * r[2] as u32);
-            }
-        } else if (bits[axis] == 1) == (sgn > 0) {
-            nxt = inp.g3.get(cell as usize).map_or(NONE, |row| row[axis]);
-        } else {
-            nxt = cell ^ (1 << axis);
-        }
-        steps += 1;
-        if trans < T_MIN {
-            break;
-        }
-        if nxt == NONE {
-            break;
-        }
-        let dn = inp.depth_of(nxt);
-        let coarser = dn + 1 == depth;
-        if dn != depth && !coarser {
-            break;
-        }
-        if steps >= pr.max_steps {
-            break;
-        }
-        let entry = -0.5 * sgn as f32;
-        let mut p_next = p_exit;
-        let mut o_next = origin;
-        if coarser {
-            p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
-            o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
-            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
-        } else {
-            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
-        }
-        p_next[axis] = entry;
-        visible = consistent(inp, pr, nxt);
-        cell = nxt;
-        depth = dn;
-        origin = o_next;
-        p = p_next;
-        let fc = inp.first_child_of(nxt);
-        if visible && fc != NONE {
-            let cbits = p_next.map(|v| u32::from(v >= 0.0));
-            let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
-            if !pr.skip_invalid || inp.parent_of(child) == nxt {
-                p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
-                origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
-                cell = child;
-                depth = dn + 1;
-            }
+    } else if pr.lit == 2 {
+        // One shadow ray towards the light from where the opacity passed
+        // 1/2: the same walk in another direction (spec 6.1).
+        let start = start_walk(inp, pr, ray.s_cell, ray.s_depth, ray.s_origin, ray.s_p, ray.found);
+        let l = [pr.light[0], pr.light[1], pr.light[2]];
+        let s = walk(inp, pr, start, l, true).trans;
+        for i in 0..3 {
+            colour[i] += s * ray.direct[i];
         }
     }
-    let _ = steps;
     let back = ground(pr, dir);
     for i in 0..3 {
-        colour[i] += trans * back[i];
+        colour[i] += ray.trans * back[i];
     }
     colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
 }

@@ -10,7 +10,7 @@ use octopaint_platform::durable;
 use crate::g3::g3_table;
 use crate::paint::Painting;
 use crate::pool::FREE;
-use crate::trace::{Camera, Event, EventKind, Trace};
+use crate::trace::{Camera, Event, EventKind, Light, Trace};
 
 #[derive(Debug, Default)]
 pub struct ReplayStats {
@@ -31,10 +31,11 @@ pub trait ReplayObserver {
     fn warning(&mut self, _msg: &str) {}
     /// After every event, with the painting as that event left it.
     fn after_event(&mut self, _ev: &Event, _painting: &Painting) {}
-    /// A `render` event: draw the tree as `camera` sees it and write
-    /// `<name>.png` into `out_dir` (nothing when it is None). Returns the
-    /// path written, or None when this observer does not render.
-    fn render(&mut self, _name: &str, _camera: &Camera, _painting: &mut Painting, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+    /// A `render` event: draw the tree as `camera` sees it, lit by `light`
+    /// (None: unlit, spec 6.1), and write `<name>.png` into `out_dir`
+    /// (nothing when it is None). Returns the path written, or None when
+    /// this observer does not render.
+    fn render(&mut self, _name: &str, _camera: &Camera, _light: Option<&Light>, _painting: &mut Painting, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
         Ok(None)
     }
     /// The g3 table a snapshot dumps; None: the CPU port's (g3.rs). The GPU
@@ -64,6 +65,7 @@ pub fn replay(
     let mut painting = Painting::new(&trace.canvas);
     let mut brush = None;
     let mut camera: Option<Camera> = None;
+    let mut light: Option<Light> = None;
     let t0 = Instant::now();
     for ev in &trace.events {
         match &ev.kind {
@@ -96,12 +98,13 @@ pub fn replay(
             }
             EventKind::Render(name) => {
                 let cam = camera.as_ref().expect("validated: a camera precedes every render");
-                match obs.render(name, cam, &mut painting, out_dir)? {
+                match obs.render(name, cam, light.as_ref(), &mut painting, out_dir)? {
                     Some(path) => stats.written.push(path),
                     None => stats.renders.push(name.clone()),
                 }
             }
             EventKind::Camera(c) => camera = Some(*c),
+            EventKind::Light(l) => light = Some(*l),
         }
         for w in painting.warnings.drain(..) {
             obs.warning(&w);

@@ -52,6 +52,8 @@ pub fn event_line(ev: &Event) -> String {
         EventKind::Brush(b) => brush_fields(b),
         EventKind::Sample(s) => json!({"p": s.p, "pressure": s.pressure, "q": s.q}),
         EventKind::Camera(c) => json!({"eye": c.eye, "q": c.q, "fov": c.fov, "size": c.size, "background": c.background}),
+        EventKind::Light(l) if l.on => json!({"on": true, "dir": l.dir, "intensity": l.intensity, "ambient": l.ambient, "shadows": l.shadows}),
+        EventKind::Light(_) => json!({"on": false}),
         EventKind::Render(name) | EventKind::Snapshot(name) => json!({"name": name}),
         EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => json!({}),
     };

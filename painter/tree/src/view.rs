@@ -10,6 +10,10 @@ use crate::trace::Camera;
 /// The desktop window's background, and the default of renders.
 pub const BACKGROUND: [f64; 3] = [0.06, 0.06, 0.08];
 
+/// The light the desktop window and `octopaint render --lit` start with
+/// (spec 6.1): from above, slightly right and in front of the default view.
+pub const DEFAULT_LIGHT: crate::trace::Light = crate::trace::Light { on: true, dir: [0.45, 1.0, 0.35], intensity: 0.8, ambient: 0.3, shadows: false };
+
 /// A camera on a sphere around `target`, looking at it: turned by `yaw`
 /// about the canvas's y axis, then tilted by `pitch` (radians; negative
 /// looks down), `distance` canvas units away, `fov_y` the vertical field

@@ -5,7 +5,7 @@
 use serde_json::Value;
 
 use super::{
-    Brush, Camera, Canvas, ErrorKind, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
+    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, Light, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
     Mode, Sample, Shape, TINY, TraceError,
 };
 
@@ -267,6 +267,36 @@ pub fn parse_camera(line: usize, obj: &Value) -> R<Camera> {
         background = vec_ranged::<3>(line, "background", v, 0.0, 1.0)?;
     }
     Ok(Camera { eye, q, fov, size, background })
+}
+
+fn boolean(line: usize, field: &str, v: &Value) -> R<bool> {
+    v.as_bool().ok_or_else(|| fail(line, field, ErrorKind::Type, format!("expected true or false, got {v}")))
+}
+
+/// The `light` event (spec 6.1): `on` first; when on, `dir` (finite, not
+/// zero), then the optional `intensity`, `ambient` and `shadows`.
+pub fn parse_light(line: usize, obj: &Value) -> R<Light> {
+    if let Some(v) = obj.get("on")
+        && !boolean(line, "on", v)?
+    {
+        return Ok(Light::OFF);
+    }
+    let dir: [f64; 3] = vec_finite(line, "dir", require(line, obj, "dir", "")?)?;
+    let n2 = dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2];
+    if !n2.is_finite() || n2.sqrt() < 1e-12 {
+        return Err(range(line, "dir", "zero or non-finite direction"));
+    }
+    let mut l = Light { dir, ..Light::default() };
+    if let Some(v) = obj.get("intensity") {
+        l.intensity = ranged(line, "intensity", v, 0.0, LIGHT_INTENSITY_MAX)?;
+    }
+    if let Some(v) = obj.get("ambient") {
+        l.ambient = ranged(line, "ambient", v, 0.0, 1.0)?;
+    }
+    if let Some(v) = obj.get("shadows") {
+        l.shadows = boolean(line, "shadows", v)?;
+    }
+    Ok(l)
 }
 
 /// Whether the segment between samples `a` and `b` would place more than

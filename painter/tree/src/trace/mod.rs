@@ -9,7 +9,7 @@
 mod fields;
 mod read;
 
-pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_sample, segment_too_long};
+pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_light, parse_sample, segment_too_long};
 pub use read::{MAX_NESTING, io_reason, nesting_depth, parse_trace, parse_trace_bytes, read_trace};
 
 pub const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
@@ -21,6 +21,8 @@ pub const MAX_IMAGE_SIZE: i64 = 16384;
 pub const MAX_ROOTS: u64 = 1 << 24;
 pub const MAX_STAMPS_PER_SEGMENT: f64 = 65536.0;
 /// Smallest normal f64; smaller magnitudes read as +0 (spec 8.9).
+/// The largest `intensity` of a `light` event (spec 6.1).
+pub const LIGHT_INTENSITY_MAX: f64 = 16.0;
 pub const TINY: f64 = 2.2250738585072014e-308;
 
 /// What is wrong with a refused trace, as the short stable code of spec
@@ -207,6 +209,30 @@ pub struct Camera {
     pub background: [f64; 3],
 }
 
+/// The `light` event (spec 6.1): lighting on or off; when on, the direction
+/// towards the light in canvas space (as given; normalised when rendering),
+/// its intensity, the ambient term and whether a shadow ray is cast.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    pub on: bool,
+    pub dir: [f64; 3],
+    pub intensity: f64,
+    pub ambient: f64,
+    pub shadows: bool,
+}
+
+impl Light {
+    /// Lighting off: the unlit images of spec 6.
+    pub const OFF: Light = Light { on: false, dir: [0.0; 3], intensity: 0.8, ambient: 0.3, shadows: false };
+}
+
+impl Default for Light {
+    /// On, with the trace format's defaults and no direction yet.
+    fn default() -> Self {
+        Light { on: true, ..Light::OFF }
+    }
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub enum EventKind {
     Brush(Brush),
@@ -214,6 +240,7 @@ pub enum EventKind {
     Sample(Sample),
     StrokeEnd,
     Camera(Camera),
+    Light(Light),
     Render(String),
     Snapshot(String),
     Undo,
@@ -229,6 +256,7 @@ impl EventKind {
             EventKind::Sample(_) => "sample",
             EventKind::StrokeEnd => "stroke_end",
             EventKind::Camera(_) => "camera",
+            EventKind::Light(_) => "light",
             EventKind::Render(_) => "render",
             EventKind::Snapshot(_) => "snapshot",
             EventKind::Undo => "undo",
