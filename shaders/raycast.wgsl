@@ -17,6 +17,12 @@ const OVERFLOW: u32 = 4u;
 const RUNNING: u32 = 0u;
 const T_MIN: f32 = 0.00390625; // 1/256 (spec 6)
 
+// 0 unlit, 1 lit, 2 lit with a shadow ray (spec 6.1). A pipeline constant,
+// not a uniform: each mode is its own pipeline, so the unlit one carries
+// none of the lighting code (a CPU Vulkan such as lavapipe runs both sides
+// of a branch its lanes disagree on, and cannot tell a uniform one apart).
+override LIT: u32 = 0u;
+
 // Kept in sync with painter/gpu/src/raycast.rs (RayParams); a layout test
 // compares the two through naga.
 struct RayParams {
@@ -45,16 +51,16 @@ struct RayParams {
     misc: vec4<u32>,
     // x: 1 to skip cells whose links disagree (spec 7; 0 only in the
     // real-time benchmark's comparison of strategies); y: 1 to write a
-    // probe record per ray instead of a pixel (docs/precision.md); z: 0
-    // unlit, 1 lit, 2 lit with a shadow ray (spec 6.1); w: unused
+    // probe record per ray instead of a pixel (docs/precision.md); zw:
+    // unused
     flags: vec4<u32>,
     // The ground grid, a view aid behind everything (not part of the
     // painting; docs/desktop.md): x, z the eye's position modulo ten
     // spacings, y its height above the canvas floor (canvas units); w the
     // spacing, 0 for no grid.
     grid: vec4<f32>,
-    // Lighting (spec 6.1), used when flags.z is 1 (lit) or 2 (lit, with a
-    // shadow ray): xyz the unit direction towards the light, w intensity.
+    // Lighting (spec 6.1), used when LIT is 1 or 2: xyz the unit direction
+    // towards the light, w intensity.
     light: vec4<f32>,
     // x: the ambient term; yzw unused.
     shade: vec4<f32>,
@@ -266,7 +272,6 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
     let D = params.roots.w;
     let rx = params.roots.x;
     let ry = params.roots.y;
-    let lit = params.flags.z;
     loop {
         if (w.status != RUNNING) {
             break;
@@ -303,7 +308,7 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
                 w.trans = w.trans * ext;
             } else {
                 let rgb = vec3<f32>(f32(here.rgbd & 255u), f32((here.rgbd >> 8u) & 255u), f32((here.rgbd >> 16u) & 255u)) / 255.0;
-                if (lit == 0u) {
+                if (LIT == 0u) {
                     w.colour = w.colour + w.trans * (1.0 - ext) * rgb;
                 } else {
                     let emitted = w.trans * (1.0 - ext) * rgb;
@@ -526,9 +531,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var colour = ray.colour;
-    if (params.flags.z == 1u) {
+    if (LIT == 1u) {
         colour = colour + ray.direct;
-    } else if (params.flags.z == 2u) {
+    } else if (LIT == 2u) {
         // One shadow ray towards the light from where the opacity passed
         // 1/2: the same walk in another direction (spec 6.1).
         let start = start_walk(ray.s_cell, ray.s_depth, ray.s_origin, ray.s_p, select(LEFT, RUNNING, ray.found));

@@ -48,7 +48,7 @@ impl RayParamsGpu {
             rot2: row(p.rot[2]),
             background: [p.background[0], p.background[1], p.background[2], 0.0],
             misc: [p.height, p.max_steps, p.n_roots, u32::from(p.inside)],
-            flags: [u32::from(p.skip_invalid), 0, p.lit, 0],
+            flags: [u32::from(p.skip_invalid), 0, 0, 0],
             grid: p.grid,
             light: p.light,
             shade: [p.ambient, 0.0, 0.0, 0.0],
@@ -104,7 +104,14 @@ impl ProbeRecord {
 }
 
 pub struct RayCaster {
-    pipelines: Vec<(Precision, wgpu::ComputePipeline)>,
+    /// One shader module per precision the adapter has.
+    modules: Vec<(Precision, wgpu::ShaderModule)>,
+    layout: wgpu::PipelineLayout,
+    page_shift: u32,
+    /// Pipelines made so far, per precision and lighting mode (the
+    /// shader's `LIT`: 0 unlit, 1 lit, 2 with shadow rays), each compiled
+    /// on first use.
+    pipelines: Vec<((Precision, u32), wgpu::ComputePipeline)>,
     layout_params: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     pixels: Option<(u64, wgpu::Buffer)>,
@@ -118,7 +125,7 @@ impl RayCaster {
             bind_group_layouts: &[Some(&pools.layout_cells), Some(&pools.layout_g3_ro), Some(&layout_params)],
             immediate_size: 0,
         });
-        let mut pipelines = Vec::new();
+        let mut modules = Vec::new();
         for precision in [Precision::F32, Precision::F16] {
             if !gpu.supports(precision) {
                 continue;
@@ -127,18 +134,7 @@ impl RayCaster {
                 label: Some("raycast.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(raycast_source(precision).into()),
             });
-            let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("ray caster"),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("PAGE_SHIFT", f64::from(pools.page_shift))],
-                    zero_initialize_workgroup_memory: false,
-                },
-                cache: None,
-            });
-            pipelines.push((precision, pipeline));
+            modules.push((precision, module));
         }
         let params = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("ray params"),
@@ -146,7 +142,34 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        RayCaster { pipelines, layout_params, params, pixels: None }
+        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, pixels: None };
+        // The unlit pipelines now; lit ones when first asked for.
+        for precision in [Precision::F32, Precision::F16] {
+            let _ = caster.pipeline(gpu, precision, 0);
+        }
+        caster
+    }
+
+    /// The pipeline for `precision` and lighting mode `lit`, compiled on
+    /// first use.
+    fn pipeline(&mut self, gpu: &Gpu, precision: Precision, lit: u32) -> Result<wgpu::ComputePipeline, GpuError> {
+        if let Some((_, p)) = self.pipelines.iter().find(|(k, _)| *k == (precision, lit)) {
+            return Ok(p.clone());
+        }
+        let module = self.modules.iter().find(|(p, _)| *p == precision).map(|(_, m)| m).ok_or(GpuError::NoF16)?;
+        let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("ray caster"),
+            layout: Some(&self.layout),
+            module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[("PAGE_SHIFT", f64::from(self.page_shift)), ("LIT", f64::from(lit))],
+                zero_initialize_workgroup_memory: false,
+            },
+            cache: None,
+        });
+        self.pipelines.push(((precision, lit), pipeline.clone()));
+        Ok(pipeline)
     }
 
     fn pixels(&mut self, gpu: &Gpu, n: u64) -> wgpu::Buffer {
@@ -172,7 +195,7 @@ impl RayCaster {
     }
 
     fn encode_words(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, probe: bool) -> Result<(), GpuError> {
-        let pipeline = self.pipelines.iter().find(|(p, _)| *p == precision).map(|(_, p)| p.clone()).ok_or(GpuError::NoF16)?;
+        let pipeline = self.pipeline(gpu, precision, params.lit)?;
         let n = u64::from(params.width) * u64::from(params.height);
         let words = if probe { n * PROBE_WORDS } else { n };
         // One binding holds every pixel (or record): refuse what the device
