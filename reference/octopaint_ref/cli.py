@@ -113,11 +113,12 @@ def main(argv=None) -> int:
     ex.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors (no summary line)")
     ex.set_defaults(func=_cmd_export)
     # The study's commands: each module gives its arguments and its command.
-    from . import gpu_probe, precision_scale
+    from . import gpu_probe, lit_precision, precision_scale
 
     for name, module, text in (
         ("precision", precision_scale, "the angle bound on N rays from a depth-24 leaf, sharded over devices and processes, resumable"),
         ("gpu-probe", gpu_probe, "the painter's GPU ray caster against the angle bound, the emulation and mpmath, ray by ray"),
+        ("lit-precision", lit_precision, "lit renders of the lit traces with f16, f32 and f64 traversal, against f64, lit and unlit"),
     ):
         p = sub.add_parser(name, help=text, description=module.__doc__.split("\n\n")[0])
         module.add_arguments(p)
