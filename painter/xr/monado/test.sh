@@ -9,13 +9,15 @@
 # network (run.sh makes the Debian 13 chroot).
 #
 #   painter/xr/monado/test.sh [PYTHON]     # PYTHON: one with Pillow (default .venv/bin/python)
+#
+# OCTOPAINT_KEEP_VR_TEST=1 keeps the work folder (captures, logs) and says where.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 repo="$(dirname "$(dirname "$(dirname "$here")")")"
 py="$(realpath -s "${1:-$repo/.venv/bin/python}")"   # absolute: the test runs elsewhere
 octopaint="$repo/painter/target/release/octopaint"
-work="$(mktemp -d)"
-trap 'rm -rf "$work"' EXIT
+work="$(mktemp -d)"; [ -n "${OCTOPAINT_KEEP_VR_TEST:-}" ] && echo "work folder: $work"
+trap '[ -n "${OCTOPAINT_KEEP_VR_TEST:-}" ] || rm -rf "$work"' EXIT
 cd "$work"
 
 "$octopaint" import "$repo/traces/shapes_modes.jsonl" painting.octo 2>/dev/null
@@ -56,18 +58,48 @@ assert cl > cr + 0.5, "no parallax between the eyes"
 print("ok")
 EOF
 # Painting from scripted controller input: the right hand sweeps 30 cm
-# across the painting with the trigger held (frames 3 to 23), then lets go.
+# across the painting with the trigger held (frames 3 to 23), lets go, and
+# moves 35 cm right of the head, beside the painting, where the last frame
+# must show the brush's ghost in both eyes.
 "$py" - > stroke.jsonl <<'EOF'
 print('{"frame": 0, "hand": "right", "pose": [-0.15, 0.0, -0.9, 0, 0, 0, 1], "trigger": 0}')
 for i in range(3, 24):
     x, y = -0.15 + 0.3 * (i - 3) / 20, 0.05 * (i - 3) / 20
     print('{"frame": %d, "hand": "right", "pose": [%.4f, %.4f, -0.9, 0, 0, 0, 1], "trigger": 0.9}' % (i, x, y))
 print('{"frame": 25, "hand": "right", "trigger": 0}')
+print('{"frame": 26, "hand": "right", "pose": [0.35, 0.0, -0.9, 0, 0, 0, 1]}')
 EOF
 before="$("$octopaint" info painting.octo | grep '^undo')"
-"$here/run.sh" vr painting.octo --frames 30 --script stroke.jsonl --no-fallback 2> vr2.log || { grep -v '^LOG\|^	' vr2.log >&2; echo "FAIL: octopaint vr --script" >&2; exit 1; }
+"$here/run.sh" vr painting.octo --frames 30 --script stroke.jsonl --capture eyes2.png --no-fallback 2> vr2.log || { grep -v '^LOG\|^	' vr2.log >&2; echo "FAIL: octopaint vr --script" >&2; exit 1; }
 grep '^octopaint:' vr2.log
 grep -q '1 stroke(s) painted, saved' vr2.log || { echo "FAIL: the scripted stroke was not painted" >&2; exit 1; }
+# The brush cursor: a ring of the brush's orange right of the painting in
+# both eyes (none there before the hand came), further right in the left eye.
+"$py" - eyes.png eyes2.png <<'EOF'
+import sys
+from PIL import Image
+def ring(path):
+    im = Image.open(path).convert("RGB")
+    w, h = im.size
+    e = w // 2
+    out = []
+    for x0 in (0, e):
+        n, sx = 0, 0
+        for y in range(h // 6, h):
+            for x in range(x0 + int(0.66 * e), x0 + e):
+                r, g, b = im.getpixel((x, y))
+                if r > 120 and r > g + 40 and g > b + 20:
+                    n += 1
+                    sx += x - x0
+        out.append((n, sx / n if n else None))
+    return out
+before, after = ring(sys.argv[1]), ring(sys.argv[2])
+print(f"brush cursor pixels right of the painting: before {before[0][0]}, {before[1][0]}; after {after[0][0]} (column {after[0][1]}), {after[1][0]} (column {after[1][1]})")
+assert before[0][0] <= 5 and before[1][0] <= 5, "orange right of the painting before the hand came"
+assert after[0][0] >= 12 and after[1][0] >= 12, "no brush cursor in both eyes"
+assert after[0][1] > after[1][1], "no parallax between the eyes' cursors"
+print("ok")
+EOF
 after="$("$octopaint" info painting.octo | grep '^undo')"
 echo "before: $before"; echo "after:  $after"
 [ "$before" != "$after" ] || { echo "FAIL: the document did not change" >&2; exit 1; }

@@ -28,6 +28,7 @@ pub fn prepare(
     size: [u32; 2],
     s: &Status,
     palette_at: Option<[f32; 2]>,
+    cursor: Option<([f32; 2], f32)>,
 ) -> (Vec<egui::ClippedPrimitive>, egui_wgpu::ScreenDescriptor, Vec<egui::TextureId>) {
     // About 1/4 of the eye's width for the panel whatever its resolution.
     let ppp = (size[0] as f32 / 900.0).max(0.3);
@@ -38,6 +39,18 @@ pub fn prepare(
     ctx.set_pixels_per_point(ppp);
     let p = s.painter;
     let out = ctx.run_ui(raw, |ui| {
+        if let Some(([x, y], radius)) = cursor {
+            // The brush's ghost: a faint ring of its colour and radius, a
+            // dot at its centre (docs/vr.md; the desktop's cursor).
+            let c = PALETTE[p.colour].map(|v| (v * 255.0) as u8);
+            let colour = egui::Color32::from_rgba_unmultiplied(c[0], c[1], c[2], 200);
+            let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Background, egui::Id::unique("cursor")));
+            let at = egui::pos2(x / ppp, y / ppp);
+            // At least 5 pixels wide, so that a small brush far away
+            // still shows; the ring 2 pixels thick at any resolution.
+            painter.circle_stroke(at, radius.max(5.0) / ppp, egui::Stroke::new(2.0 / ppp, colour));
+            painter.circle_filled(at, 1.5 / ppp, colour);
+        }
         if let Some([x, y]) = palette_at {
             // The palette beside the left controller: every colour, the
             // chosen one framed, and the mode and shape.
@@ -63,7 +76,14 @@ pub fn prepare(
                     let c = PALETTE[p.colour].map(|v| (v * 255.0) as u8);
                     let (rect, _) = ui.allocate_exact_size(egui::vec2(18.0, 18.0), egui::Sense::hover());
                     ui.painter().rect_filled(rect, 3.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
-                    ui.label(format!("{} · {} · {:.1} cm", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
+                    let (lit, grid) = p.lit_and_grid();
+                    let view = match (lit, grid) {
+                        (true, true) => " · lit, grid",
+                        (true, false) => " · lit",
+                        (false, true) => " · grid",
+                        (false, false) => "",
+                    };
+                    ui.label(format!("{} · {} · {:.1} cm{view}", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
                 });
                 let pct = 100.0 * f64::from(s.cells) / f64::from(s.capacity.max(1));
                 let budget = format!("cells {pct:.1}% of budget · {:.0} MiB", s.bytes as f64 / f64::from(1 << 20));

@@ -44,7 +44,14 @@ pub struct Painter {
     /// Events refused by the document (shown, never fatal).
     pub last_error: Option<String>,
     pub strokes: u64,
+    /// How the view is drawn: lit (docs/spec.md 6.1, the canvas's default
+    /// light) and with the ground grid; Y (the left secondary button)
+    /// steps through [`VIEWS`].
+    pub view: usize,
 }
+
+/// The headset's views, in the order Y steps through them: (lit, grid).
+pub const VIEWS: [(bool, bool); 4] = [(true, false), (true, true), (false, true), (false, false)];
 
 #[derive(Clone, Copy)]
 enum Grab {
@@ -69,6 +76,7 @@ impl Default for Painter {
             grab: Grab::None,
             last_error: None,
             strokes: 0,
+            view: 0,
         }
     }
 }
@@ -78,6 +86,11 @@ fn yaw(v: DVec3) -> f64 {
 }
 
 impl Painter {
+    /// Whether the view is lit, and whether it shows the ground grid.
+    pub fn lit_and_grid(&self) -> (bool, bool) {
+        VIEWS[self.view]
+    }
+
     /// The brush as the canvas sees it at `placement`'s zoom.
     pub fn brush(&self, placement: &Placement) -> Brush {
         Brush::new(SHAPES[self.shape], MODES[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
@@ -144,6 +157,9 @@ impl Painter {
         }
         if rose(l.primary, pl.primary) {
             self.shape = (self.shape + 1) % SHAPES.len();
+        }
+        if rose(l.secondary, pl.secondary) {
+            self.view = (self.view + 1) % VIEWS.len();
         }
         // Undo and redo on the right hand, between strokes.
         if !doc.in_stroke() {

@@ -23,6 +23,7 @@ use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::Tree;
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::Camera;
+use octopaint_tree::view::DEFAULT_LIGHT;
 use openxr as xr;
 use wgpu::hal;
 
@@ -404,7 +405,11 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
         for (eye, view) in views.iter().enumerate() {
             let camera = eye_camera(&placement, view, size);
-            let params = RayParams::new(&tree.lat, &camera);
+            let (lit, grid) = painter.lit_and_grid();
+            let mut params = RayParams::new(&tree.lat, &camera).with_light(lit.then_some(&DEFAULT_LIGHT));
+            if grid {
+                params = params.with_grid(camera.eye);
+            }
             let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("eye") });
             renderer.ray.encode(gpu, &renderer.pools, &mut enc, &params, opts.precision).map_err(|e| other("ray casting", e))?;
             let group = blit.bind(gpu, renderer.ray.pixel_buffer().expect("cast above"), size[0], size[1]);
@@ -420,7 +425,16 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             }
             {
                 let palette_at = hands[crate::input::LEFT].pose.and_then(|(p, _)| project(view, size, p));
-                let (hud_jobs, hud_screen, free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status, palette_at);
+                // The brush's ghost at the right controller's tip, where
+                // this eye sees it, as wide as the brush there.
+                let cursor = hands[crate::input::RIGHT].pose.and_then(|(p, _)| {
+                    let centre = project(view, size, p)?;
+                    let o = view.pose.orientation;
+                    let head = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
+                    let edge = project(view, size, p + head * DVec3::X * painter.room_radius)?;
+                    Some((centre, (edge[0] - centre[0]).hypot(edge[1] - centre[1])))
+                });
+                let (hud_jobs, hud_screen, free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status, palette_at, cursor);
                 hud_free.extend(free);
                 hud.update_buffers(&gpu.device, &gpu.queue, &mut enc, &hud_jobs, &hud_screen);
                 let mut pass = pass_on(&mut enc, &target, wgpu::LoadOp::Load).forget_lifetime();
