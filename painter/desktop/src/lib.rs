@@ -20,7 +20,7 @@ use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Event, EventKind, Light, MODES, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting, length};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -753,44 +753,6 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
     view
-}
-
-/// A length in canvas units, read as metres (the scene trace's canvas is
-/// 40 km wide in these units), with a unit that keeps it readable.
-fn length(x: f64) -> String {
-    let a = x.abs();
-    if !a.is_finite() {
-        return format!("{x}");
-    }
-    let (v, unit) = if a >= 1e3 {
-        (x / 1e3, "km")
-    } else if a >= 1.0 {
-        (x, "m")
-    } else if a >= 1e-2 {
-        (x * 1e2, "cm")
-    } else if a >= 1e-3 || a == 0.0 {
-        (x * 1e3, "mm")
-    } else {
-        (x * 1e6, "µm")
-    };
-    // Three significant digits.
-    let digits = if v.abs() >= 100.0 { 0 } else if v.abs() >= 10.0 { 1 } else { 2 };
-    format!("{v:.digits$} {unit}")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::length;
-
-    #[test]
-    fn lengths_read_with_a_unit_and_three_digits() {
-        assert_eq!(length(40_000.0), "40.0 km");
-        assert_eq!(length(2.5), "2.50 m");
-        assert_eq!(length(0.0572), "5.72 cm");
-        assert_eq!(length(0.003667), "3.67 mm");
-        assert_eq!(length(0.0003), "300 µm");
-        assert_eq!(length(0.0), "0.00 mm");
-    }
 }
 
 fn status_line(root: &mut egui::Ui, s: &StatusInfo) {

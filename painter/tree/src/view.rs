@@ -70,3 +70,41 @@ pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
+
+/// A length in canvas units, read as metres (the scene trace's canvas is
+/// 40 km wide in these units), with a unit that keeps it readable.
+pub fn length(x: f64) -> String {
+    let a = x.abs();
+    if !a.is_finite() {
+        return format!("{x}");
+    }
+    let (v, unit) = if a >= 1e3 {
+        (x / 1e3, "km")
+    } else if a >= 1.0 {
+        (x, "m")
+    } else if a >= 1e-2 {
+        (x * 1e2, "cm")
+    } else if a >= 1e-3 || a == 0.0 {
+        (x * 1e3, "mm")
+    } else {
+        (x * 1e6, "µm")
+    };
+    // Three significant digits.
+    let digits = if v.abs() >= 100.0 { 0 } else if v.abs() >= 10.0 { 1 } else { 2 };
+    format!("{v:.digits$} {unit}")
+}
+
+#[cfg(test)]
+mod length_tests {
+    use super::length;
+
+    #[test]
+    fn lengths_read_with_a_unit_and_three_digits() {
+        assert_eq!(length(40_000.0), "40.0 km");
+        assert_eq!(length(2.5), "2.50 m");
+        assert_eq!(length(0.0572), "5.72 cm");
+        assert_eq!(length(0.003667), "3.67 mm");
+        assert_eq!(length(0.0003), "300 µm");
+        assert_eq!(length(0.0), "0.00 mm");
+    }
+}

@@ -73,8 +73,11 @@ before="$("$octopaint" info painting.octo | grep '^undo')"
 "$here/run.sh" vr painting.octo --frames 30 --script stroke.jsonl --capture eyes2.png --no-fallback 2> vr2.log || { grep -v '^LOG\|^	' vr2.log >&2; echo "FAIL: octopaint vr --script" >&2; exit 1; }
 grep '^octopaint:' vr2.log
 grep -q '1 stroke(s) painted, saved' vr2.log || { echo "FAIL: the scripted stroke was not painted" >&2; exit 1; }
-# The brush cursor: a ring of the brush's orange right of the painting in
-# both eyes (none there before the hand came), further right in the left eye.
+# The brush cursor: pixels of the brush's orange (the palette's first
+# colour, 235, 114, 38, blended over the background) in both eyes, none
+# before the hand came, further right in the left eye. Matched by the
+# colour's proportions, so the painting's own colours do not count; the
+# HUD's corner (its swatch is that orange) is left out.
 "$py" - eyes.png eyes2.png <<'EOF'
 import sys
 from PIL import Image
@@ -84,18 +87,21 @@ def ring(path):
     e = w // 2
     out = []
     for x0 in (0, e):
+        bg = im.getpixel((x0 + e - 1, h - 1))
         n, sx = 0, 0
-        for y in range(h // 6, h):
-            for x in range(x0 + int(0.66 * e), x0 + e):
-                r, g, b = im.getpixel((x, y))
-                if r > 120 and r > g + 40 and g > b + 20:
+        for y in range(h):
+            for x in range(x0, x0 + e):
+                if y < h // 3 and x - x0 < e // 2:
+                    continue
+                d = [a - b for a, b in zip(im.getpixel((x, y)), bg)]
+                if d[0] > 110 and abs(d[1] - 0.485 * d[0]) < 15 and abs(d[2] - 0.162 * d[0]) < 15:
                     n += 1
                     sx += x - x0
         out.append((n, sx / n if n else None))
     return out
 before, after = ring(sys.argv[1]), ring(sys.argv[2])
-print(f"brush cursor pixels right of the painting: before {before[0][0]}, {before[1][0]}; after {after[0][0]} (column {after[0][1]}), {after[1][0]} (column {after[1][1]})")
-assert before[0][0] <= 5 and before[1][0] <= 5, "orange right of the painting before the hand came"
+print(f"brush cursor pixels: before {before[0][0]}, {before[1][0]}; after {after[0][0]} (column {after[0][1]}), {after[1][0]} (column {after[1][1]})")
+assert before[0][0] <= 5 and before[1][0] <= 5, "the cursor's orange before the hand came"
 assert after[0][0] >= 12 and after[1][0] >= 12, "no brush cursor in both eyes"
 assert after[0][1] > after[1][1], "no parallax between the eyes' cursors"
 print("ok")

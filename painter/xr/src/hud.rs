@@ -13,6 +13,14 @@ pub struct Status<'a> {
     pub capacity: u32,
     pub bytes: usize,
     pub painter: &'a Painter,
+    /// Canvas units in one metre of the room (the zoom), the depth the
+    /// brush paints at and that depth's cell edge (canvas units).
+    pub canvas_per_metre: f64,
+    pub depth: u32,
+    pub edge: f64,
+    /// The canvas axes x, y, z as the head sees them: direction on the
+    /// panel (y down) and whether the axis points away.
+    pub axes: [([f32; 2], bool); 3],
 }
 
 const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
@@ -70,7 +78,7 @@ pub fn prepare(
                 });
             });
         }
-        egui::Area::new(egui::Id::unique("hud")).fixed_pos(egui::pos2(12.0, 12.0)).show(ui.ctx(), |ui| {
+        let panel = egui::Area::new(egui::Id::unique("hud")).fixed_pos(egui::pos2(12.0, 12.0)).show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {
                 ui.horizontal(|ui| {
                     let c = PALETTE[p.colour].map(|v| (v * 255.0) as u8);
@@ -85,6 +93,12 @@ pub fn prepare(
                     };
                     ui.label(format!("{} · {} · {:.1} cm{view}", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
                 });
+                ui.label(format!(
+                    "1 m = {} of canvas · paints at depth {} (cells of {})",
+                    octopaint_tree::view::length(s.canvas_per_metre),
+                    s.depth,
+                    octopaint_tree::view::length(s.edge)
+                ));
                 let pct = 100.0 * f64::from(s.cells) / f64::from(s.capacity.max(1));
                 let budget = format!("cells {pct:.1}% of budget · {:.0} MiB", s.bytes as f64 / f64::from(1 << 20));
                 if pct > 90.0 {
@@ -100,6 +114,20 @@ pub fn prepare(
                 }
             });
         });
+        // The canvas axes under the panel (head-locked, like the desktop
+        // window's gizmo): x red, y green, z blue, the far ones thinner and
+        // drawn first.
+        let origin = panel.response.rect.left_bottom() + egui::vec2(34.0, 38.0);
+        let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("axes")));
+        painter.circle_filled(origin, 30.0, egui::Color32::from_rgba_unmultiplied(0, 0, 0, 110));
+        let colours = [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
+        let mut order = [0usize, 1, 2];
+        order.sort_by_key(|&i| !s.axes[i].1);
+        for i in order {
+            let (v, away) = s.axes[i];
+            let tip = origin + egui::vec2(v[0], v[1]) * 24.0;
+            painter.line_segment([origin, tip], egui::Stroke::new(if away { 1.5 } else { 3.0 }, colours[i]));
+        }
     });
     for (id, deltas) in &out.textures_delta.set {
         for d in deltas {

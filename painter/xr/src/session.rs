@@ -393,6 +393,16 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let gpu = &renderer.gpu;
         // The indicators, head-locked; the palette at the left hand,
         // where each eye sees it.
+        let depth = tree.lat.target_depth(painter.room_radius / placement.scale);
+        // The canvas axes in the head's frame (the first eye's pose).
+        let head = views.first().map_or(DQuat::IDENTITY, |v| {
+            let o = v.pose.orientation;
+            DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize()
+        });
+        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| {
+            let v = head.inverse() * (placement.rotation * a);
+            ([v.x as f32, -v.y as f32], v.z < 0.0)
+        });
         let status = crate::hud::Status {
             busy_ms,
             in_stroke,
@@ -400,6 +410,10 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             capacity: tree.capacity,
             bytes: tree.pool_bytes_allocated(),
             painter: &painter,
+            canvas_per_metre: 1.0 / placement.scale,
+            depth,
+            edge: tree.lat.size_canvas[depth as usize],
+            axes,
         };
         let mut hud_free = Vec::new();
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
