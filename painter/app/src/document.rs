@@ -382,7 +382,7 @@ pub fn start() -> ExitCode {
         return fail(e);
     }
     eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
-    vr(&doc, None, None, None, false, false)
+    vr(&doc, None, None, None, false, false, false)
 }
 
 /// An empty document on the desktop window's default canvas, unless `doc`
@@ -398,14 +398,14 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
     Ok(())
 }
 
-pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool) -> ExitCode {
+pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
     let mut s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
-    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script };
+    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution };
     let result = octopaint_xr::session::run(&mut s, &opts);
     // Whatever happened in the headset is saved (the journal has it too).
     if !s.in_stroke()
@@ -418,6 +418,12 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
             eprintln!(
                 "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
                 r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_ms.1, r.render_ms, r.strokes
+            );
+            eprintln!(
+                "octopaint: dynamic resolution: eyes cast at {:.0}% of their size on average, {:.0}% at least; {} still frame(s) at full size",
+                r.scale.0 * 100.0,
+                r.scale.1 * 100.0,
+                r.still_frames
             );
             if let Some(p) = capture {
                 eprintln!("octopaint: wrote {}", p.display());

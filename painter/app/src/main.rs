@@ -135,6 +135,9 @@ enum Command {
         /// (JSON lines; docs/vr.md): a headset without hands, a test.
         #[arg(long, value_name = "SCRIPT.jsonl")]
         script: Option<PathBuf>,
+        /// Cast every frame at the eye's full size (no dynamic resolution).
+        #[arg(long)]
+        fixed_resolution: bool,
     },
     /// Find the OpenXR runtime and headset and print what they offer, or
     /// exactly what is missing (exit status 3 when there is no VR here).
@@ -461,8 +464,8 @@ fn main() -> ExitCode {
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
-        Command::Vr { doc, frames, capture, precision, no_fallback, script } => {
-            document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback)
+        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution } => {
+            document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
         }
         Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log } => {
             document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log })

@@ -20,7 +20,7 @@ use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Event, EventKind, Light, MODES, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, frame_painting, length};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, follow_frame_time, frame_painting, length};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -44,7 +44,7 @@ pub struct Options {
 /// The frame time the dynamic resolution aims at on the desktop (60 Hz).
 pub const TARGET_FRAME_MS: f64 = 16.7;
 /// The smallest share of the window's width and height cast while moving.
-pub const MIN_SCALE: f64 = 0.25;
+pub use octopaint_tree::view::MIN_SCALE;
 
 /// What the view shows besides the camera: the grid, the light.
 type Look = (bool, Option<Light>);
@@ -78,9 +78,7 @@ impl Resolution {
         if let Some((ms, true)) = interval
             && !self.fixed
         {
-            // Pixels cast scale with scale², time roughly with pixels.
-            let want = (self.scale * (TARGET_FRAME_MS / ms.max(0.1)).sqrt()).clamp(MIN_SCALE, 1.0);
-            self.scale = ((0.6 * self.scale + 0.4 * want) * 32.0).round() / 32.0;
+            self.scale = follow_frame_time(self.scale, ms, TARGET_FRAME_MS);
         }
         let scale = if still || self.fixed { 1.0 } else { self.scale };
         let size = window.map(|v| ((f64::from(v) * scale).round() as u32).clamp(1, v.max(1)));

@@ -71,6 +71,19 @@ pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
 
+/// The smallest share of the width and height a view is cast at while it
+/// moves (dynamic resolution, docs/desktop.md and docs/vr.md).
+pub const MIN_SCALE: f64 = 0.25;
+
+/// Dynamic resolution's step: the share of the width and height to cast
+/// the next moving frame at, after one at `scale` took `ms`, aiming at
+/// `target_ms`. Time goes roughly with the pixels cast (`scale²`); the
+/// step is smoothed and rounded to 1/32 so the size does not flicker.
+pub fn follow_frame_time(scale: f64, ms: f64, target_ms: f64) -> f64 {
+    let want = (scale * (target_ms / ms.max(0.1)).sqrt()).clamp(MIN_SCALE, 1.0);
+    ((0.6 * scale + 0.4 * want) * 32.0).round() / 32.0
+}
+
 /// A length in canvas units, read as metres (the scene trace's canvas is
 /// 40 km wide in these units), with a unit that keeps it readable.
 pub fn length(x: f64) -> String {

@@ -30,6 +30,10 @@ grep -q 'XR_KHR_vulkan_enable2' info.txt || { echo "FAIL: no Vulkan binding" >&2
 "$here/run.sh" vr painting.octo --frames 30 --capture eyes.png --no-fallback 2> vr.log || { grep -v '^LOG\|^	' vr.log >&2; echo "FAIL: octopaint vr" >&2; exit 1; }
 grep '^octopaint:' vr.log
 grep -q '^octopaint: 30 frame(s) in the headset' vr.log || { echo "FAIL: not 30 frames" >&2; exit 1; }
+# Dynamic resolution: Monado's simulated head keeps moving, so the eyes are
+# cast below full size, never below a quarter.
+mean="$(sed -n 's/^octopaint: dynamic resolution: eyes cast at \([0-9]*\)% of their size on average.*/\1/p' vr.log)"
+[ -n "$mean" ] && [ "$mean" -ge 25 ] && [ "$mean" -le 100 ] || { echo "FAIL: dynamic resolution: '$mean'" >&2; exit 1; }
 
 "$py" - eyes.png <<'EOF'
 import sys

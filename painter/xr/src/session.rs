@@ -72,6 +72,11 @@ pub struct Report {
     pub frame_ms: (f64, f64),
     /// GPU work of a frame (both eyes), submit to done (ms): mean.
     pub render_ms: f64,
+    /// Dynamic resolution: the share of the eye's width and height cast,
+    /// mean and smallest over the frames, and the frames cast still (at
+    /// full size).
+    pub scale: (f64, f64),
+    pub still_frames: u64,
     /// Strokes painted with the controllers.
     pub strokes: u64,
     pub adapter: String,
@@ -86,7 +91,12 @@ pub struct Options {
     /// Scripted controller states that replace the controllers'
     /// (`input::Script`).
     pub script: Option<PathBuf>,
+    /// Cast every frame at the eye's full size (no dynamic resolution).
+    pub fixed_resolution: bool,
 }
+
+/// The time both eyes' ray casts aim at: one frame of a 90 Hz headset.
+pub const TARGET_FRAME_MS: f64 = 11.1;
 
 fn xr_call<T>(what: &'static str, r: Result<T, xr::sys::Result>) -> Result<T, XrError> {
     crate::call(what, r)
@@ -316,6 +326,13 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     let mut exit_requested = false;
     let mut last_wait: Option<Instant> = None;
     let (mut frame_sum, mut frame_max, mut render_sum) = (0.0f64, 0.0f64, 0.0f64);
+    // Dynamic resolution (docs/vr.md): while the view moves, the eyes are
+    // cast at `scale` of their size, `scale` following the time both casts
+    // take towards TARGET_FRAME_MS; a frame that changes nothing (head,
+    // canvas placement, painting, view) is cast at full size.
+    let mut scale = 1.0f64;
+    let (mut scale_sum, mut scale_min) = (0.0f64, 1.0f64);
+    let mut last_look: Option<([xr::Posef; 2], [f64; 8], (bool, bool))> = None;
     'frames: loop {
         while let Some(ev) = xr_call("polling events", xr_instance.poll_event(&mut events))? {
             if let xr::Event::SessionStateChanged(e) = ev {
@@ -388,8 +405,21 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
         let t0 = Instant::now();
         let mut captured = Vec::new();
+        let still;
         {
-        renderer.sync(tree).map_err(|e| other("uploading", e))?;
+        let synced = renderer.sync(tree).map_err(|e| other("uploading", e))?;
+        let look = (
+            [views[0].pose, views[1].pose],
+            [placement.centre.x, placement.centre.y, placement.centre.z, placement.scale, placement.rotation.x, placement.rotation.y, placement.rotation.z, placement.rotation.w],
+            painter.lit_and_grid(),
+        );
+        still = synced.blocks == 0 && last_look.as_ref().is_some_and(|l| same_look(l, &look));
+        last_look = Some(look);
+        let now_scale = if still || opts.fixed_resolution { 1.0 } else { scale };
+        let cast = size.map(|v| ((f64::from(v) * now_scale).round() as u32).clamp(1, v));
+        scale_sum += now_scale;
+        scale_min = scale_min.min(now_scale);
+        report.still_frames += u64::from(still);
         let gpu = &renderer.gpu;
         // The indicators, head-locked; the palette at the left hand,
         // where each eye sees it.
@@ -418,7 +448,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let mut hud_free = Vec::new();
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
         for (eye, view) in views.iter().enumerate() {
-            let camera = eye_camera(&placement, view, size);
+            let camera = eye_camera(&placement, view, cast);
             let (lit, grid) = painter.lit_and_grid();
             let mut params = RayParams::new(&tree.lat, &camera).with_light(lit.then_some(&DEFAULT_LIGHT));
             if grid {
@@ -426,7 +456,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             }
             let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("eye") });
             renderer.ray.encode(gpu, &renderer.pools, &mut enc, &params, opts.precision).map_err(|e| other("ray casting", e))?;
-            let group = blit.bind(gpu, renderer.ray.pixel_buffer().expect("cast above"), size[0], size[1]);
+            let group = blit.bind_scaled(gpu, renderer.ray.pixel_buffer().expect("cast above"), cast, size);
             let target = textures[image].create_view(&wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2),
                 base_array_layer: eye as u32,
@@ -483,7 +513,11 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             hud.free_texture(id);
         }
         }
-        render_sum += t0.elapsed().as_secs_f64() * 1e3;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        render_sum += ms;
+        if !still && !opts.fixed_resolution {
+            scale = octopaint_tree::view::follow_frame_time(scale, ms, TARGET_FRAME_MS);
+        }
         xr_call("releasing the image", swapchain.release_image())?;
         let rect = xr::Rect2Di { offset: xr::Offset2Di { x: 0, y: 0 }, extent: xr::Extent2Di { width: size[0] as i32, height: size[1] as i32 } };
         let proj: Vec<xr::CompositionLayerProjectionView<xr::Vulkan>> = (0..2)
@@ -513,6 +547,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     }
     if report.frames > 0 {
         report.render_ms = render_sum / report.frames as f64;
+        report.scale = (scale_sum / report.frames as f64, scale_min);
     }
     drop(textures);
     drop(swapchain);
@@ -533,6 +568,18 @@ fn project(view: &xr::View, size: [u32; 2], p: DVec3) -> Option<[f32; 2]> {
     let f = view.fov;
     let (l, r, u, d) = (f64::from(f.angle_left).tan(), f64::from(f.angle_right).tan(), f64::from(f.angle_up).tan(), f64::from(f.angle_down).tan());
     Some([((tx - l) / (r - l) * f64::from(size[0])) as f32, ((u - ty) / (u - d) * f64::from(size[1])) as f32])
+}
+
+/// Whether two frames look at the same thing: both eyes within 0.1 mm and
+/// about 0.03° of where they were, the canvas where it was, the same view.
+fn same_look(a: &([xr::Posef; 2], [f64; 8], (bool, bool)), b: &([xr::Posef; 2], [f64; 8], (bool, bool))) -> bool {
+    let near = |p: &xr::Posef, q: &xr::Posef| {
+        let d = (p.position.x - q.position.x).powi(2) + (p.position.y - q.position.y).powi(2) + (p.position.z - q.position.z).powi(2);
+        let (o, r) = (p.orientation, q.orientation);
+        let dot = (o.x * r.x + o.y * r.y + o.z * r.z + o.w * r.w).abs();
+        d < 1e-8 && dot > 1.0 - 1e-7
+    };
+    near(&a.0[0], &b.0[0]) && near(&a.0[1], &b.0[1]) && a.1 == b.1 && a.2 == b.2
 }
 
 /// A render pass drawing into one eye's layer.
