@@ -8,6 +8,10 @@
 - glTF and OBJ: read by trimesh (its own glTF and OBJ loaders), which must
   find a watertight, consistently wound mesh with positive volume and the
   vertex colours written.
+- USD: the painter's .usda stage is opened by Pixar's own library
+  (usd-core's `pxr`): units, up axis, the Volume's fields pointing at the
+  grids of the .vdb beside it (OpenVDB lists them), the Mesh's points,
+  faces, normals and displayColor against the OBJ of the same export.
 - Refusals: exit status 2, a message that says what to do, and no file
   written or changed.
 """
@@ -254,6 +258,53 @@ def test_meshes_read_back_closed(painter, dumps, tmp_path, name, extra):
     assert doc["asset"]["version"] == "2.0"
 
 
+def test_usd_stages_open_in_pixars_library(openvdb, painter, dumps, tmp_path):
+    from pxr import Usd, UsdGeom, UsdVol
+
+    trace, _ = dumps["shapes_modes"]
+    stage_path, obj = tmp_path / "p.usda", tmp_path / "p.obj"
+    r = run([painter, "export", trace, "--usd", str(stage_path), "--usd-mesh", "--obj", str(obj), "--up", "z", "--scale", "100", "--quiet"])
+    assert r.returncode == 0, r.stderr
+    vdb = tmp_path / "p.vdb"
+    assert vdb.is_file(), "the stage's VDB is written beside it"
+    stage = Usd.Stage.Open(str(stage_path))
+    assert stage.GetDefaultPrim().GetPath() == "/Painting"
+    assert UsdGeom.GetStageMetersPerUnit(stage) == pytest.approx(0.01)  # --scale 100: centimetres
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z
+    volume = UsdVol.Volume(stage.GetPrimAtPath("/Painting/Volume"))
+    assert volume, "no Volume prim"
+    fields = volume.GetFieldPaths()
+    assert sorted(fields) == ["color", "density"]
+    for name, path in fields.items():
+        asset = UsdVol.OpenVDBAsset(stage.GetPrimAtPath(path))
+        assert asset, f"{path} is not an OpenVDBAsset"
+        assert asset.GetFieldNameAttr().Get() == name
+        assert os.path.samefile(asset.GetFilePathAttr().Get().resolvedPath, vdb)
+    # OpenVDB itself finds those grids in the file.
+    r = run([SYSTEM_PYTHON, "-c", "import sys, pyopenvdb; print(' '.join(sorted(g.name for g in pyopenvdb.readAllGridMetadata(sys.argv[1]))))", str(vdb)])
+    assert r.returncode == 0 and r.stdout.split() == ["color", "density"], r.stderr
+    # The surface: the OBJ's vertices and triangles, one colour and normal
+    # per vertex, inside the volume's extent.
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Painting/Surface"))
+    points = np.asarray(mesh.GetPointsAttr().Get())
+    lines = obj.read_text().splitlines()
+    obj_v = np.array([[float(x) for x in l.split()[1:4]] for l in lines if l.startswith("v ")])
+    n_faces = sum(1 for l in lines if l.startswith("f "))
+    assert points.shape == obj_v.shape and np.allclose(points, obj_v, rtol=1e-6, atol=1e-6 * np.abs(obj_v).max())
+    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get())
+    assert len(counts) == n_faces and np.all(counts == 3)
+    assert len(mesh.GetFaceVertexIndicesAttr().Get()) == 3 * n_faces
+    assert len(mesh.GetNormalsAttr().Get()) == len(points) and mesh.GetNormalsInterpolation() == UsdGeom.Tokens.vertex
+    colour = UsdGeom.PrimvarsAPI(mesh).GetPrimvar("displayColor")
+    values = np.asarray(colour.Get())
+    assert colour.GetInterpolation() == UsdGeom.Tokens.vertex and values.shape == points.shape
+    assert values.min() >= 0 and values.max() <= 1 and len(np.unique(values, axis=0)) > 1
+    computed = np.asarray(UsdGeom.Boundable.ComputeExtentFromPlugins(mesh, Usd.TimeCode.Default()))
+    assert np.allclose(np.asarray(mesh.GetExtentAttr().Get()), computed)
+    box = np.asarray(volume.GetExtentAttr().Get())
+    assert np.all(box[0] <= computed[0] + 1e-3) and np.all(computed[1] <= box[1] + 1e-3), (box, computed)
+
+
 def test_refusals_write_nothing(painter, tmp_path):
     trace = os.path.join(TRACES, "shapes_modes.jsonl")
     keep = tmp_path / "keep.vdb"
@@ -273,6 +324,11 @@ def test_refusals_write_nothing(painter, tmp_path):
         ([], "nothing to write"),
         (["--vdb", str(tmp_path)], "is a folder"),
         (["--gltf", str(tmp_path / "m.glb"), "--depth", "3"], "--depth is the VDB's voxel depth"),
+        (["--usd", str(tmp_path / "s.usdc")], "only USD's text format is written (.usda)"),
+        (["--usd", str(tmp_path / "s.txt")], "a USD stage is written as .usda"),
+        (["--usd", str(tmp_path / "s.usda"), "--vdb", str(tmp_path / "sub" / "s.vdb")], "is not in the folder of --usd"),
+        (["--usd", str(tmp_path / "keep.usda"), "--obj", str(tmp_path / "keep.vdb")], "is given as two outputs"),
+        (["--usd-mesh", "--obj", str(tmp_path / "m.obj")], "--usd"),
     ]
     for args, message in cases:
         r = run([painter, "export", trace] + args)

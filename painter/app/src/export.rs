@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use octopaint_export::voxels::{self, VoxelGrid};
-use octopaint_export::{ColourSpace, Crop, ExportError, Placement, SurfaceOptions, default_iso, mesh, surface, vdb};
+use octopaint_export::{ColourSpace, Crop, ExportError, Placement, SurfaceOptions, default_iso, mesh, surface, usd, vdb};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_tree::trace::{EventKind, read_trace};
@@ -24,6 +24,7 @@ Examples:
   octopaint export traces/scene.jsonl --vdb scene.vdb
   octopaint export traces/scene.jsonl --vdb scene.vdb --depth 9 --up z
   octopaint export traces/scene.jsonl --gltf scene.glb --obj scene.obj --iso 2
+  octopaint export painting.octo --usd painting.usda --usd-mesh --up z
 
 docs/export.md explains the values written and how Blender and Houdini open them.")]
 pub struct Args {
@@ -44,6 +45,16 @@ pub struct Args {
     /// (`v x y z r g b`) and normals.
     #[arg(long, value_name = "OUT.obj")]
     pub obj: Option<PathBuf>,
+    /// Write a USD stage (ASCII .usda): a Volume whose density and color
+    /// fields are the grids of a .vdb written beside it (OUT.vdb, or the
+    /// --vdb file when it is in the same folder), with metersPerUnit and
+    /// upAxis set.
+    #[arg(long, value_name = "OUT.usda")]
+    pub usd: Option<PathBuf>,
+    /// With --usd: add the iso-surface to the stage as a Mesh with
+    /// per-vertex normals and displayColor (linear).
+    #[arg(long, requires = "usd")]
+    pub usd_mesh: bool,
     /// Depth of the VDB's voxels: a voxel is a cell of this depth, the
     /// canvas's root size / 2^DEPTH wide. Coarser leaves become tiles or
     /// blocks of equal voxels; finer cells are averaged into their voxel.
@@ -206,10 +217,47 @@ fn parse_crop(s: &str) -> Result<Crop, String> {
     Ok(Crop { lo, hi })
 }
 
-fn check_options(args: &Args) -> Result<Vec<&Path>, Refusal> {
-    let outs: Vec<&Path> = [&args.vdb, &args.gltf, &args.obj].into_iter().flatten().map(|p| p.as_path()).collect();
+/// The VDB file to write: --vdb, or with --usd and no --vdb the stage's
+/// name with `.vdb`. Refuses a --usd that is not `.usda`, and a --vdb the
+/// stage cannot point at (another folder, or a name USD cannot quote).
+fn vdb_path(args: &Args) -> Result<Option<PathBuf>, Refusal> {
+    let Some(usd) = &args.usd else { return Ok(args.vdb.clone()) };
+    let ext = usd.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("usda") => {}
+        Some("usdc" | "usd" | "usdz") => {
+            return Err(refuse(format!(
+                "{}: only USD's text format is written (.usda); every USD reader opens it, and `usdcat IN.usda -o OUT.usdc` converts it to the binary format",
+                usd.display()
+            )));
+        }
+        _ => return Err(refuse(format!("{}: a USD stage is written as .usda", usd.display()))),
+    }
+    let vdb = match &args.vdb {
+        Some(v) => {
+            if octopaint_platform::durable::folder_of(v) != octopaint_platform::durable::folder_of(usd) {
+                return Err(refuse(format!(
+                    "--vdb {} is not in the folder of --usd {}: the stage points at its VDB beside it (leave --vdb out to write {} there)",
+                    v.display(),
+                    usd.display(),
+                    usd.with_extension("vdb").display()
+                )));
+            }
+            v.clone()
+        }
+        None => usd.with_extension("vdb"),
+    };
+    let name = vdb.file_name().and_then(|n| n.to_str()).unwrap_or("");
+    if !octopaint_export::usd::asset_path_ok(name) {
+        return Err(refuse(format!("{}: a name USD cannot quote as an asset path (no @ or backslash)", vdb.display())));
+    }
+    Ok(Some(vdb))
+}
+
+fn check_options<'a>(args: &'a Args, vdb: Option<&'a Path>) -> Result<Vec<&'a Path>, Refusal> {
+    let outs: Vec<&Path> = [vdb, args.gltf.as_deref(), args.obj.as_deref(), args.usd.as_deref()].into_iter().flatten().collect();
     if outs.is_empty() && !args.plan {
-        return Err(refuse("nothing to write: give --vdb, --gltf or --obj (see --help)"));
+        return Err(refuse("nothing to write: give --vdb, --gltf, --obj or --usd (see --help)"));
     }
     for (i, a) in outs.iter().enumerate() {
         if outs[..i].contains(a) {
@@ -243,7 +291,8 @@ fn check_options(args: &Args) -> Result<Vec<&Path>, Refusal> {
 }
 
 fn run_inner(args: &Args) -> Result<(), Refusal> {
-    let outs = check_options(args)?;
+    let vdb_out = vdb_path(args)?;
+    let outs = check_options(args, vdb_out.as_deref())?;
     let t0 = Instant::now();
     let say = |s: String| {
         if !args.quiet {
@@ -337,14 +386,14 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     }
 
     // Everything that can refuse, before anything is written.
-    let vdb_plan = match &args.vdb {
+    let vdb_plan = match &vdb_out {
         None => None,
         Some(_) => Some(voxels::plan(tree, args.depth, crop, cap)?),
     };
-    if args.depth.is_some() && args.vdb.is_none() {
-        return Err(refuse("--depth is the VDB's voxel depth: it needs --vdb (the mesh's is --mesh-depth)"));
+    if args.depth.is_some() && vdb_out.is_none() {
+        return Err(refuse("--depth is the VDB's voxel depth: it needs --vdb or --usd (the mesh's is --mesh-depth)"));
     }
-    let mesh = if args.gltf.is_some() || args.obj.is_some() {
+    let mesh = if args.gltf.is_some() || args.obj.is_some() || args.usd_mesh {
         let iso = match args.iso.or_else(|| default_iso(tree)) {
             Some(iso) => iso,
             None => return Err(refuse("the painting is empty: there is no surface to mesh")),
@@ -379,13 +428,19 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         check_writable(p)?;
     }
 
-    if let (Some(path), Some(plan)) = (&args.vdb, vdb_plan) {
+    let mut volume_extent = None;
+    if let (Some(path), Some(plan)) = (&vdb_out, vdb_plan) {
         let t = Instant::now();
         let e = plan.depth();
         let b = bar(args.quiet, Some(plan.estimate().regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
         b.set_message(e.to_string());
         let grid = VoxelGrid::build(tree, &plan, colour, placement, &mut |n| b.set_position(n));
         b.finish_and_clear();
+        // Voxel i spans [i, i + 1) voxel sizes from the grid's translation.
+        volume_extent = grid.bbox.map(|(lo, hi)| {
+            let at = |i: [i32; 3], k: f64| glam::DVec3::from_array([0, 1, 2].map(|a| (f64::from(i[a]) + k) * grid.voxel_size + grid.translation[a]));
+            [at(lo, 0.0), at(hi, 1.0)]
+        });
         let resample_s = t.elapsed().as_secs_f64();
         let b = bar(args.quiet, None, "{spinner} writing {msg} [{elapsed_precise}]");
         b.set_message(path.display().to_string());
@@ -410,6 +465,20 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     if let (Some(path), Some(m)) = (&args.obj, &mesh) {
         let size = write_with(path, |w| mesh::write_obj(w, m, placement, colour, &generator()))?;
         say(format!("{}: {}", path.display(), human(size)));
+    }
+    if let (Some(path), Some(vdb)) = (&args.usd, &vdb_out) {
+        let name = vdb.file_name().and_then(|n| n.to_str()).expect("checked by vdb_path");
+        // An empty painting has no active voxel: the volume is left out
+        // (a Volume needs an extent), the stage still says its units.
+        let stage = usd::Stage {
+            volume: volume_extent.map(|e| (name, e)),
+            mesh: if args.usd_mesh { mesh.as_ref() } else { None },
+            placement,
+            colour,
+            metres_per_canvas_unit: 1.0,
+        };
+        let size = write_with(path, |w| usd::write_usda(w, &stage, &generator()))?;
+        say(format!("{}: {} (the volume's grids in {})", path.display(), human(size), vdb.display()));
     }
     Ok(())
 }

@@ -9,12 +9,14 @@
 //! | [`vdb`] | the OpenVDB file writer (format 224) |
 //! | [`dual`] | the iso-surface on the adaptive tree's dual grid |
 //! | [`mesh`] | glTF binary and OBJ writers for that surface |
+//! | [`usd`] | USD stages (`.usda`) over the VDB's grids and the surface |
 //!
 //! Nothing here writes a file: the writers take a `Write`, and the
 //! command line (`octopaint export`) writes them atomically.
 
 pub mod dual;
 pub mod mesh;
+pub mod usd;
 pub mod values;
 pub mod vdb;
 pub mod voxels;
