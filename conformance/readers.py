@@ -135,6 +135,8 @@ def canonical(path: str) -> list:
             n = v.noise
             row += [v.shape, v.mode, v.radius, list(v.color), v.opacity, v.hardness, v.spacing, v.mix_ratio,
                     v.pickup_rate, list(v.aspect), n.frequency, n.octaves, n.seed, n.gain]
+        elif ev.kind == "mirror":
+            row += [list(v.axes), list(v.centre)]
         elif ev.kind == "sample":
             row += [list(v.p), v.pressure, list(v.q)]
         elif ev.kind == "camera":

@@ -316,6 +316,50 @@ def lit() -> str:
     return w.text()
 
 
+def mirror() -> str:
+    """Mirror painting (spec 8.11): copies through planes at the canvas's
+    middle, a lattice plane, so that a stroke at dyadic positions has an
+    exact mirror image (reference/tests/test_mirror.py checks it on the
+    first snapshot); a rotated box stamp mirrored on two axes, a noise
+    brush mirrored on y (the grain mirrors too), a cone mixing through all
+    seven copies, pickup and erase across the plane, undo and redo of a
+    mirrored stroke."""
+    w = Writer({"roots": [2, 2, 2], "max_depth": 8, "root_size": 0.5, "capacity": 4194304}, "Mirror painting")
+    mid = [0.5, 0.5, 0.5]
+    w.ev("mirror", 0.1, axes=[True, False, False], centre=mid)
+    w.brush("sphere", "paint", 0.0625, [0.9, 0.4, 0.1], opacity=0.9, hardness=0.6)
+    w.stroke([[0.25 + 0.03125 * i, 0.375 + 0.015625 * i, 0.5] for i in range(5)], [0.5 + 0.125 * i for i in range(5)])
+    w.ev("snapshot", 0.1, name="mirror_x")
+    w.ev("mirror", 0.1, axes=[True, False, True], centre=mid)
+    w.brush("box", "paint", 0.05, [0.2, 0.6, 0.9], opacity=0.8, hardness=0.7, spacing=0.4, aspect=[1.0, 0.5, 0.8])
+    w.stroke(line([0.2, 0.7, 0.2], [0.35, 0.75, 0.3], 6), quats=[axis_quat([0.3, 1.0, 0.2], 0.3 * i) for i in range(6)])
+    w.ev("mirror", 0.1, axes=[False, True, False], centre=mid)
+    w.brush("noise", "paint", 0.08, [0.4, 0.8, 0.3], opacity=0.8, hardness=0.5,
+            noise={"frequency": 3.0, "octaves": 3, "seed": 5, "gain": 0.5})
+    w.stroke([[0.3, 0.2, 0.7], [0.4, 0.22, 0.72]])
+    w.ev("mirror", 0.1, axes=[True, True, True], centre=[0.53, 0.47, 0.51])
+    w.brush("cone", "mix", 0.06, [0.9, 0.9, 0.2], opacity=0.7, hardness=0.4, mix_ratio=0.6, spacing=0.5)
+    w.stroke(line([0.3, 0.35, 0.35], [0.42, 0.4, 0.4], 4), quats=[axis_quat([1, 0, 0], 0.4 * i) for i in range(4)])
+    w.ev("mirror", 0.1, axes=[True, False, False], centre=mid)
+    w.brush("sphere", "pickup", 0.04, [1.0, 1.0, 1.0], opacity=0.8, hardness=0.5, pickup_rate=0.3)
+    w.stroke(line([0.3, 0.4, 0.5], [0.45, 0.42, 0.5], 8))
+    w.ev("snapshot", 0.1, name="mirror_mixed")
+    w.ev("mirror", 0.1, axes=[False, False, True], centre=mid)
+    w.brush("cylinder", "erase", 0.03, [0, 0, 0], opacity=1.0, hardness=0.8)
+    w.stroke(line([0.3, 0.39, 0.45], [0.35, 0.39, 0.4], 5))
+    w.ev("mirror", 0.1, axes=[False, False, False], centre=mid)  # off again
+    w.brush("sphere", "paint", 0.03, [0.9, 0.1, 0.6], opacity=0.9, hardness=0.6)
+    w.stroke(line([0.6, 0.6, 0.6], [0.7, 0.62, 0.6], 4))
+    w.ev("undo", 0.1)
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="mirror_undone")  # must equal mirror_mixed
+    w.ev("redo", 0.1)
+    w.camera([0.5, 0.9, 1.8], [0.5, 0.45, 0.5], size=(256, 192))
+    w.ev("render", 0.1, name="mirror")
+    w.ev("snapshot", 0.0, name="mirror")
+    return w.text()
+
+
 TRACES = {
     "single_stamp.jsonl": single_stamp,
     "shapes_modes.jsonl": shapes_modes,
@@ -324,6 +368,7 @@ TRACES = {
     "edges.jsonl": edges,
     "scene.jsonl": scene,
     "lit.jsonl": lit,
+    "mirror.jsonl": mirror,
 }
 
 # --------------------------------------------------------------- malformed
@@ -426,6 +471,11 @@ MALFORMED = {
     "light_on_string": ([H, '{"ev": "light", "t": 0, "on": "yes", "dir": [0, 1, 0]}'], 2, "type"),
     "light_intensity_absurd": ([H, '{"ev": "light", "t": 0, "dir": [0, 1, 0], "intensity": 1e9}'], 2, "range"),
     "light_shadows_number": ([H, '{"ev": "light", "t": 0, "dir": [0, 1, 0], "shadows": 1}'], 2, "type"),
+    "mirror_in_stroke": ([H, BR, SB, SA, '{"ev": "mirror", "t": 0, "axes": [true, false, false], "centre": [0, 0, 0]}'], 5, "event-order"),
+    "mirror_axes_short": ([H, '{"ev": "mirror", "t": 0, "axes": [true, false], "centre": [0, 0, 0]}'], 2, "type"),
+    "mirror_axes_number": ([H, '{"ev": "mirror", "t": 0, "axes": [1, 0, 0], "centre": [0, 0, 0]}'], 2, "type"),
+    "mirror_missing_centre": ([H, '{"ev": "mirror", "t": 0, "axes": [true, false, false]}'], 2, "missing"),
+    "mirror_missing_axes": ([H, '{"ev": "mirror", "t": 0, "centre": [0, 0, 0]}'], 2, "missing"),
     "light_dir_overflow": ([H, '{"ev": "light", "t": 0, "dir": [1e200, 1e200, 0]}'], 2, "range"),
 }
 

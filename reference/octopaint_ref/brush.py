@@ -192,12 +192,23 @@ def noise_factor(xp, x, perm, scale, octaves: int, gain):
     return xp.clip(0.5 + noise.fbm(xp, perm, x, scale, octaves, gain), 0.0, 1.0)
 
 
-def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain):
-    """coverage * flow [n, k] of k stamps at points x [n, 3]."""
+def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain, masks=None, centre=None):
+    """coverage * flow [n, k] of k stamps at points x [n, 3]. masks [k]
+    (numpy): each stamp's mirror copy (spec 8.11); a noise stamp of copy m
+    takes its noise at x mirrored by m through the planes at `centre`."""
     rho = stamp_gauge(xp, shape, x, c, r, rot, aspect)
     cov = coverage_profile(xp, rho, hardness) * f[None, :]
     if shape == "noise":
-        cov = cov * noise_factor(xp, x, perm, noise_scale, octaves, gain)[:, None]
+        if masks is None or not np.any(masks):
+            cov = cov * noise_factor(xp, x, perm, noise_scale, octaves, gain)[:, None]
+        else:
+            from .stroke import mirrored
+
+            nf = xp.zeros(cov.shape)
+            for m in np.unique(masks):
+                nm = noise_factor(xp, x if m == 0 else mirrored(x, int(m), centre), perm, noise_scale, octaves, gain)
+                nf = xp.where((masks == m)[None, :], nm[:, None], nf)
+            cov = cov * nf
     return cov
 
 

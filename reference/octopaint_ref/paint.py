@@ -19,7 +19,7 @@ import numpy as np
 from . import brush as B
 from .history import History
 from .noise import permutation
-from .stroke import Prims, PrimsHistory, StrokePath
+from .stroke import Prims, PrimsHistory, StrokePath, concat
 from .trace import Brush, Sample
 from .tree import NONE, UNIT, Tree
 
@@ -32,7 +32,9 @@ class Stroke:
     def __init__(self, brush: Brush, line: int):
         self.brush = brush
         self.line = line
-        self.path = StrokePath(brush)
+        # The stroke and its mirrored copies (spec 8.11), in that order.
+        masks = (0,) + (brush.mirror.copies() if brush.mirror is not None else ())
+        self.paths = [StrokePath(brush, m) for m in masks]
         self.colour = np.array(brush.color, np.float64)
         self.sigma_b = B.sigma_brush_host(brush.opacity, brush.radius)
         self.alpha = float(brush.opacity)
@@ -128,7 +130,7 @@ class Painting:
             if c is not None and self.tree.sigma[c] > 0:
                 canvas_rgb = self.tree.rgb[c].astype(np.float64) / 255.0
                 st.colour = st.colour + (canvas_rgb - st.colour) * st.brush.pickup_rate
-        seg = st.path.segment(sample, st.colour.copy())
+        seg = concat([path.segment(sample, st.colour.copy()) for path in st.paths])
         st.prims.append(seg)
         if len(seg):
             self._process_segment(st, seg, line)
@@ -272,6 +274,8 @@ class Painting:
                         b.noise.frequency / b.radius,
                         b.noise.octaves,
                         b.noise.gain,
+                        arr["m"],
+                        None if b.mirror is None else b.mirror.centre,
                     )
                 inside = np.all((prims.lo[None, :, :] <= x[:, None, :]) & (x[:, None, :] <= prims.hi[None, :, :]), axis=2)
                 ca, cb = B.max_and_argmax(np, np.where(inside, cov, 0.0))
@@ -336,7 +340,13 @@ class Painting:
         the segment, and, for the cells selected by the bool mask
         `want_needs`, needing refinement by any primitive (spec 8.7)."""
         if st.brush.shape == "sphere":
-            reach, needs = self._reach_one_capsule(prims, cells, want_needs)
+            # One capsule per copy of the stroke (spec 8.11): within reach of
+            # any, needing refinement by any that reaches.
+            reach, needs = self._reach_one_capsule(prims.take(slice(0, 1)), cells, want_needs)
+            for k in range(1, len(prims)):
+                rk, nk = self._reach_one_capsule(prims.take(slice(k, k + 1)), cells, want_needs)
+                reach |= rk
+                needs |= nk
         else:
             reach, needs = self._reach_stamps(st, prims, cells, want_needs)
         if st.brush.mode in ("erase", "recolor"):
@@ -370,8 +380,8 @@ class Painting:
         return reach, needs
 
     def _reach_one_capsule(self, seg: Prims, cells: np.ndarray, want_needs: np.ndarray):
-        """_reach for a sphere segment (always one capsule), written out on
-        1-D columns: the same operations in the same order as
+        """_reach for one capsule of a sphere segment (a segment holds one
+        per copy of the stroke, spec 8.11), written out on 1-D columns: the same operations in the same order as
         capsule_geometry (the traversal calls this once per depth level, so
         its overhead counts)."""
         assert len(seg) == 1

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from .dump import dump_bytes, tree_arrays, write_atomic
 from .paint import Painting
@@ -59,6 +59,7 @@ def replay(
     brush = None
     camera = None
     light = None  # unlit until a `light` event (spec 6.1)
+    mirror = None  # no copies until a `mirror` event (spec 8.11)
     if out_dir is not None:
         os.makedirs(out_dir, exist_ok=True)
     t0 = time.perf_counter()
@@ -67,7 +68,7 @@ def replay(
         if k == "brush":
             brush = ev.value
         elif k == "stroke_begin":
-            painting.begin_stroke(brush, ev.line)
+            painting.begin_stroke(brush if mirror is None else replace(brush, mirror=mirror), ev.line)
             stats.strokes += 1
         elif k == "sample":
             painting.add_sample(ev.value, ev.line)
@@ -89,6 +90,8 @@ def replay(
             camera = ev.value
         elif k == "light":
             light = ev.value
+        elif k == "mirror":
+            mirror = ev.value if any(ev.value.axes) else None
         elif k == "render" and renders and (out_dir is not None or on_render):
             # Every event before this one has been applied: the tree is the
             # one all pending work leads to.

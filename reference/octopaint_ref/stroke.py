@@ -38,6 +38,21 @@ class Prims:
 
 
 
+def concat(parts: list) -> Prims:
+    """One batch of the primitives of `parts` (same shape), in order."""
+    parts = [p for p in parts if len(p)] or parts[:1]
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    return Prims(
+        first.shape,
+        {n: np.concatenate([p.arrays[n] for p in parts]) for n in first.arrays},
+        np.concatenate([p.colour for p in parts]),
+        np.concatenate([p.lo for p in parts]),
+        np.concatenate([p.hi for p in parts]),
+    )
+
+
 class PrimsHistory:
     """Every primitive of the stroke so far, in growable arrays (appending a
     segment is amortised O(segment), not O(stroke))."""
@@ -80,18 +95,36 @@ def pressure_radius(brush: Brush, pressure: float) -> float:
     return brush.radius * (RADIUS_PRESSURE_FLOOR + (1.0 - RADIUS_PRESSURE_FLOOR) * pressure)
 
 
-class StrokePath:
-    """Turns the samples of one stroke into segments."""
+def mirrored(x: np.ndarray, mask: int, centre) -> np.ndarray:
+    """x [..., 3] mirrored through the planes of `mask` (spec 8.11): on each
+    axis a of the mask, 2 * centre_a - x_a (f64, one rounding)."""
+    x = np.array(x, np.float64, copy=True)
+    for a in range(3):
+        if mask >> a & 1:
+            x[..., a] = 2.0 * centre[a] - x[..., a]
+    return x
 
-    def __init__(self, brush: Brush):
+
+class StrokePath:
+    """Turns the samples of one stroke into segments; `mask` (spec 8.11):
+    the mirrored copy of the stroke through those planes of the brush's
+    mirror (0: the stroke itself)."""
+
+    def __init__(self, brush: Brush, mask: int = 0):
         self.brush = brush
+        self.mask = mask
         self.prev = None  # (p, r, f, q) of the previous sample
         self.carry = 0.0  # arc length from the previous sample to the next stamp
         self.extent = stamp_extent(brush.shape, brush.aspect)
+        # Rows of each stamp's rotation negated on the mirrored axes: local
+        # to canvas becomes S.R, the mirror image, exactly.
+        self.flip = np.array([-1.0 if mask >> a & 1 else 1.0 for a in range(3)])
 
     def segment(self, sample: Sample, colour: np.ndarray) -> Prims:
         b = self.brush
         p = np.array(sample.p, np.float64)
+        if self.mask:
+            p = mirrored(p, self.mask, b.mirror.centre)
         r = pressure_radius(b, sample.pressure)
         f = float(sample.pressure)
         q = np.array(sample.q, np.float64)
@@ -130,11 +163,11 @@ class StrokePath:
         c = np.array([s[0] for s in stamps], np.float64).reshape(k, 3)
         rr = np.array([s[1] for s in stamps], np.float64)
         ff = np.array([s[2] for s in stamps], np.float64)
-        rot = np.array([quat_to_matrix(s[3]) for s in stamps], np.float64).reshape(k, 3, 3)
+        rot = np.array([quat_to_matrix(s[3]) for s in stamps], np.float64).reshape(k, 3, 3) * self.flip[None, :, None]
         ext = (rr * self.extent)[:, None]
         return Prims(
             b.shape,
-            {"c": c, "r": rr, "f": ff, "rot": rot},
+            {"c": c, "r": rr, "f": ff, "rot": rot, "m": np.full(k, self.mask, np.int64)},
             np.repeat(colour[None, :], k, axis=0),
             c - ext,
             c + ext,

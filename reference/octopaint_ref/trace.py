@@ -70,6 +70,21 @@ class Noise:
 
 
 @dataclass(frozen=True)
+class Mirror:
+    """Mirror painting (spec 8.11): the planes through `centre` (canvas
+    units) normal to the axes set in `axes` (x, y, z)."""
+
+    axes: tuple[bool, bool, bool]
+    centre: tuple[float, float, float]
+
+    def copies(self) -> tuple[int, ...]:
+        """The mirrored copies as axis masks (bit a: axis a mirrored), in
+        increasing order: every non-empty combination of the set axes."""
+        on = sum(1 << a for a in range(3) if self.axes[a])
+        return tuple(m for m in range(1, 8) if m & ~on == 0)
+
+
+@dataclass(frozen=True)
 class Brush:
     shape: str
     mode: str
@@ -82,6 +97,9 @@ class Brush:
     pickup_rate: float = 0.25
     aspect: tuple[float, float, float] = (1.0, 1.0, 1.0)
     noise: Noise = field(default_factory=Noise)
+    # Not a brush field of the trace: the last `mirror` event's planes, set
+    # on the brush when a stroke begins (spec 8.11).
+    mirror: Mirror | None = None
 
 
 @dataclass(frozen=True)
@@ -264,6 +282,15 @@ def parse_brush(line: int, obj: dict) -> Brush:
             nkw["gain"] = _ranged(line, "noise.gain", n["gain"], 0.0, 1.0)
         kw["noise"] = Noise(**nkw)
     return Brush(shape, mode, radius, color, opacity, hardness, **kw)
+
+
+def parse_mirror(line: int, obj: dict) -> Mirror:
+    """The `mirror` event (spec 8.11): `axes` 3 booleans, `centre` 3 numbers."""
+    axes = _vec(line, "axes", _require(line, obj, "axes"), 3)
+    for i, x in enumerate(axes):
+        if not isinstance(x, bool):
+            raise _fail(line, f"axes[{i}]", f"expected true or false, got {json.dumps(x)}", "type")
+    return Mirror(tuple(axes), _vec_finite(line, "centre", _require(line, obj, "centre"), 3))
 
 
 def parse_sample(line: int, obj: dict) -> Sample:
@@ -519,6 +546,10 @@ def parse_trace(text: str) -> Trace:
             value = parse_camera(lineno, obj)
         elif ev == "light":
             value = parse_light(lineno, obj)
+        elif ev == "mirror":
+            if in_stroke:
+                raise _fail(lineno, "ev", "mirror inside a stroke (mirror planes change between strokes)", "event-order")
+            value = parse_mirror(lineno, obj)
         elif ev in ("render", "snapshot"):
             value = _name(lineno, _require(lineno, obj, "name"))
             if value in names[ev]:

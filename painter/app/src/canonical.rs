@@ -35,6 +35,7 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
                 json!(b.noise.seed),
                 json!(b.noise.gain),
             ],
+            EventKind::Mirror(m) => vec![json!(m.axes), json!(m.centre)],
             EventKind::Sample(s) => vec![json!(s.p), json!(s.pressure), json!(s.q)],
             EventKind::Camera(c) => vec![json!(c.eye), json!(c.q), json!(c.fov), json!(c.size), json!(c.background)],
             EventKind::Light(l) if l.on => vec![json!(true), json!(l.dir), json!(l.intensity), json!(l.ambient), json!(l.shadows)],

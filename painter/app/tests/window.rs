@@ -406,3 +406,65 @@ fn vr_without_a_runtime_says_so_and_opens_the_window() {
     assert!(status.success(), "{log}");
     assert!(log.contains("no VR here: no OpenXR") && log.contains("opening the desktop window instead"), "{log}");
 }
+
+#[test]
+fn mirror_painting_paints_both_sides_and_records_its_planes() {
+    let (_x, display) = start_xvfb();
+    let scratch = tempfile::tempdir().unwrap();
+    let s = scratch.path();
+    let runtime = s.join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let doc = s.join("m.octo");
+    let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let mut window = octopaint()
+        .arg("window")
+        .arg(&doc)
+        .args(["--size", "800x600"])
+        .env("DISPLAY", &display)
+        .env("XDG_RUNTIME_DIR", &runtime)
+        .env_remove("WAYLAND_DISPLAY")
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let id = window_of(&mut window, &display, "the window");
+    std::thread::sleep(Duration::from_secs(2));
+    xdotool(&display, &["windowfocus", &id]);
+    // M: mirror on x through the canvas's middle (the first view's
+    // centre); a stroke right of the middle of the view.
+    xdotool(&display, &["key", "m"]);
+    xdotool(&display, &["mousemove", "--window", &id, "600", "250", "mousedown", "1"]);
+    for i in 1..=15 {
+        xdotool(&display, &["mousemove", "--window", &id, &(600 + i * 6).to_string(), &(250 + i * 5).to_string()]);
+        std::thread::sleep(Duration::from_millis(40));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&display, &["key", "ctrl+q"]);
+    let t0 = Instant::now();
+    while window.try_wait().unwrap().is_none() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close on Ctrl+Q");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // The session holds the planes as a mirror event before the stroke.
+    let trace = s.join("m.jsonl");
+    let res = octopaint().arg("record").arg(&doc).arg("--out").arg(&trace).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let mirror = text.lines().position(|l| l.contains("\"ev\":\"mirror\"")).expect("a mirror event");
+    let begin = text.lines().position(|l| l.contains("\"ev\":\"stroke_begin\"")).expect("a stroke");
+    assert!(mirror < begin && text.contains("\"axes\":[true,false,false]") && text.contains("\"centre\":[0.5,0.5,0.5]"), "{text}");
+    // The painting: paint on both sides of x = 0.5, about as much on each.
+    let dump = s.join("m.npz");
+    let res = octopaint().arg("dump").arg(&doc).arg(&dump).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let tree = octopaint_tree::dump::read_dump(&std::fs::read(&dump).unwrap()).unwrap();
+    let (mut left, mut right) = (0usize, 0usize);
+    for c in 0..tree.n_used() {
+        if tree.depth[c as usize] != octopaint_tree::pool::FREE && tree.first_child[c as usize] == octopaint_tree::pool::NONE && tree.sigma[c as usize] > 0.0 {
+            if tree.centre(c).x < 0.5 { left += 1 } else { right += 1 }
+        }
+    }
+    assert!(left > 100 && right > 100 && (left as f64 / right as f64 - 1.0).abs() < 0.2, "painted leaves: {left} left of the plane, {right} right");
+}

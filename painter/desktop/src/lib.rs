@@ -18,7 +18,7 @@ use glam::{DQuat, DVec3};
 use octopaint_doc::Session;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
-use octopaint_tree::trace::{Brush, Event, EventKind, Light, MODES, Mode, SHAPES, Sample, Shape};
+use octopaint_tree::trace::{Brush, Camera, Event, EventKind, Light, MODES, Mirror, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
 use octopaint_tree::view::{BACKGROUND, OrbitCamera, follow_frame_time, frame_painting, length};
 use winit::application::ApplicationHandler;
@@ -125,6 +125,17 @@ struct BrushUi {
     grid: bool,
     /// The view's lighting (L, Shift+L).
     light: LightUi,
+    /// Mirror painting (spec 8.11; M toggles x): the axes whose planes
+    /// through `mirror_centre` mirror every stroke.
+    mirror_axes: [bool; 3],
+    mirror_centre: DVec3,
+}
+
+impl BrushUi {
+    /// The mirror planes strokes paint with now; None: no copies.
+    fn mirror(&self) -> Option<Mirror> {
+        Mirror { axes: self.mirror_axes, centre: self.mirror_centre.to_array() }.active()
+    }
 }
 
 /// The lighting of the view as the panel edits it (docs/spec.md 6.1,
@@ -194,6 +205,25 @@ struct Overlay {
     /// Canvas units per pixel at the brush's distance, the brush radius
     /// and the depth it paints at, with that depth's cell edge.
     scale: (f64, f64, u32, f64),
+    /// The cursor's mirror images (spec 8.11): window pixels and radius.
+    ghosts: Vec<([f32; 2], f32)>,
+    /// The mirror planes as quadrilaterals in window pixels, by axis.
+    planes: Vec<([[f32; 2]; 4], usize)>,
+}
+
+/// Window pixel and view depth of canvas point `p` for `camera` (spec 6's
+/// pixel mapping inverted); None behind the eye.
+fn project(camera: &Camera, p: DVec3) -> Option<([f32; 2], f64)> {
+    let m = octopaint_tree::brush::quat_to_rows(camera.q);
+    let d = p - DVec3::from_array(camera.eye);
+    let v = [0, 1, 2].map(|i| m[0][i] * d.x + m[1][i] * d.y + m[2][i] * d.z);
+    if v[2] >= -1e-9 {
+        return None;
+    }
+    let (tx, ty) = (v[0] / -v[2], v[1] / -v[2]);
+    let [l, r, u, dn] = camera.fov.map(f64::tan);
+    let [w, h] = camera.size.map(f64::from);
+    Some(([((tx - l) / (r - l) * w) as f32, ((u - ty) / (u - dn) * h) as f32], -v[2]))
 }
 
 impl Overlay {
@@ -214,7 +244,31 @@ impl Overlay {
             ([v.x as f32, -v.y as f32], v.z < 0.0)
         });
         let d = tree.lat.target_depth(r.brush.radius);
-        Overlay { cursor, axes, scale: (per_px, r.brush.radius, d, tree.lat.size_canvas[d as usize]) }
+        // Mirror painting: the cursor's images and the planes, faint.
+        let (mut ghosts, mut planes) = (Vec::new(), Vec::new());
+        if let Some(m) = r.brush.mirror() {
+            let camera = r.camera.camera(size, BACKGROUND);
+            let (eye, _, _) = brush_point(r, tree);
+            let p = eye + dir * depth;
+            let px_per_unit_depth = f64::from(size[1].max(1)) / (2.0 * (r.camera.fov_y / 2.0).tan());
+            if cursor.is_some() {
+                for mask in m.copies() {
+                    if let Some((at, z)) = project(&camera, octopaint_tree::stroke::mirrored(p, mask, m.centre)) {
+                        ghosts.push((at, (r.brush.radius / z * px_per_unit_depth).clamp(2.0, 4.0 * f64::from(size[1])) as f32));
+                    }
+                }
+            }
+            let c = DVec3::from_array(m.centre);
+            let s = 0.4 * r.camera.distance;
+            for a in (0..3).filter(|&a| m.axes[a]) {
+                let (u, v) = (DVec3::AXES[(a + 1) % 3] * s, DVec3::AXES[(a + 2) % 3] * s);
+                let corners = [c - u - v, c + u - v, c + u + v, c - u + v].map(|q| project(&camera, q));
+                if corners.iter().all(Option::is_some) {
+                    planes.push((corners.map(|q| q.expect("checked").0), a));
+                }
+            }
+        }
+        Overlay { cursor, axes, scale: (per_px, r.brush.radius, d, tree.lat.size_canvas[d as usize]), ghosts, planes }
     }
 
     /// Draw the cursor and the axes over the view (`view`: the part of the
@@ -222,6 +276,18 @@ impl Overlay {
     fn draw(&self, ctx: &egui::Context, view: egui::Rect) {
         let painter = ctx.layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("overlay"))).with_clip_rect(view);
         let ppp = ctx.pixels_per_point();
+        let axis_colour = |a: usize, alpha: u8| [egui::Color32::from_rgba_unmultiplied(230, 60, 60, alpha), egui::Color32::from_rgba_unmultiplied(70, 200, 70, alpha), egui::Color32::from_rgba_unmultiplied(70, 120, 240, alpha)][a];
+        for (quad, a) in &self.planes {
+            let points: Vec<egui::Pos2> = quad.iter().map(|p| egui::pos2(p[0] / ppp, p[1] / ppp)).collect();
+            painter.add(egui::Shape::convex_polygon(points, axis_colour(*a, 20), egui::Stroke::new(1.0, axis_colour(*a, 110))));
+        }
+        if let Some((_, _, colour, _)) = self.cursor {
+            let rgb = colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
+            for (at, radius) in &self.ghosts {
+                let centre = egui::pos2(at[0] / ppp, at[1] / ppp);
+                painter.circle_stroke(centre, radius / ppp, egui::Stroke::new(1.5, egui::Color32::from_rgba_unmultiplied(rgb[0], rgb[1], rgb[2], 140)));
+            }
+        }
         if let Some((at, radius, colour, square)) = self.cursor {
             let centre = egui::pos2(at[0] / ppp, at[1] / ppp);
             let rgb = colour.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8);
@@ -367,7 +433,12 @@ impl App {
     fn begin_stroke(&mut self) {
         let Some(r) = self.running.as_mut() else { return };
         let brush = r.brush.brush();
+        let mirror = r.brush.mirror();
         r.painting = true;
+        if self.session.mirror() != mirror {
+            let m = mirror.unwrap_or(Mirror { axes: [false; 3], centre: r.brush.mirror_centre.to_array() });
+            self.apply(EventKind::Mirror(m));
+        }
         if self.session.brush() != Some(&brush) {
             self.apply(EventKind::Brush(brush));
         }
@@ -462,6 +533,8 @@ impl App {
             plane_depth: camera.distance,
             grid: true,
             light: LightUi::default(),
+            mirror_axes: [false; 3],
+            mirror_centre: camera.target,
         };
         Ok(Running {
             window,
@@ -648,6 +721,11 @@ impl App {
                 Action::Redo => self.apply(EventKind::Redo),
                 Action::Save => self.save(),
                 Action::Frame => self.frame_view(),
+                Action::MirrorHere => {
+                    if let Some(r) = self.running.as_mut() {
+                        r.brush.mirror_centre = r.camera.target;
+                    }
+                }
                 Action::Screenshot => {
                     if let Some(r) = self.running.as_mut() {
                         r.want_screenshot = true;
@@ -686,6 +764,7 @@ enum Action {
     Save,
     Screenshot,
     Frame,
+    MirrorHere,
 }
 
 /// The panel, the status line and the overlay; returns the part of the
@@ -713,6 +792,19 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
         });
         ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
         ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
+        ui.horizontal(|ui| {
+            ui.label("mirror");
+            for (a, name) in ["x (M)", "y", "z"].into_iter().enumerate() {
+                ui.checkbox(&mut b.mirror_axes[a], name);
+            }
+        });
+        ui.horizontal(|ui| {
+            let c = b.mirror_centre;
+            ui.label(format!("centre {}, {}, {}", length(c.x), length(c.y), length(c.z)));
+            if ui.button("here").on_hover_text("move the mirror planes to the view's centre").clicked() {
+                actions.push(Action::MirrorHere);
+            }
+        });
         ui.checkbox(&mut b.grid, "ground grid and horizon (G)");
         ui.horizontal(|ui| {
             ui.checkbox(&mut b.light.on, "light (L)");
@@ -746,7 +838,7 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
             }
         });
         ui.separator();
-        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\nL: light · Shift+L: shadows\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\nL: light · Shift+L: shadows\nM: mirror on x\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
     });
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
@@ -872,6 +964,7 @@ impl ApplicationHandler for App {
                     Key::Character("[") => r.brush.radius = (r.brush.radius / 1.25).max(1e-4),
                     Key::Named(NamedKey::F12) => r.want_screenshot = true,
                     Key::Character("g") if !ctrl => r.brush.grid = !r.brush.grid,
+                    Key::Character("m") if !ctrl => r.brush.mirror_axes[0] = !r.brush.mirror_axes[0],
                     Key::Character("l") if !ctrl => r.brush.light.on = !r.brush.light.on,
                     Key::Character("L") if !ctrl => {
                         r.brush.light.shadows = !r.brush.light.shadows;

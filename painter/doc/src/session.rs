@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use octopaint_platform::durable;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
-    Brush, Canvas, Event, EventKind, Meta, Sample, Trace, parse_brush, parse_camera, parse_light, parse_sample, parse_trace, segment_too_long,
+    Brush, Canvas, Event, EventKind, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace, segment_too_long,
 };
 use octopaint_tree::trace_write::{event_line, header_line};
 
@@ -43,6 +43,8 @@ pub struct Session {
     brush: Option<Brush>,
     last_sample: Option<Sample>,
     has_camera: bool,
+    /// The last `mirror` event's planes (spec 8.11), for the next strokes.
+    mirror: Option<Mirror>,
     in_stroke: bool,
     last_t: f64,
     /// History bound in bytes.
@@ -89,6 +91,7 @@ impl Session {
             brush: None,
             last_sample: None,
             has_camera: false,
+            mirror: None,
             in_stroke: false,
             last_t: 0.0,
             undo_bytes: DEFAULT_UNDO_BYTES,
@@ -122,6 +125,7 @@ impl Session {
             match &ev.kind {
                 EventKind::Brush(b) => self.brush = Some(*b),
                 EventKind::Camera(_) => self.has_camera = true,
+                EventKind::Mirror(m) => self.mirror = m.active(),
                 _ => {}
             }
             self.last_t = ev.t;
@@ -189,7 +193,8 @@ impl Session {
         match &ev.kind {
             EventKind::Brush(b) => self.brush = Some(*b),
             EventKind::StrokeBegin => {
-                self.painting.begin_stroke(self.brush.as_ref().expect("validated"));
+                let b = self.brush.as_ref().expect("validated");
+                self.painting.begin_stroke(&Brush { mirror: self.mirror, ..*b });
                 self.in_stroke = true;
                 self.last_sample = None;
             }
@@ -209,6 +214,7 @@ impl Session {
                 self.painting.redo();
             }
             EventKind::Camera(_) => self.has_camera = true,
+            EventKind::Mirror(m) => self.mirror = m.active(),
             EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
         }
         self.last_t = ev.t;
@@ -225,6 +231,11 @@ impl Session {
 
     pub fn brush(&self) -> Option<&Brush> {
         self.brush.as_ref()
+    }
+
+    /// The mirror planes the next stroke paints with (spec 8.11).
+    pub fn mirror(&self) -> Option<Mirror> {
+        self.mirror
     }
 
     /// Events in the session, saved or not.
@@ -263,6 +274,8 @@ impl Session {
             EventKind::Undo | EventKind::Redo if self.in_stroke => return bad("undo or redo inside a stroke".into()),
             EventKind::Camera(_) => check(parse_camera(0, &obj).map(drop))?,
             EventKind::Light(_) => check(parse_light(0, &obj).map(drop))?,
+            EventKind::Mirror(_) if self.in_stroke => return bad("mirror inside a stroke (mirror planes change between strokes)".into()),
+            EventKind::Mirror(_) => check(parse_mirror(0, &obj).map(drop))?,
             EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
             EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
             _ => {}

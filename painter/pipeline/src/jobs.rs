@@ -138,11 +138,16 @@ impl JobQueue {
 pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
     use octopaint_tree::trace::EventKind;
     let mut brush = None;
+    let mut mirror = None;
     let mut out = Vec::new();
     for ev in &trace.events {
         match &ev.kind {
             EventKind::Brush(b) => brush = Some(*b),
-            EventKind::StrokeBegin => out.push((ev.t, Job::BeginStroke(brush.expect("validated: a brush precedes every stroke")))),
+            EventKind::Mirror(m) => mirror = m.active(),
+            EventKind::StrokeBegin => {
+                let b = brush.expect("validated: a brush precedes every stroke");
+                out.push((ev.t, Job::BeginStroke(octopaint_tree::trace::Brush { mirror, ..b })))
+            }
             EventKind::Sample(s) => out.push((ev.t, Job::Sample(*s))),
             EventKind::StrokeEnd => out.push((ev.t, Job::EndStroke)),
             EventKind::Undo => out.push((ev.t, Job::Undo)),

@@ -184,8 +184,12 @@ pub struct Stamp {
     pub c: DVec3,
     pub r: f64,
     pub f: f64,
-    /// Local to canvas (see [`quat_to_matrix`]).
+    /// Local to canvas (see [`quat_to_matrix`]); a mirrored copy's has the
+    /// rows of its mirrored axes negated (spec 8.11).
     pub rot: DMat3,
+    /// The mirror copy the stamp belongs to (spec 8.11; 0: the stroke
+    /// itself): a noise stamp takes its noise at the point mirrored by it.
+    pub mirror: u8,
 }
 
 impl Stamp {
@@ -386,7 +390,7 @@ mod tests {
 
     #[test]
     fn stamp_gauges_are_one_on_the_surface() {
-        let st = Stamp { c: DVec3::ZERO, r: 2.0, f: 1.0, rot: quat_to_matrix([0.0, 0.0, 0.0, 1.0]) };
+        let st = Stamp { c: DVec3::ZERO, r: 2.0, f: 1.0, rot: quat_to_matrix([0.0, 0.0, 0.0, 1.0]), mirror: 0 };
         let asp = [1.0, 0.5, 2.0];
         assert_eq!(st.gauge(Shape::Box, asp, DVec3::new(0.0, 1.0, 0.0)), 1.0);
         assert_eq!(st.gauge(Shape::Cylinder, asp, DVec3::new(0.0, 0.0, 4.0)), 1.0);

@@ -45,7 +45,8 @@ struct Slot {
 #[derive(Clone)]
 struct StrokeState {
     brush: Brush,
-    path: StrokePath,
+    /// The stroke and its mirrored copies (spec 8.11), in painting order.
+    paths: Vec<StrokePath>,
     /// The stroke colour K (moves toward the canvas in pickup mode).
     colour: [f64; 3],
     sigma_b: f64,
@@ -183,7 +184,7 @@ impl Painting {
         self.tree.begin_journal();
         self.stroke = Some(StrokeState {
             brush: *brush,
-            path: StrokePath::new(*brush),
+            paths: StrokePath::all(*brush),
             colour: brush.color,
             sigma_b: brush::sigma_brush(brush.opacity, brush.radius),
             alpha: brush.opacity,
@@ -220,7 +221,9 @@ impl Painting {
         }
         let first = st.prims.len();
         let colour = st.colour;
-        st.path.segment(sample, colour, &mut st.prims);
+        for path in &mut st.paths {
+            path.segment(sample, colour, &mut st.prims);
+        }
         if st.prims.len() > first {
             self.work = Some(SegmentWork { first, line, stage: Stage::PaintPass });
         }
@@ -724,7 +727,17 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
 #[inline]
 fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
     let b = &st.brush;
-    let noise = if b.shape == Shape::Noise { brush::noise_factor(&st.perm, b, x) } else { 1.0 };
+    // Noise per mirror copy, each at x mirrored by it (spec 8.11), computed
+    // when a stamp of that copy first needs it.
+    let mut noise = [f64::NAN; 8];
+    let mut noise_at = |mask: u8| {
+        let k = usize::from(mask);
+        if noise[k].is_nan() {
+            let at = if mask == 0 { x } else { crate::stroke::mirrored(x, mask, b.mirror.expect("a copy has a mirror").centre) };
+            noise[k] = brush::noise_factor(&st.perm, b, at);
+        }
+        noise[k]
+    };
     let mut best = 0.0;
     let mut k = 0;
     for (i, p) in prims.iter().enumerate() {
@@ -735,7 +748,7 @@ fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
             Geometry::Capsule(cap) => cap.coverage(x, b.hardness),
             Geometry::Stamp(s) => {
                 let c = brush::coverage_profile(s.gauge(b.shape, b.aspect, x), b.hardness) * s.f;
-                if b.shape == Shape::Noise { c * noise } else { c }
+                if b.shape == Shape::Noise { c * noise_at(s.mirror) } else { c }
             }
         };
         if cov.is_nan() {

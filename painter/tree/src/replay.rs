@@ -10,7 +10,7 @@ use octopaint_platform::durable;
 use crate::g3::g3_table;
 use crate::paint::Painting;
 use crate::pool::FREE;
-use crate::trace::{Camera, Event, EventKind, Light, Trace};
+use crate::trace::{Brush, Camera, Event, EventKind, Light, Mirror, Trace};
 
 #[derive(Debug, Default)]
 pub struct ReplayStats {
@@ -66,12 +66,14 @@ pub fn replay(
     let mut brush = None;
     let mut camera: Option<Camera> = None;
     let mut light: Option<Light> = None;
+    let mut mirror: Option<Mirror> = None;
     let t0 = Instant::now();
     for ev in &trace.events {
         match &ev.kind {
             EventKind::Brush(b) => brush = Some(*b),
             EventKind::StrokeBegin => {
-                painting.begin_stroke(brush.as_ref().expect("validated: a brush precedes every stroke"));
+                let b = brush.as_ref().expect("validated: a brush precedes every stroke");
+                painting.begin_stroke(&Brush { mirror, ..*b });
                 stats.strokes += 1;
             }
             EventKind::Sample(s) => {
@@ -105,6 +107,7 @@ pub fn replay(
             }
             EventKind::Camera(c) => camera = Some(*c),
             EventKind::Light(l) => light = Some(*l),
+            EventKind::Mirror(m) => mirror = m.active(),
         }
         for w in painting.warnings.drain(..) {
             obs.warning(&w);

@@ -51,7 +51,20 @@ struct Previous {
     q: [f64; 4],
 }
 
-/// Turns the samples of one stroke into segments.
+/// `x` mirrored through the planes of `mask` (spec 8.11): on each axis a
+/// of the mask, `2·centre_a − x_a` (f64, one rounding).
+pub fn mirrored(x: DVec3, mask: u8, centre: [f64; 3]) -> DVec3 {
+    let mut v = x.to_array();
+    for a in 0..3 {
+        if mask >> a & 1 == 1 {
+            v[a] = 2.0 * centre[a] - v[a];
+        }
+    }
+    DVec3::from_array(v)
+}
+
+/// Turns the samples of one stroke into segments; a mirrored copy of the
+/// stroke (spec 8.11) when `mask` is not 0.
 #[derive(Clone)]
 pub struct StrokePath {
     brush: Brush,
@@ -59,17 +72,38 @@ pub struct StrokePath {
     /// Arc length from the previous sample to the next stamp.
     carry: f64,
     extent: f64,
+    /// The copy: the axes it is mirrored on (bit a: axis a), and the signs
+    /// its stamps' rotation rows take (−1 on those axes).
+    mask: u8,
+    flip: DVec3,
 }
 
 impl StrokePath {
     pub fn new(brush: Brush) -> Self {
-        StrokePath { brush, prev: None, carry: 0.0, extent: stamp_extent(brush.shape, brush.aspect) }
+        StrokePath::mirror(brush, 0)
+    }
+
+    /// The copy of the stroke mirrored on the axes of `mask` through the
+    /// brush's mirror centre (0: the stroke itself).
+    pub fn mirror(brush: Brush, mask: u8) -> Self {
+        let flip = DVec3::from_array([0, 1, 2].map(|a| if mask >> a & 1 == 1 { -1.0 } else { 1.0 }));
+        StrokePath { brush, prev: None, carry: 0.0, extent: stamp_extent(brush.shape, brush.aspect), mask, flip }
+    }
+
+    /// The stroke and each of its mirrored copies, in the order they paint
+    /// (spec 8.11).
+    pub fn all(brush: Brush) -> Vec<StrokePath> {
+        let copies: Vec<u8> = brush.mirror.map(|m| m.copies().collect()).unwrap_or_default();
+        std::iter::once(0).chain(copies).map(|m| StrokePath::mirror(brush, m)).collect()
     }
 
     /// The primitives of the segment ending at `sample`, painting `colour`.
     pub fn segment(&mut self, sample: &Sample, colour: [f64; 3], out: &mut Vec<Prim>) {
         let b = self.brush;
-        let p = DVec3::from_array(sample.p);
+        let mut p = DVec3::from_array(sample.p);
+        if self.mask != 0 {
+            p = mirrored(p, self.mask, b.mirror.expect("a copy has a mirror").centre);
+        }
         let r = pressure_radius(&b, sample.pressure);
         let f = sample.pressure;
         let q = sample.q;
@@ -81,8 +115,12 @@ impl StrokePath {
             out.push(Prim { geo: Geometry::Capsule(cap), colour, lo, hi });
             return;
         }
+        let (mask, flip) = (self.mask, self.flip);
         let mut stamp = |c: DVec3, r: f64, f: f64, q: [f64; 4]| {
-            let st = Stamp { c, r, f, rot: quat_to_matrix(q) };
+            let m = quat_to_matrix(q);
+            // Row a times flip_a, entry by entry: the mirror image, exactly.
+            let rot = glam::DMat3::from_cols(m.x_axis * flip, m.y_axis * flip, m.z_axis * flip);
+            let st = Stamp { c, r, f, rot, mirror: mask };
             let (lo, hi) = st.bounds(self.extent);
             out.push(Prim { geo: Geometry::Stamp(st), colour, lo, hi });
         };
@@ -113,6 +151,7 @@ impl StrokePath {
 mod tests {
     use super::*;
     use crate::trace::Mode;
+    use crate::brush::Stamp;
 
     #[test]
     fn stamps_are_spaced_along_the_path_with_carry() {
@@ -130,6 +169,29 @@ mod tests {
         path.segment(&Sample::at([2.0, 0.0, 0.0]), [1.0; 3], &mut out);
         assert_eq!(out.len(), 5);
         assert!(matches!(out[3].geo, Geometry::Stamp(s) if (s.c.x - 1.5).abs() < 1e-12));
+    }
+
+    #[test]
+    fn mirrored_copies_are_placed_and_turned_as_mirror_images() {
+        let mut b = Brush::new(Shape::Box, Mode::Paint, 0.1, [1.0; 3], 1.0, 0.5);
+        b.mirror = Some(crate::trace::Mirror { axes: [true, false, true], centre: [0.5, 0.25, 0.5] });
+        let paths = StrokePath::all(b);
+        assert_eq!(paths.iter().map(|p| p.mask).collect::<Vec<_>>(), vec![0, 1, 4, 5]);
+        let q = [0.2, 0.3, 0.1, 0.9];
+        let sample = Sample { p: [0.3, 0.1, 0.6], pressure: 1.0, q };
+        let mut out = Vec::new();
+        for mut p in paths {
+            p.segment(&sample, [1.0; 3], &mut out);
+        }
+        let stamps: Vec<Stamp> = out.iter().map(|p| if let Geometry::Stamp(s) = p.geo { s } else { panic!() }).collect();
+        let r = quat_to_matrix(q);
+        for (s, (mask, c)) in stamps.iter().zip([(0, [0.3, 0.1, 0.6]), (1, [2.0 * 0.5 - 0.3, 0.1, 0.6]), (4, [0.3, 0.1, 2.0 * 0.5 - 0.6]), (5, [2.0 * 0.5 - 0.3, 0.1, 2.0 * 0.5 - 0.6])]) {
+            assert_eq!((s.mirror, s.c.to_array()), (mask, c));
+            let flip = DVec3::from_array([0, 1, 2].map(|a| if mask >> a & 1 == 1 { -1.0 } else { 1.0 }));
+            assert_eq!(s.rot, glam::DMat3::from_cols(r.x_axis * flip, r.y_axis * flip, r.z_axis * flip));
+        }
+        // One plane: a mirror image (det -1); two: a half turn.
+        assert!((stamps[1].rot.determinant() + 1.0).abs() < 1e-12 && (stamps[3].rot.determinant() - 1.0).abs() < 1e-12);
     }
 
     #[test]

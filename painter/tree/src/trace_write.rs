@@ -54,6 +54,7 @@ pub fn event_line(ev: &Event) -> String {
         EventKind::Camera(c) => json!({"eye": c.eye, "q": c.q, "fov": c.fov, "size": c.size, "background": c.background}),
         EventKind::Light(l) if l.on => json!({"on": true, "dir": l.dir, "intensity": l.intensity, "ambient": l.ambient, "shadows": l.shadows}),
         EventKind::Light(_) => json!({"on": false}),
+        EventKind::Mirror(m) => json!({"axes": m.axes, "centre": m.centre}),
         EventKind::Render(name) | EventKind::Snapshot(name) => json!({"name": name}),
         EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => json!({}),
     };

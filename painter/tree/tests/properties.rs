@@ -64,6 +64,7 @@ fn brush(root_size: f64) -> impl Strategy<Value = Brush> {
             pickup_rate: pick,
             aspect,
             noise: Noise { frequency: n.0, octaves: n.1, seed: n.2, gain: n.3 },
+            mirror: None,
         })
 }
 

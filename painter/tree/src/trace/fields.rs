@@ -5,7 +5,7 @@
 use serde_json::Value;
 
 use super::{
-    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, Light, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
+    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, Light, Mirror, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
     Mode, Sample, Shape, TINY, TraceError,
 };
 
@@ -227,6 +227,18 @@ pub fn parse_brush(line: usize, obj: &Value) -> R<Brush> {
         }
     }
     Ok(b)
+}
+
+/// The `mirror` event (spec 8.11): `axes` 3 booleans, then `centre` 3
+/// finite numbers.
+pub fn parse_mirror(line: usize, obj: &Value) -> R<Mirror> {
+    let items = vec_of(line, "axes", require(line, obj, "axes", "")?, 3)?;
+    let mut axes = [false; 3];
+    for (i, x) in items.iter().enumerate() {
+        axes[i] = x.as_bool().ok_or_else(|| fail(line, &format!("axes[{i}]"), ErrorKind::Type, format!("expected true or false, got {x}")))?;
+    }
+    let centre = vec_finite::<3>(line, "centre", require(line, obj, "centre", "")?)?;
+    Ok(Mirror { axes, centre })
 }
 
 pub fn parse_sample(line: usize, obj: &Value) -> R<Sample> {

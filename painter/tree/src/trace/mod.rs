@@ -9,7 +9,7 @@
 mod fields;
 mod read;
 
-pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_light, parse_sample, segment_too_long};
+pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_light, parse_mirror, parse_sample, segment_too_long};
 pub use read::{MAX_NESTING, io_reason, nesting_depth, parse_trace, parse_trace_bytes, read_trace};
 
 pub const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
@@ -166,6 +166,32 @@ pub struct Brush {
     pub pickup_rate: f64,
     pub aspect: [f64; 3],
     pub noise: Noise,
+    /// Mirror painting (spec 8.11): None paints the stroke alone. Not a
+    /// brush field of the trace: the last `mirror` event's planes, set on
+    /// the brush when a stroke begins.
+    pub mirror: Option<Mirror>,
+}
+
+/// Mirror painting (spec 8.11): the planes through `centre` (canvas units)
+/// normal to the axes set in `axes` (x, y, z).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mirror {
+    pub axes: [bool; 3],
+    pub centre: [f64; 3],
+}
+
+impl Mirror {
+    /// The planes a stroke paints with: None when no axis is set.
+    pub fn active(self) -> Option<Mirror> {
+        self.axes.iter().any(|&a| a).then_some(self)
+    }
+
+    /// The mirrored copies as axis masks (bit a: axis a mirrored), in
+    /// increasing order: every non-empty combination of the set axes.
+    pub fn copies(&self) -> impl Iterator<Item = u8> + '_ {
+        let on = (0..3).filter(|&a| self.axes[a]).fold(0u8, |m, a| m | 1 << a);
+        (1..8u8).filter(move |m| m & !on == 0)
+    }
 }
 
 impl Brush {
@@ -183,6 +209,7 @@ impl Brush {
             pickup_rate: 0.25,
             aspect: [1.0; 3],
             noise: Noise::default(),
+            mirror: None,
         }
     }
 }
@@ -241,6 +268,7 @@ pub enum EventKind {
     StrokeEnd,
     Camera(Camera),
     Light(Light),
+    Mirror(Mirror),
     Render(String),
     Snapshot(String),
     Undo,
@@ -257,6 +285,7 @@ impl EventKind {
             EventKind::StrokeEnd => "stroke_end",
             EventKind::Camera(_) => "camera",
             EventKind::Light(_) => "light",
+            EventKind::Mirror(_) => "mirror",
             EventKind::Render(_) => "render",
             EventKind::Snapshot(_) => "snapshot",
             EventKind::Undo => "undo",

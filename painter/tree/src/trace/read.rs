@@ -6,7 +6,7 @@ use std::collections::HashSet;
 
 use serde_json::Value;
 
-use super::fields::{fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_light, parse_sample, require, segment_too_long, shown};
+use super::fields::{fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
 use super::{Brush, ErrorKind, Event, EventKind, Meta, Sample, Trace, TraceError};
 
 /// Deepest bracket nesting a trace line may have; below serde_json's own
@@ -174,6 +174,12 @@ impl Order {
                 EventKind::Camera(parse_camera(lineno, obj)?)
             }
             "light" => EventKind::Light(parse_light(lineno, obj)?),
+            "mirror" => {
+                if self.in_stroke {
+                    return Err(order("mirror inside a stroke (mirror planes change between strokes)"));
+                }
+                EventKind::Mirror(parse_mirror(lineno, obj)?)
+            }
             kind @ ("render" | "snapshot") => {
                 let n = name(lineno, require(lineno, obj, "name", "")?)?;
                 let names = if kind == "render" { &mut self.render_names } else { &mut self.snapshot_names };
