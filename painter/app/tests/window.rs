@@ -127,30 +127,41 @@ fn window_of(child: &mut Child, display: &str, what: &str) -> String {
     }
 }
 
+/// A scratch folder holding a 0700 runtime folder (what a desktop session
+/// gives the painter) and a new document of one root, depth 10, `name`.
+fn scratch_with_document(name: &str) -> (tempfile::TempDir, std::path::PathBuf, std::path::PathBuf) {
+    let scratch = tempfile::tempdir().unwrap();
+    let runtime = scratch.path().join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let doc = scratch.path().join(name);
+    let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    (scratch, runtime, doc)
+}
+
+/// `octopaint` on X display `display` with that runtime folder, its
+/// errors piped.
+fn on_display(display: &str, runtime: &std::path::Path) -> Command {
+    let mut c = octopaint();
+    c.env("DISPLAY", display).env("XDG_RUNTIME_DIR", runtime).env_remove("WAYLAND_DISPLAY").stderr(Stdio::piped());
+    c
+}
+
 #[test]
 fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     let (_x, display) = start_xvfb();
-    let scratch = tempfile::tempdir().unwrap();
+    let (scratch, runtime, doc) = scratch_with_document("w.octo");
     let s = scratch.path();
-    let runtime = s.join("runtime");
-    std::fs::create_dir(&runtime).unwrap();
-    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
-    let doc = s.join("w.octo");
     let shot = s.join("shot.png");
     let frame_log = s.join("frames.csv");
-    let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
-    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
-    let mut window = octopaint()
+    let mut window = on_display(&display, &runtime)
         .arg("window")
         .arg(&doc)
         .args(["--size", "800x600", "--screenshot"])
         .arg(&shot)
         .arg("--frame-log")
         .arg(&frame_log)
-        .env("DISPLAY", &display)
-        .env("XDG_RUNTIME_DIR", &runtime)
-        .env_remove("WAYLAND_DISPLAY")
-        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     let id = window_of(&mut window, &display, "the window");
@@ -358,22 +369,8 @@ fn without_a_display_the_window_says_so() {
 #[test]
 fn vr_without_a_runtime_says_so_and_opens_the_window() {
     let (_x, display) = start_xvfb();
-    let scratch = tempfile::tempdir().unwrap();
-    let runtime = scratch.path().join("runtime");
-    std::fs::create_dir(&runtime).unwrap();
-    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
-    let doc = scratch.path().join("v.octo");
-    assert!(octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "8"]).output().unwrap().status.success());
-    let mut child = octopaint()
-        .arg("vr")
-        .arg(&doc)
-        .env("DISPLAY", &display)
-        .env("XDG_RUNTIME_DIR", &runtime)
-        .env("XR_RUNTIME_JSON", scratch.path().join("no-runtime.json"))
-        .env_remove("WAYLAND_DISPLAY")
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let (scratch, runtime, doc) = scratch_with_document("v.octo");
+    let mut child = on_display(&display, &runtime).arg("vr").arg(&doc).env("XR_RUNTIME_JSON", scratch.path().join("no-runtime.json")).spawn().unwrap();
     let id = window_of(&mut child, &display, "the fallback window");
     // Focus and Ctrl+Q, again every 5 s until the window is gone: on a
     // loaded machine a key sent before the event loop took the focus is
@@ -410,24 +407,9 @@ fn vr_without_a_runtime_says_so_and_opens_the_window() {
 #[test]
 fn mirror_painting_paints_both_sides_and_records_its_planes() {
     let (_x, display) = start_xvfb();
-    let scratch = tempfile::tempdir().unwrap();
+    let (scratch, runtime, doc) = scratch_with_document("m.octo");
     let s = scratch.path();
-    let runtime = s.join("runtime");
-    std::fs::create_dir(&runtime).unwrap();
-    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
-    let doc = s.join("m.octo");
-    let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
-    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
-    let mut window = octopaint()
-        .arg("window")
-        .arg(&doc)
-        .args(["--size", "800x600"])
-        .env("DISPLAY", &display)
-        .env("XDG_RUNTIME_DIR", &runtime)
-        .env_remove("WAYLAND_DISPLAY")
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut window = on_display(&display, &runtime).arg("window").arg(&doc).args(["--size", "800x600"]).spawn().unwrap();
     let id = window_of(&mut window, &display, "the window");
     std::thread::sleep(Duration::from_secs(2));
     xdotool(&display, &["windowfocus", &id]);

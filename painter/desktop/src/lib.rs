@@ -69,7 +69,9 @@ impl Resolution {
     /// The cast size of this frame of a `window`-sized view, given whether
     /// the tree changed since the last one, and whether the view is still;
     /// learns from the last frame's interval when that frame was moving.
-    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, look: Look, tree_changed: bool) -> ([u32; 2], bool) {
+    /// `full`: cast this frame at full size anyway (a screenshot); its
+    /// interval then teaches nothing.
+    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, look: Look, tree_changed: bool, full: bool) -> ([u32; 2], bool) {
         let now = Instant::now();
         let view = (*camera, window, look);
         let still = !tree_changed && self.last_view == Some(view);
@@ -80,9 +82,9 @@ impl Resolution {
         {
             self.scale = follow_frame_time(self.scale, ms, TARGET_FRAME_MS);
         }
-        let scale = if still || self.fixed { 1.0 } else { self.scale };
+        let scale = if still || self.fixed || full { 1.0 } else { self.scale };
         let size = window.map(|v| ((f64::from(v) * scale).round() as u32).clamp(1, v.max(1)));
-        self.last_frame = Some((now, !still));
+        self.last_frame = Some((now, !still && !full));
         if let Some((log, t0)) = self.log.as_mut() {
             let ms = interval.map_or(0.0, |(ms, _)| ms);
             let _ = writeln!(log, "{:.1},{ms:.2},{scale:.4},{},{},{}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still));
@@ -587,7 +589,8 @@ impl App {
         let synced = r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
         let light = r.brush.light.light(r.camera.rotation());
-        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), synced.blocks > 0);
+        // A screenshot is always of the full resolution, moving or not.
+        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), synced.blocks > 0, r.want_screenshot);
         let camera = r.camera.camera(cast, BACKGROUND);
         let mut params = RayParams::new(&tree.lat, &camera).with_light(light.as_ref());
         if r.brush.grid {
