@@ -146,4 +146,42 @@ assert nl > 8 and nr > 8, "the palette is not at the hand in both eyes"  # a swa
 assert cl > cr + 5, "the palette has no parallax: it is not at the hand's depth"
 print("ok")
 EOF
+# Framing the painting: the left hand grabs the canvas and carries it 2 m
+# to the right, out of view; without more the last frame shows no painting,
+# and with X pressed while the grip is held the painting is back in front
+# of the head in both eyes.
+"$py" - > carry.jsonl <<'EOF'
+print('{"frame": 0, "hand": "left", "pose": [-0.2, 0.0, -0.5, 0, 0, 0, 1]}')
+print('{"frame": 2, "hand": "left", "grip": 0.9}')
+for i in range(3, 11):
+    print('{"frame": %d, "hand": "left", "pose": [%.3f, 0.0, -0.5, 0, 0, 0, 1]}' % (i, -0.2 + 2.0 * (i - 2) / 8))
+EOF
+{ cat carry.jsonl; echo '{"frame": 13, "hand": "left", "primary": true}'; echo '{"frame": 14, "hand": "left", "primary": false, "grip": 0}'; } > reframe.jsonl
+for run in carry reframe; do
+    "$here/run.sh" vr painting.octo --frames 20 --capture "$run.png" --script "$run.jsonl" --no-fallback 2> "vr-$run.log" || { grep -v '^LOG\|^	' "vr-$run.log" >&2; echo "FAIL: octopaint vr ($run)" >&2; exit 1; }
+done
+"$py" - carry.png reframe.png <<'EOF'
+import sys
+from PIL import Image
+def painted(path):
+    im = Image.open(path).convert("RGB")
+    w, h = im.size
+    bg = im.getpixel((w // 2 - 1, h - 1))
+    out = []
+    for x0 in (0, w // 2):
+        n = 0
+        for y in range(h):
+            for x in range(x0, x0 + w // 2):
+                if y < h // 3 and x - x0 < w // 4:
+                    continue  # the HUD
+                if sum(abs(a - b) for a, b in zip(im.getpixel((x, y)), bg)) > 60:
+                    n += 1
+        out.append(n)
+    return out
+carried, framed = painted(sys.argv[1]), painted(sys.argv[2])
+print(f"painted pixels: carried away {carried}, framed again {framed}")
+assert max(carried) < 20, "the grab did not carry the painting out of view"
+assert min(framed) > 200, "X with the grip held did not frame the painting"
+print("ok")
+EOF
 echo "VR test passed"

@@ -48,6 +48,9 @@ pub struct Painter {
     /// light) and with the ground grid; Y (the left secondary button)
     /// steps through [`VIEWS`].
     pub view: usize,
+    /// Set by X with the left grip held: put the painting back in front of
+    /// the head (the session does it, knowing the head's pose).
+    pub reframe: bool,
 }
 
 /// The headset's views, in the order Y steps through them: (lit, grid).
@@ -77,6 +80,7 @@ impl Default for Painter {
             last_error: None,
             strokes: 0,
             view: 0,
+            reframe: false,
         }
     }
 }
@@ -156,7 +160,14 @@ impl Painter {
             self.mode = (self.mode + MODES.len() - 1) % MODES.len();
         }
         if rose(l.primary, pl.primary) {
-            self.shape = (self.shape + 1) % SHAPES.len();
+            if l.grip > 0.5 {
+                // X while holding the canvas: frame the painting. The grab
+                // starts again from the new placement next frame.
+                self.reframe = true;
+                self.grab = Grab::None;
+            } else {
+                self.shape = (self.shape + 1) % SHAPES.len();
+            }
         }
         if rose(l.secondary, pl.secondary) {
             self.view = (self.view + 1) % VIEWS.len();

@@ -397,6 +397,13 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         last_input = Instant::now();
         let busy = Instant::now();
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
+        if std::mem::take(&mut painter.reframe) {
+            // Frame the painting: in front of the head where it is now.
+            let p = |v: &xr::View| DVec3::new(f64::from(v.pose.position.x), f64::from(v.pose.position.y), f64::from(v.pose.position.z));
+            let o = views[0].pose.orientation;
+            let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
+            *place = Placement::in_front(&doc.painting.tree, (p(&views[0]) + p(&views[1])) / 2.0, q * DVec3::NEG_Z);
+        }
         let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
         let in_stroke = doc.in_stroke();
@@ -468,7 +475,10 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 blit.draw(&mut pass, &group);
             }
             {
-                let palette_at = hands[crate::input::LEFT].pose.and_then(|(p, _)| project(view, size, p));
+                // Only where the eye sees the hand: egui would pull a panel
+                // placed off the image back onto its edge.
+                let seen = |q: [f32; 2]| (0.0..size[0] as f32).contains(&q[0]) && (0.0..size[1] as f32).contains(&q[1]);
+                let palette_at = hands[crate::input::LEFT].pose.and_then(|(p, _)| project(view, size, p)).filter(|&q| seen(q));
                 // The brush's ghost at the right controller's tip, where
                 // this eye sees it, as wide as the brush there.
                 let cursor = hands[crate::input::RIGHT].pose.and_then(|(p, _)| {
