@@ -62,4 +62,5 @@ for mode in dynamic fixed; do
     xdotool key ctrl+q
     wait "$win"
 done
-python3 "$here/window_frames.py" "$out"
+py="$repo/.venv/bin/python"; [ -x "$py" ] || py=python3   # the plot needs matplotlib (make setup puts it in .venv)
+"$py" "$here/window_frames.py" "$out"

@@ -534,7 +534,10 @@ impl App {
             on_surface: true,
             plane_depth: camera.distance,
             grid: true,
-            light: LightUi::default(),
+            // Lit at first on a GPU; a CPU Vulkan (lavapipe) casts a lit
+            // frame about five times slower (docs/benchmarks.md), so there
+            // the window starts unlit and L lights it.
+            light: LightUi { on: renderer.gpu.info.device_type != wgpu::DeviceType::Cpu, ..LightUi::default() },
             mirror_axes: [false; 3],
             mirror_centre: camera.target,
         };
