@@ -20,7 +20,7 @@ use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Camera, Event, EventKind, Light, MODES, Mirror, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, follow_frame_time, frame_painting, length};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from, follow_frame_time, frame_painting, length};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -43,8 +43,6 @@ pub struct Options {
 
 /// The frame time the dynamic resolution aims at on the desktop (60 Hz).
 pub const TARGET_FRAME_MS: f64 = 16.7;
-/// The smallest share of the window's width and height cast while moving.
-pub use octopaint_tree::view::MIN_SCALE;
 
 /// What the view shows besides the camera: the grid, the light.
 type Look = (bool, Option<Light>);
@@ -240,11 +238,7 @@ impl Overlay {
         let inside = r.cursor.0 >= 0.0 && r.cursor.1 >= 0.0 && r.cursor.0 < f64::from(size[0]) && r.cursor.1 < f64::from(size[1]);
         let cursor = (inside && per_px.is_finite() && per_px > 0.0)
             .then(|| ([r.cursor.0 as f32, r.cursor.1 as f32], radius_px, r.brush.colour, r.brush.shape == Shape::Box));
-        let inv = rot.inverse();
-        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| {
-            let v = inv * a;
-            ([v.x as f32, -v.y as f32], v.z < 0.0)
-        });
+        let axes = axes_seen_from(rot);
         let d = tree.lat.target_depth(r.brush.radius);
         // Mirror painting: the cursor's images and the planes, faint.
         let (mut ghosts, mut planes) = (Vec::new(), Vec::new());

@@ -71,6 +71,17 @@ pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
 
+/// The canvas axes x, y, z as a camera turned by `camera_to_canvas` sees
+/// them, for an axes gizmo: each one's direction on the screen (y down)
+/// and whether it points away from the viewer.
+pub fn axes_seen_from(camera_to_canvas: DQuat) -> [([f32; 2], bool); 3] {
+    let inv = camera_to_canvas.inverse();
+    [DVec3::X, DVec3::Y, DVec3::Z].map(|a| {
+        let v = inv * a;
+        ([v.x as f32, -v.y as f32], v.z < 0.0)
+    })
+}
+
 /// The smallest share of the width and height a view is cast at while it
 /// moves (dynamic resolution, docs/desktop.md and docs/vr.md).
 pub const MIN_SCALE: f64 = 0.25;

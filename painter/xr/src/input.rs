@@ -126,11 +126,7 @@ impl Controls {
             let loc = call("locating a hand", self.spaces[k].locate(base, time))?;
             let valid = xr::SpaceLocationFlags::POSITION_VALID | xr::SpaceLocationFlags::ORIENTATION_VALID;
             if call("aim state", self.aim.is_active(session, path))? && loc.location_flags.contains(valid) {
-                let (pp, o) = (loc.pose.position, loc.pose.orientation);
-                h.pose = Some((
-                    DVec3::new(f64::from(pp.x), f64::from(pp.y), f64::from(pp.z)),
-                    DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize(),
-                ));
+                h.pose = Some(crate::pose_of(&loc.pose));
             }
             h.trigger = call("trigger", self.trigger.state(session, path))?.current_state;
             h.grip = call("grip", self.grip.state(session, path))?.current_state;

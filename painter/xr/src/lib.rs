@@ -16,6 +16,16 @@ pub mod input;
 pub mod paint;
 pub mod session;
 
+/// An OpenXR pose (f32, room metres) as a position and a unit rotation in
+/// f64.
+pub(crate) fn pose_of(pose: &openxr::Posef) -> (glam::DVec3, glam::DQuat) {
+    let (p, o) = (pose.position, pose.orientation);
+    (
+        glam::DVec3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z)),
+        glam::DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize(),
+    )
+}
+
 /// What the runtime reports about itself and its headset.
 #[derive(Debug, Clone)]
 pub struct XrInfo {

@@ -375,11 +375,9 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
         // The canvas is placed in front of the head where it first is.
         if placement.is_none() {
-            let p = |v: &xr::View| DVec3::new(f64::from(v.pose.position.x), f64::from(v.pose.position.y), f64::from(v.pose.position.z));
-            let o = views[0].pose.orientation;
-            let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
-            head0 = (p(&views[0]) + p(&views[1])) / 2.0;
-            placement = Some(Placement::in_front(&doc.painting.tree, head0, q * DVec3::NEG_Z));
+            let (head, p) = in_front_of_head(&doc.painting.tree, &views);
+            head0 = head;
+            placement = Some(p);
         }
         let place = placement.as_mut().expect("set above");
         // The controllers (or the script) change the painting and the
@@ -399,10 +397,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
         if std::mem::take(&mut painter.reframe) {
             // Frame the painting: in front of the head where it is now.
-            let p = |v: &xr::View| DVec3::new(f64::from(v.pose.position.x), f64::from(v.pose.position.y), f64::from(v.pose.position.z));
-            let o = views[0].pose.orientation;
-            let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
-            *place = Placement::in_front(&doc.painting.tree, (p(&views[0]) + p(&views[1])) / 2.0, q * DVec3::NEG_Z);
+            *place = in_front_of_head(&doc.painting.tree, &views).1;
         }
         let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
@@ -431,15 +426,8 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         // The indicators, head-locked; the palette at the left hand,
         // where each eye sees it.
         let depth = tree.lat.target_depth(painter.room_radius / placement.scale);
-        // The canvas axes in the head's frame (the first eye's pose).
-        let head = views.first().map_or(DQuat::IDENTITY, |v| {
-            let o = v.pose.orientation;
-            DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize()
-        });
-        let axes = [DVec3::X, DVec3::Y, DVec3::Z].map(|a| {
-            let v = head.inverse() * (placement.rotation * a);
-            ([v.x as f32, -v.y as f32], v.z < 0.0)
-        });
+        // The canvas axes as the head sees them (the first eye's pose).
+        let axes = octopaint_tree::view::axes_seen_from(placement.rotate_to_canvas(crate::pose_of(&views[0].pose).1));
         let status = crate::hud::Status {
             busy_ms,
             in_stroke,
@@ -483,9 +471,8 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 // this eye sees it, as wide as the brush there.
                 let cursor = hands[crate::input::RIGHT].pose.and_then(|(p, _)| {
                     let centre = project(view, size, p)?;
-                    let o = view.pose.orientation;
-                    let head = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
-                    let edge = project(view, size, p + head * DVec3::X * painter.room_radius)?;
+                    let eye = crate::pose_of(&view.pose).1;
+                    let edge = project(view, size, p + eye * DVec3::X * painter.room_radius)?;
                     Some((centre, (edge[0] - centre[0]).hypot(edge[1] - centre[1])))
                 });
                 let (hud_jobs, hud_screen, free) = crate::hud::prepare(&hud_ctx, &mut hud, gpu, size, &status, palette_at, cursor);
@@ -566,11 +553,18 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     Ok(report)
 }
 
+/// The painting placed in front of the head (the middle of the two eyes,
+/// looking along the first eye's view), and that head position.
+fn in_front_of_head(tree: &Tree, views: &[xr::View]) -> (DVec3, Placement) {
+    let (a, q) = crate::pose_of(&views[0].pose);
+    let head = (a + crate::pose_of(&views[1].pose).0) / 2.0;
+    (head, Placement::in_front(tree, head, q * DVec3::NEG_Z))
+}
+
 /// Where room point `p` appears in an eye's image (pixels), if in front.
 fn project(view: &xr::View, size: [u32; 2], p: DVec3) -> Option<[f32; 2]> {
-    let (e, o) = (view.pose.position, view.pose.orientation);
-    let q = DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize();
-    let v = q.inverse() * (p - DVec3::new(f64::from(e.x), f64::from(e.y), f64::from(e.z)));
+    let (e, q) = crate::pose_of(&view.pose);
+    let v = q.inverse() * (p - e);
     if v.z >= -1e-3 {
         return None;
     }
@@ -612,10 +606,9 @@ fn pass_on<'a>(enc: &'a mut wgpu::CommandEncoder, target: &wgpu::TextureView, lo
 /// One eye's camera in canvas units: its pose from the runtime (room,
 /// metres) through the placement, its asymmetric field of view as is.
 pub fn eye_camera(p: &Placement, view: &xr::View, size: [u32; 2]) -> Camera {
-    let pos = view.pose.position;
-    let o = view.pose.orientation;
-    let eye = p.to_canvas(DVec3::new(f64::from(pos.x), f64::from(pos.y), f64::from(pos.z)));
-    let q = p.rotate_to_canvas(DQuat::from_xyzw(f64::from(o.x), f64::from(o.y), f64::from(o.z), f64::from(o.w)).normalize());
+    let (pos, o) = crate::pose_of(&view.pose);
+    let eye = p.to_canvas(pos);
+    let q = p.rotate_to_canvas(o);
     let f = view.fov;
     Camera {
         eye: eye.to_array(),
