@@ -42,6 +42,14 @@ fn triple(v: DVec3) -> String {
     format!("({}, {}, {})", num(v.x), num(v.y), num(v.z))
 }
 
+/// `items` as the body of a USD array, `a, b, c`, written as they come.
+fn write_list(w: &mut impl Write, items: impl IntoIterator<Item = String>) -> std::io::Result<()> {
+    for (k, item) in items.into_iter().enumerate() {
+        write!(w, "{}{item}", if k > 0 { ", " } else { "" })?;
+    }
+    Ok(())
+}
+
 /// A path written as a USD asset path `@...@`; refused when it holds
 /// characters the text format cannot carry there.
 pub fn asset_path_ok(name: &str) -> bool {
@@ -102,32 +110,21 @@ pub fn write_usda(w: &mut dyn Write, stage: &Stage, generator: &str) -> std::io:
             writeln!(w, "        float3[] extent = [{}, {}]", triple(lo), triple(hi))?;
         }
         write!(w, "        int[] faceVertexCounts = [")?;
-        for (k, _) in mesh.triangles.iter().enumerate() {
-            write!(w, "{}3", if k > 0 { ", " } else { "" })?;
-        }
+        write_list(&mut w, mesh.triangles.iter().map(|_| "3".to_string()))?;
         writeln!(w, "]")?;
         write!(w, "        int[] faceVertexIndices = [")?;
-        for (k, t) in mesh.triangles.iter().enumerate() {
-            write!(w, "{}{}, {}, {}", if k > 0 { ", " } else { "" }, t[0], t[1], t[2])?;
-        }
+        write_list(&mut w, mesh.triangles.iter().map(|t| format!("{}, {}, {}", t[0], t[1], t[2])))?;
         writeln!(w, "]")?;
         write!(w, "        normal3f[] normals = [")?;
-        for (k, n) in vertex_normals(mesh).into_iter().enumerate() {
-            write!(w, "{}{}", if k > 0 { ", " } else { "" }, triple(p.turn(n, true)))?;
-        }
+        write_list(&mut w, vertex_normals(mesh).into_iter().map(|n| triple(p.turn(n, true))))?;
         writeln!(w, "] (")?;
         writeln!(w, "            interpolation = \"vertex\"")?;
         writeln!(w, "        )")?;
         write!(w, "        point3f[] points = [")?;
-        for (k, v) in points.iter().enumerate() {
-            write!(w, "{}{}", if k > 0 { ", " } else { "" }, triple(*v))?;
-        }
+        write_list(&mut w, points.iter().map(|&v| triple(v)))?;
         writeln!(w, "]")?;
         write!(w, "        color3f[] primvars:displayColor = [")?;
-        for (k, c) in mesh.colours.iter().enumerate() {
-            let c = ColourSpace::Linear.encode(*c);
-            write!(w, "{}{}", if k > 0 { ", " } else { "" }, triple(DVec3::new(f64::from(c[0]), f64::from(c[1]), f64::from(c[2]))))?;
-        }
+        write_list(&mut w, mesh.colours.iter().map(|&c| triple(ColourSpace::Linear.encode(c).map(f64::from).into())))?;
         writeln!(w, "] (")?;
         writeln!(w, "            interpolation = \"vertex\"")?;
         writeln!(w, "        )")?;
