@@ -192,6 +192,16 @@ def noise_factor(xp, x, perm, scale, octaves: int, gain):
     return xp.clip(0.5 + noise.fbm(xp, perm, x, scale, octaves, gain), 0.0, 1.0)
 
 
+def mirrored(x: np.ndarray, mask: int, centre) -> np.ndarray:
+    """x [..., 3] mirrored through the planes of `mask` (spec 8.11): on each
+    axis a of the mask, 2 * centre_a - x_a (f64, one rounding)."""
+    x = np.array(x, np.float64, copy=True)
+    for a in range(3):
+        if mask >> a & 1:
+            x[..., a] = 2.0 * centre[a] - x[..., a]
+    return x
+
+
 def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_scale, octaves, gain, masks=None, centre=None):
     """coverage * flow [n, k] of k stamps at points x [n, 3]. masks [k]
     (numpy): each stamp's mirror copy (spec 8.11); a noise stamp of copy m
@@ -202,8 +212,6 @@ def stamp_coverage(xp, shape, x, c, r, f, rot, aspect, hardness, perm, noise_sca
         if masks is None or not np.any(masks):
             cov = cov * noise_factor(xp, x, perm, noise_scale, octaves, gain)[:, None]
         else:
-            from .stroke import mirrored
-
             nf = xp.zeros(cov.shape)
             for m in np.unique(masks):
                 nm = noise_factor(xp, x if m == 0 else mirrored(x, int(m), centre), perm, noise_scale, octaves, gain)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .brush import RADIUS_PRESSURE_FLOOR, nlerp, quat_to_matrix, stamp_extent
+from .brush import RADIUS_PRESSURE_FLOOR, mirrored, nlerp, quat_to_matrix, stamp_extent
 from .trace import Brush, Sample
 
 
@@ -93,16 +93,6 @@ class PrimsHistory:
 
 def pressure_radius(brush: Brush, pressure: float) -> float:
     return brush.radius * (RADIUS_PRESSURE_FLOOR + (1.0 - RADIUS_PRESSURE_FLOOR) * pressure)
-
-
-def mirrored(x: np.ndarray, mask: int, centre) -> np.ndarray:
-    """x [..., 3] mirrored through the planes of `mask` (spec 8.11): on each
-    axis a of the mask, 2 * centre_a - x_a (f64, one rounding)."""
-    x = np.array(x, np.float64, copy=True)
-    for a in range(3):
-        if mask >> a & 1:
-            x[..., a] = 2.0 * centre[a] - x[..., a]
-    return x
 
 
 class StrokePath:

@@ -10,7 +10,8 @@ import pytest
 from conftest import TRACES
 from octopaint_ref.dump import tree_arrays
 from octopaint_ref.replay import replay
-from octopaint_ref.stroke import StrokePath, mirrored
+from octopaint_ref.brush import mirrored
+from octopaint_ref.stroke import StrokePath
 from octopaint_ref.trace import Brush, Mirror, Sample, TraceError, parse_trace, read_trace
 
 H = '{"format": "ddo-trace", "version": 1, "canvas": {"roots": [1, 1, 1], "max_depth": 4, "root_size": 1.0, "capacity": 4096}}'

@@ -236,9 +236,18 @@ impl From<PrecisionChoice> for Precision {
 
 /// A camera given on the command line as a trace's camera event (JSON),
 /// checked by the trace reader's rules.
+/// An option that takes an event's fields as a trace holds them (a JSON
+/// object), read by that event's parser; errors name the option.
+pub(crate) fn event_arg<T>(option: &str, text: &str, parse: fn(usize, &serde_json::Value) -> Result<T, octopaint_tree::TraceError>) -> Result<T, String> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("{option}: not JSON: {e}"))?;
+    if !v.is_object() {
+        return Err(format!("{option}: expected a JSON object"));
+    }
+    parse(0, &v).map_err(|e| format!("{option}: {}", e.message))
+}
+
 fn camera_arg(text: &str) -> Result<Camera, String> {
-    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--camera: not JSON: {e}"))?;
-    octopaint_tree::trace::parse_camera(0, &v).map_err(|e| format!("--camera: {}", e.message))
+    event_arg("--camera", text, octopaint_tree::trace::parse_camera)
 }
 
 #[derive(Subcommand)]

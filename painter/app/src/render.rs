@@ -122,13 +122,7 @@ pub fn turntable(start: &OrbitCamera, n: u32, size: [u32; 2]) -> Vec<Camera> {
 /// The light of --lit, --light and --shadows; None: unlit.
 fn light_arg(a: &Args) -> Result<Option<Light>, String> {
     let mut light = match &a.light {
-        Some(text) => {
-            let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("--light: not JSON: {e}"))?;
-            if !v.is_object() {
-                return Err("--light: expected a JSON object, e.g. '{\"dir\": [0.4, 1, 0.3]}'".into());
-            }
-            Some(octopaint_tree::trace::parse_light(0, &v).map_err(|e| format!("--light: {}", e.message))?)
-        }
+        Some(text) => Some(crate::event_arg("--light", text, octopaint_tree::trace::parse_light)?),
         None if a.lit || a.shadows => Some(DEFAULT_LIGHT),
         None => None,
     };

@@ -36,6 +36,13 @@ fn document(scratch: &Path) -> PathBuf {
     doc
 }
 
+/// `octopaint render DOC --size 160x120 ARGS` into `out`: its RGB bytes.
+fn small_picture(doc: &Path, out: &Path, args: &[&str]) -> Vec<u8> {
+    let res = octopaint().arg("render").arg(doc).args(["--size", "160x120", "--quiet", "--out"]).arg(out).args(args).output().unwrap();
+    assert!(res.status.success(), "{args:?}: {}", String::from_utf8_lossy(&res.stderr));
+    png(out).2
+}
+
 #[test]
 fn a_turntable_writes_its_frames_and_a_gif_of_them() {
     let scratch = tempfile::tempdir().unwrap();
@@ -89,12 +96,7 @@ fn a_turntable_writes_its_frames_and_a_gif_of_them() {
 fn the_ground_grid_draws_behind_the_painting_alike_on_gpu_and_cpu() {
     let scratch = tempfile::tempdir().unwrap();
     let doc = document(scratch.path());
-    let shot = |name: &str, args: &[&str]| {
-        let out = scratch.path().join(name);
-        let res = octopaint().arg("render").arg(&doc).args(["--size", "160x120", "--quiet", "--out"]).arg(&out).args(args).output().unwrap();
-        assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
-        png(&out).2
-    };
+    let shot = |name: &str, args: &[&str]| small_picture(&doc, &scratch.path().join(name), args);
     let plain = shot("plain.png", &[]);
     let grid = shot("grid.png", &["--grid"]);
     let cpu = shot("grid_cpu.png", &["--grid", "--renderer", "cpu"]);
@@ -120,12 +122,7 @@ fn the_ground_grid_draws_behind_the_painting_alike_on_gpu_and_cpu() {
 fn lighting_shades_the_painting_alike_on_gpu_and_cpu() {
     let scratch = tempfile::tempdir().unwrap();
     let doc = document(scratch.path());
-    let shot = |name: &str, args: &[&str]| {
-        let out = scratch.path().join(name);
-        let res = octopaint().arg("render").arg(&doc).args(["--size", "160x120", "--quiet", "--out"]).arg(&out).args(args).output().unwrap();
-        assert!(res.status.success(), "{args:?}: {}", String::from_utf8_lossy(&res.stderr));
-        png(&out).2
-    };
+    let shot = |name: &str, args: &[&str]| small_picture(&doc, &scratch.path().join(name), args);
     let plain = shot("plain.png", &[]);
     let lit = shot("lit.png", &["--lit"]);
     let shadows = shot("shadows.png", &["--shadows"]);
