@@ -113,8 +113,8 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str, precision:
             continue
         r.dumps += 1
         da, db = dumps.load(a), dumps.load(b)
-        r.cells = max(r.cells, len(da["parent"]))
-        diffs = dumps.compare(da, db)
+        r.cells = max(r.cells, sum(len(t["parent"]) for t in dumps.layers_of(da)))
+        diffs = dumps.compare_document(da, db)
         if diffs:
             lines = [f"- `{d.array}`: {d.detail}" for d in diffs]
             para = f"**dump `{f}`** differs:\n\n" + "\n".join(lines)

@@ -87,6 +87,48 @@ def compare(ref: dict, painter: dict) -> list[Difference]:
     return out
 
 
+DOCUMENT_ARRAYS = ("layer_count", "selected", "layer_names", "layer_visible", "layer_locked", "layer_opacity")
+LAYER_ARRAYS = ("parent", "first_child", "depth", "rgb", "sigma", "g3", "origin")
+
+
+def layers_of(d: dict) -> list:
+    """A document's dump (spec 14.5) as one tree dump per layer, bottom
+    first; a tree's dump as itself."""
+    if "layer_count" not in d:
+        return [d]
+    shared = {k: d[k] for k in ("roots", "max_depth", "root_size") if k in d}
+    n = int(d["layer_count"])
+    return [{**shared, **{a: d[f"{k}/{a}"] for a in LAYER_ARRAYS if f"{k}/{a}" in d}} for k in range(n)]
+
+
+def compare_document(ref: dict, painter: dict) -> list[Difference]:
+    """compare() for dumps of documents too: the layer settings exactly
+    (opacity bit for bit), then every layer's tree as compare() does, its
+    arrays named `k/...`."""
+    if "layer_count" not in ref and "layer_count" not in painter:
+        return compare(ref, painter)
+    out = []
+    for name in DOCUMENT_ARRAYS:
+        if name not in ref or name not in painter:
+            side = "reference" if name not in ref else "painter"
+            out.append(Difference(name, 1, None, f"missing from the {side}'s dump"))
+            continue
+        a, b = ref[name], painter[name]
+        same = a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes()
+        if not same:
+            out.append(Difference(name, 1, None, f"reference {a.dtype}{list(a.shape)} {a.tolist()!r:.200}, painter {b.dtype}{list(b.shape)} {b.tolist()!r:.200}"))
+    if out:
+        return out
+    for k, (la, lb) in enumerate(zip(layers_of(ref), layers_of(painter))):
+        for d in compare(la, lb):
+            out.append(Difference(f"{k}/{d.array}", d.count, None, d.detail))
+    known = set(DOCUMENT_ARRAYS) | {"roots", "max_depth", "root_size"} | {f"{k}/{a}" for k in range(int(ref["layer_count"])) for a in LAYER_ARRAYS}
+    for name in sorted((set(ref) | set(painter)) - known):
+        side = "reference" if name in ref else "painter"
+        out.append(Difference(name, 1, None, f"an array only the {side}'s dump holds"))
+    return out
+
+
 def record(d: dict, cell: int) -> str:
     """One cell's stored fields, for the report."""
     if cell >= len(d["parent"]):

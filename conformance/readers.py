@@ -126,7 +126,7 @@ def canonical(path: str) -> list:
     except TraceError as e:
         return [["error", e.line, e.kind]]
     c = t.canvas
-    out = [["canvas", list(c.roots), c.max_depth, float(c.root_size), c.capacity]]
+    out = [["canvas", list(c.roots), c.max_depth, float(c.root_size), c.capacity, t.version]]
     out += [["warning", w] for w in t.warnings]
     for ev in t.events:
         v = ev.value
@@ -145,6 +145,8 @@ def canonical(path: str) -> list:
             row += [True, list(v.dir), v.intensity, v.ambient, v.shadows] if v.on else [False]
         elif ev.kind in ("render", "snapshot"):
             row.append(v)
+        elif ev.kind == "layer":
+            row += [v.op, v.layer, v.name, v.to, v.visible, v.opacity, v.locked]
         out.append(row)
     return out
 

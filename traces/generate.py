@@ -41,12 +41,12 @@ def r6(x: float) -> float:
 
 
 class Writer:
-    def __init__(self, canvas: dict, title: str):
+    def __init__(self, canvas: dict, title: str, version: int = 1):
         self.lines = [
             json.dumps(
                 {
                     "format": "ddo-trace",
-                    "version": 1,
+                    "version": version,
                     "canvas": canvas,
                     "meta": {"title": title, "recorded_by": "traces/generate.py", "created": "2026-11-23T00:00:00Z"},
                 }
@@ -360,6 +360,78 @@ def mirror() -> str:
     return w.text()
 
 
+def layers() -> str:
+    """Layers (spec 14, 6.2): a blue slab on the first layer, orange strokes
+    crossing it on a second (finer cells over coarser ones, so the march
+    steps through boundaries of either tree), rendered together, at half
+    opacity, with a hidden haze layer; reorder, rename, duplicate, lock,
+    merge down (the common refinement of both trees), undo and redo of the
+    merge and of a delete, a stroke after them, and the composite lit with
+    shadow rays."""
+    w = Writer({"roots": [2, 2, 2], "max_depth": 7, "root_size": 0.5, "capacity": 4194304}, "Layers", version=2)
+    w.brush("box", "paint", 0.3, [0.2, 0.45, 0.9], opacity=0.9, hardness=0.8, aspect=[1.0, 0.15, 1.0])
+    w.stroke([[0.5, 0.35, 0.5]])
+    w.ev("layer", 0.1, op="add", name="detail")
+    w.brush("sphere", "paint", 0.05, [0.95, 0.55, 0.1], opacity=0.9, hardness=0.6, spacing=0.3)
+    w.stroke([[0.3 + 0.4 * i / 12, 0.38 + 0.1 * math.sin(i / 3), 0.5] for i in range(13)])
+    w.ev("snapshot", 0.1, name="layers_two")
+    w.camera([0.5, 0.9, 1.7], [0.5, 0.38, 0.5], size=(192, 144))
+    w.ev("render", 0.1, name="layers_two")
+    w.ev("layer", 0.1, op="set", layer="detail", opacity=0.5)
+    w.ev("render", 0.1, name="layers_half")
+    w.ev("layer", 0.1, op="add", name="sky")
+    w.brush("sphere", "paint", 0.25, [0.8, 0.85, 1.0], opacity=0.08, hardness=0.0)
+    w.stroke([[0.5, 0.7, 0.5]])
+    w.ev("render", 0.1, name="layers_haze")
+    w.ev("layer", 0.1, op="set", layer="sky", visible=False)
+    w.ev("layer", 0.1, op="move", layer="sky", to=0)
+    w.ev("layer", 0.1, op="rename", layer="sky", name="ground haze")
+    w.ev("layer", 0.1, op="duplicate", layer="detail", name="detail copy")
+    w.ev("layer", 0.1, op="set", layer="detail copy", locked=True, visible=False)
+    w.ev("snapshot", 0.1, name="layers_before_merge")
+    w.ev("layer", 0.1, op="set", layer="detail", opacity=1.0)
+    w.ev("layer", 0.1, op="merge_down", layer="detail")
+    w.ev("snapshot", 0.1, name="layers_merged")
+    w.ev("render", 0.1, name="layers_merged")
+    w.ev("undo", 0.1)
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="layers_unmerged")  # must equal layers_before_merge
+    w.ev("redo", 0.1)
+    w.ev("redo", 0.1)
+    w.ev("layer", 0.1, op="delete", layer="ground haze")
+    w.ev("undo", 0.1)
+    w.ev("layer", 0.1, op="select", layer="Layer 1")
+    w.brush("cylinder", "erase", 0.04, [0, 0, 0], opacity=1.0, hardness=0.8)
+    w.stroke(line([0.35, 0.35, 0.45], [0.65, 0.35, 0.55], 6))
+    w.ev("layer", 0.1, op="set", layer="ground haze", visible=True, opacity=0.6)
+    w.ev("light", 0.1, dir=[-0.4, 1.0, 0.3], intensity=1.0, ambient=0.25, shadows=True)
+    w.ev("render", 0.1, name="layers_lit")
+    w.ev("snapshot", 0.0, name="layers")
+    return w.text()
+
+
+def layers_budget() -> str:
+    """Layer operations the cell budget refuses at replay (spec 14.2): a
+    duplicate and a merge that do not fit are skipped with a warning, and
+    the events that name what they would have made are skipped in turn;
+    painting goes on in the layers that exist."""
+    w = Writer({"roots": [1, 1, 1], "max_depth": 6, "root_size": 1.0, "capacity": 6000}, "Layer budget", version=2)
+    w.brush("sphere", "paint", 0.1, [0.9, 0.3, 0.2], opacity=0.9, hardness=0.5)
+    w.stroke([[0.5, 0.5, 0.5]])
+    w.ev("layer", 0.1, op="add", name="second")
+    w.brush("sphere", "paint", 0.06, [0.2, 0.3, 0.9], opacity=0.9, hardness=0.5)
+    w.stroke([[0.35, 0.55, 0.45]])
+    w.ev("snapshot", 0.1, name="budget_two")
+    w.ev("layer", 0.1, op="duplicate", layer="Layer 1", name="copy")
+    w.ev("layer", 0.1, op="select", layer="copy")
+    w.stroke([[0.6, 0.4, 0.5]])
+    w.ev("layer", 0.1, op="merge_down", layer="second")
+    w.ev("snapshot", 0.1, name="budget_after")
+    w.camera([0.5, 0.5, 2.0], [0.5, 0.5, 0.5], size=(64, 48))
+    w.ev("render", 0.1, name="budget_after")
+    return w.text()
+
+
 TRACES = {
     "single_stamp.jsonl": single_stamp,
     "shapes_modes.jsonl": shapes_modes,
@@ -369,6 +441,8 @@ TRACES = {
     "scene.jsonl": scene,
     "lit.jsonl": lit,
     "mirror.jsonl": mirror,
+    "layers.jsonl": layers,
+    "layers_budget.jsonl": layers_budget,
 }
 
 # --------------------------------------------------------------- malformed
@@ -378,6 +452,13 @@ SB = '{"ev": "stroke_begin", "t": 0}'
 SE = '{"ev": "stroke_end", "t": 0}'
 SA = '{"ev": "sample", "t": 0, "p": [0.5, 0.5, 0.5]}'
 CAM = '{"ev": "camera", "t": 0, "eye": [0.5, 0.5, 2], "q": [0, 0, 0, 1], "fov": [-0.5, 0.5, 0.4, -0.4], "size": [64, 48]}'
+
+
+H2 = H.replace('"version": 1', '"version": 2')
+
+
+def _layer(**kw):
+    return json.dumps({"ev": "layer", "t": 0, **kw})
 
 
 def _brush(**over):
@@ -404,7 +485,7 @@ MALFORMED = {
     "not_json": ([H, '{"ev": "brush", "t": 0,'], 2, "json"),
     "not_object": ([H, "[1, 2, 3]"], 2, "type"),
     "no_header": ([BR], 1, "header"),
-    "wrong_version": ([H.replace('"version": 1', '"version": 2')], 1, "header"),
+    "wrong_version": ([H.replace('"version": 1', '"version": 1.5')], 1, "header"),
     "max_depth_too_deep": ([_hdr(max_depth=29)], 1, "range"),
     "lattice_overflow": ([_hdr(roots=[32, 1, 1], max_depth=28)], 1, "range"),
     "capacity_below_roots": ([_hdr(roots=[4, 4, 4], capacity=32)], 1, "budget"),
@@ -477,6 +558,33 @@ MALFORMED = {
     "mirror_missing_centre": ([H, '{"ev": "mirror", "t": 0, "axes": [true, false, false]}'], 2, "missing"),
     "mirror_missing_axes": ([H, '{"ev": "mirror", "t": 0, "centre": [0, 0, 0]}'], 2, "missing"),
     "light_dir_overflow": ([H, '{"ev": "light", "t": 0, "dir": [1e200, 1e200, 0]}'], 2, "range"),
+    "version_three": ([H.replace('"version": 1', '"version": 3')], 1, "header"),
+    "layer_in_version_1": ([H, _layer(op="add", name="a")], 2, "event"),
+    "layer_unknown": ([H2, _layer(op="select", layer="nope")], 2, "layer"),
+    "layer_delete_only": ([H2, _layer(op="delete", layer="Layer 1")], 2, "layer"),
+    "layer_paint_locked": ([H2, _layer(op="set", layer="Layer 1", locked=True), BR, SB, SA, SE], 4, "layer"),
+    "layer_name_taken": ([H2, _layer(op="add", name="Layer 1")], 2, "layer"),
+    "layer_name_control": ([H2, _layer(op="add", name="a\u0001b")], 2, "range"),
+    "layer_name_empty": ([H2, _layer(op="add", name="")], 2, "range"),
+    "layer_name_long": ([H2, _layer(op="add", name="x" * 65)], 2, "range"),
+    "layer_name_number": ([H2, _layer(op="add", name=7)], 2, "type"),
+    "layer_op_unknown": ([H2, _layer(op="flip", layer="Layer 1")], 2, "range"),
+    "layer_op_number": ([H2, _layer(op=3)], 2, "type"),
+    "layer_op_missing": ([H2, _layer(layer="Layer 1")], 2, "missing"),
+    "layer_merge_bottom": ([H2, _layer(op="merge_down", layer="Layer 1")], 2, "layer"),
+    "layer_merge_locked": ([H2, _layer(op="add", name="a"), _layer(op="set", layer="Layer 1", locked=True),
+                            _layer(op="merge_down", layer="a")], 4, "layer"),
+    "layer_move_past": ([H2, _layer(op="move", layer="Layer 1", to=1)], 2, "layer"),
+    "layer_move_negative": ([H2, _layer(op="move", layer="Layer 1", to=-1)], 2, "range"),
+    "layer_set_nothing": ([H2, _layer(op="set", layer="Layer 1")], 2, "missing"),
+    "layer_opacity_range": ([H2, _layer(op="set", layer="Layer 1", opacity=2)], 2, "range"),
+    "layer_visible_number": ([H2, _layer(op="set", layer="Layer 1", visible=1)], 2, "type"),
+    "layer_in_stroke": ([H2, BR, SB, _layer(op="add", name="a")], 4, "event-order"),
+    "layer_seventeen": ([H2] + [_layer(op="add", name=f"n{i}") for i in range(16)], 17, "layer"),
+    "layer_after_undo": ([H2, _layer(op="add", name="a"), '{"ev": "undo", "t": 0}', _layer(op="select", layer="a")], 4, "layer"),
+    "layer_redo_rename": ([H2, _layer(op="rename", layer="Layer 1", name="b"), '{"ev": "undo", "t": 0}',
+                           '{"ev": "redo", "t": 0}', _layer(op="select", layer="Layer 1")], 5, "layer"),
+    "layer_undo_select": ([H2, _layer(op="select", layer="Layer 1"), '{"ev": "undo", "t": 0}'], 3, "event-order"),
 }
 
 

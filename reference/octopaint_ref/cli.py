@@ -6,7 +6,7 @@ import argparse
 import sys
 
 from .check import check_arrays
-from .dump import DumpError, load_dump
+from .dump import DumpError, layer_trees, load_dump
 from .trace import TraceError, read_trace
 
 
@@ -38,15 +38,20 @@ def _cmd_check(args) -> int:
             print(f"{e}", file=sys.stderr)
             status = 1
             continue
-        problems = check_arrays(arrays)
+        layers = layer_trees(arrays)
+        problems = []
+        for k, tree in enumerate(layers):
+            prefix = f"layer {k}: " if "layer_count" in arrays else ""
+            problems.extend(prefix + p for p in check_arrays(tree))
         if problems:
             status = 1
             for p in problems:
                 print(f"{path}: {p}")
         else:
-            n = len(arrays["parent"])
-            live = int((arrays["depth"] != 255).sum())
-            print(f"{path}: ok ({n} cells, {live} in use)")
+            n = sum(len(t["parent"]) for t in layers)
+            live = sum(int((t["depth"] != 255).sum()) for t in layers)
+            of = f", {len(layers)} layers" if "layer_count" in arrays else ""
+            print(f"{path}: ok ({n} cells, {live} in use{of})")
     return status
 
 

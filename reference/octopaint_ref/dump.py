@@ -33,6 +33,32 @@ DUMP_ARRAYS = (
 )
 
 
+# The per-layer arrays of a document's dump (spec 14.5), under "k/".
+LAYER_ARRAYS = DUMP_ARRAYS[:7]
+DOCUMENT_ARRAYS = (
+    ("roots", "<u4"),
+    ("max_depth", "<u4"),
+    ("root_size", "<f8"),
+    ("layer_count", "<u4"),
+    ("selected", "<u4"),
+    ("layer_names", "|u1"),
+    ("layer_visible", "|u1"),
+    ("layer_locked", "|u1"),
+    ("layer_opacity", "<f4"),
+)
+
+
+def entries(arrays: dict) -> list:
+    """(name, dtype) of every entry of a dump, in file order: 11.1 for a
+    tree, 14.5 for a document (it holds `layer_count`)."""
+    if "layer_count" not in arrays:
+        return list(DUMP_ARRAYS)
+    out = list(DOCUMENT_ARRAYS)
+    for k in range(int(arrays["layer_count"])):
+        out.extend((f"{k}/{name}", dtype) for name, dtype in LAYER_ARRAYS)
+    return out
+
+
 def tree_arrays(tree) -> dict:
     n = tree.n_used
     parent = tree.parent[:n].copy()
@@ -61,7 +87,7 @@ def npy_bytes(a: np.ndarray) -> bytes:
 def dump_bytes(arrays: dict) -> bytes:
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as z:
-        for name, dtype in DUMP_ARRAYS:
+        for name, dtype in entries(arrays):
             info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = zipfile.ZIP_STORED
             info.external_attr = 0o644 << 16
@@ -98,9 +124,20 @@ def load_dump(path) -> dict:
             arrays = {k: z[k] for k in z.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
         raise DumpError(f"{path}: not a readable .npz dump: {e}") from None
-    for name, dtype in DUMP_ARRAYS:
+    if "layer_count" in arrays and arrays["layer_count"].shape != ():
+        raise DumpError(f"{path}: array 'layer_count' is not a scalar")
+    for name, dtype in entries(arrays):
         if name not in arrays:
             raise DumpError(f"{path}: array {name!r} is missing")
         if arrays[name].dtype != np.dtype(dtype):
             raise DumpError(f"{path}: array {name!r} has dtype {arrays[name].dtype}, expected {np.dtype(dtype)}")
     return arrays
+
+
+def layer_trees(arrays: dict) -> list:
+    """The tree arrays (11.1) of every layer of a dump, bottom first: the
+    dump itself for a tree, one dict per layer for a document (14.5)."""
+    if "layer_count" not in arrays:
+        return [arrays]
+    shared = {k: arrays[k] for k in ("roots", "max_depth", "root_size")}
+    return [{**shared, **{name: arrays[f"{k}/{name}"] for name, _ in LAYER_ARRAYS}} for k in range(int(arrays["layer_count"]))]

@@ -10,9 +10,9 @@ import time
 from dataclasses import dataclass, field, replace
 
 from .dump import dump_bytes, tree_arrays, write_atomic
-from .paint import Painting
+from .layers import Document, document_arrays
 from .png import png_bytes
-from .raycast import OVERFLOW, render
+from .raycast import OVERFLOW, render, render_layers
 from .trace import Trace
 
 
@@ -54,8 +54,8 @@ def replay(
 
     for w in trace.warnings:
         _warn(w)
-    painting = Painting(trace.canvas, warn=_warn)
-    painting.after_segment = after_segment
+    doc = Document(trace.canvas, warn=_warn)
+    doc.layers[0].painting.after_segment = after_segment
     brush = None
     camera = None
     light = None  # unlit until a `light` event (spec 6.1)
@@ -68,23 +68,27 @@ def replay(
         if k == "brush":
             brush = ev.value
         elif k == "stroke_begin":
-            painting.begin_stroke(brush if mirror is None else replace(brush, mirror=mirror), ev.line)
+            doc.begin_stroke(brush if mirror is None else replace(brush, mirror=mirror), ev.line)
             stats.strokes += 1
         elif k == "sample":
-            painting.add_sample(ev.value, ev.line)
+            doc.add_sample(ev.value, ev.line)
             stats.samples += 1
         elif k == "stroke_end":
-            painting.end_stroke()
+            doc.end_stroke()
         elif k == "undo":
-            painting.undo()
+            doc.undo()
         elif k == "redo":
-            painting.redo()
+            doc.redo()
+        elif k == "layer":
+            doc.apply(ev.value, ev.line)
+            doc.current.painting.after_segment = after_segment
         elif k == "snapshot":
             if on_snapshot:
-                on_snapshot(ev.value, painting)
+                on_snapshot(ev.value, doc.current.painting)
             if out_dir is not None:
                 path = os.path.join(out_dir, ev.value + ".npz")
-                write_atomic(path, dump_bytes(tree_arrays(painting.tree)))
+                arrays = document_arrays(doc) if trace.version == 2 else tree_arrays(doc.current.tree)
+                write_atomic(path, dump_bytes(arrays))
                 stats.written.append(path)
         elif k == "camera":
             camera = ev.value
@@ -96,7 +100,7 @@ def replay(
             # Every event before this one has been applied: the tree is the
             # one all pending work leads to.
             r0 = time.perf_counter()
-            image = render(tree_arrays(painting.tree), camera, light=light)
+            image = render_document(doc, camera, light=light)
             stats.render_seconds += time.perf_counter() - r0
             if image.count(OVERFLOW):
                 _warn(f"line {ev.line}: {image.count(OVERFLOW)} ray(s) of render {ev.value!r} reached the step limit")
@@ -107,14 +111,23 @@ def replay(
                 write_atomic(path, png_bytes(image.image))
                 stats.written.append(path)
         if after_event:
-            after_event(ev, painting)
+            after_event(ev, doc.current.painting)
     stats.seconds = time.perf_counter() - t0
-    t = painting.tree
-    stats.cells = t.n_used
-    live = t.depth[: t.n_used]
-    stats.max_depth_reached = int(live[live != 255].max())
-    stats.painting = painting
+    stats.cells = doc.used()
+    stats.max_depth_reached = max(int(t.depth[: t.n_used][t.depth[: t.n_used] != 255].max()) for t in (la.tree for la in doc.layers))
+    stats.painting = doc.current.painting
+    stats.document = doc
     return stats
+
+
+def render_document(doc: Document, camera, light=None):
+    """The image of a document (spec 6.2, 14.6): the single-tree ray caster
+    when one layer contributes at opacity 1, the march through every
+    contributing layer otherwise."""
+    layers = [la for la in doc.layers if la.visible and la.opacity > 0]
+    if len(layers) == 1 and layers[0].opacity == 1.0:
+        return render(tree_arrays(layers[0].tree), camera, light=light)
+    return render_layers([(tree_arrays(la.tree), la.opacity) for la in layers], camera, light=light)
 
 
 def print_stats(stats: ReplayStats, file=sys.stderr) -> None:

@@ -14,6 +14,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
+from .layer_rules import MAX_LAYERS, MODEL_START, OPS, LayerOp, check_op, model_apply, name_problem, to_f32
+
 NAME_RE = re.compile(r"[A-Za-z0-9._-]+")  # used with fullmatch: "$" would admit a final newline
 SHAPES = ("sphere", "cylinder", "box", "cone", "noise")
 MODES = ("paint", "erase", "recolor", "mix", "pickup")
@@ -39,7 +41,7 @@ LIGHT_INTENSITY_MAX = 16.0
 
 # What went wrong, as a short stable code (spec 12.2): both readers must give
 # the same line and kind for a refused trace; the message text is their own.
-KINDS = ("io", "utf8", "json", "header", "type", "missing", "range", "budget", "event", "event-order", "name")
+KINDS = ("io", "utf8", "json", "header", "type", "missing", "range", "budget", "event", "event-order", "name", "layer")
 
 
 class TraceError(ValueError):
@@ -149,6 +151,7 @@ class Trace:
     meta: dict
     events: tuple[Event, ...]
     warnings: tuple[str, ...]
+    version: int = 1
 
 
 def _fail(line: int, fld: str, msg: str, kind: str = "range") -> TraceError:
@@ -351,6 +354,47 @@ def parse_light(line: int, obj: dict) -> Light:
     return Light(True, d, **kw)
 
 
+def _layer_ref(line: int, obj: dict) -> str:
+    v = _require(line, obj, "layer")
+    if not isinstance(v, str):
+        raise _fail(line, "layer", f"expected a layer name, got {json.dumps(v)}", "type")
+    return v
+
+
+def _layer_name(line: int, obj: dict) -> str:
+    v = _require(line, obj, "name")
+    if not isinstance(v, str):
+        raise _fail(line, "name", f"expected a string, got {json.dumps(v)}", "type")
+    why = name_problem(v)
+    if why:
+        raise _fail(line, "name", why)
+    return v
+
+
+def parse_layer(line: int, obj: dict) -> LayerOp:
+    """The `layer` event (spec 14.2): `op`, then its fields in order."""
+    op = _require(line, obj, "op")
+    if not isinstance(op, str):
+        raise _fail(line, "op", f"expected a string, got {json.dumps(op)}", "type")
+    if op not in OPS:
+        raise _fail(line, "op", f"{json.dumps(op)} is not one of {', '.join(OPS)}")
+    if op == "add":
+        return LayerOp(op, name=_layer_name(line, obj))
+    layer = _layer_ref(line, obj)
+    if op in ("rename", "duplicate"):
+        return LayerOp(op, layer=layer, name=_layer_name(line, obj))
+    if op == "move":
+        return LayerOp(op, layer=layer, to=_int(line, "to", _require(line, obj, "to"), 0, MAX_LAYERS - 1))
+    if op == "set":
+        visible = _bool(line, "visible", obj["visible"]) if "visible" in obj else None
+        opacity = to_f32(_ranged(line, "opacity", obj["opacity"], 0.0, 1.0)) if "opacity" in obj else None
+        locked = _bool(line, "locked", obj["locked"]) if "locked" in obj else None
+        if visible is None and opacity is None and locked is None:
+            raise _fail(line, "visible", "set needs visible, opacity or locked", "missing")
+        return LayerOp(op, layer=layer, visible=visible, opacity=opacity, locked=locked)
+    return LayerOp(op, layer=layer)
+
+
 def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> float:
     """An upper bound on the stamps one segment places (spec 8.4), used to
     refuse absurd traces before anything runs: floor(L / (spacing * r_min))
@@ -473,8 +517,12 @@ def parse_trace(text: str) -> Trace:
     stroke_begin_line = 0
     last_sample: Sample | None = None
     last_t = 0.0
-    done: list[int] = []  # undo stack depth model: strokes that can be undone
-    undone = 0
+    # The undo stack as a model (spec 12.2, 14.2): a step is None (a stroke)
+    # or the layers' (names, locks, selection) before and after a layer event.
+    done: list = []
+    undone: list = []
+    layers = MODEL_START
+    version = 1
     names = {"render": set(), "snapshot": set()}
     for lineno, raw in enumerate(lines, start=1):
         if raw.strip() == "":
@@ -495,8 +543,9 @@ def parse_trace(text: str) -> Trace:
             if "version" not in obj:
                 raise _fail(lineno, "version", "missing", "missing")
             version = obj["version"]
-            if isinstance(version, bool) or version != 1:
-                raise _fail(lineno, "version", f"{json.dumps(version)} is not supported (this reader knows version 1)", "header")
+            if isinstance(version, bool) or version not in (1, 2):
+                raise _fail(lineno, "version", f"{json.dumps(version)} is not supported (this reader knows versions 1 and 2)", "header")
+            version = int(version)
             canvas = parse_canvas(lineno, _require(lineno, obj, "canvas"))
             meta = obj.get("meta", {})
             if not isinstance(meta, dict):
@@ -522,6 +571,8 @@ def parse_trace(text: str) -> Trace:
                 raise _fail(lineno, "ev", f"stroke_begin inside the stroke begun on line {stroke_begin_line}", "event-order")
             if brush is None:
                 raise _fail(lineno, "ev", "stroke_begin before any brush event", "event-order")
+            if layers[1][layers[2]]:
+                raise _fail(lineno, "ev", f"the selected layer {layers[0][layers[2]]!r} is locked", "layer")
             in_stroke, stroke_begin_line, last_sample = True, lineno, None
         elif ev == "sample":
             if not in_stroke:
@@ -540,8 +591,8 @@ def parse_trace(text: str) -> Trace:
             if not in_stroke:
                 raise _fail(lineno, "ev", "stroke_end outside a stroke", "event-order")
             in_stroke = False
-            done.append(lineno)
-            undone = 0
+            done.append(None)
+            undone.clear()
         elif ev == "camera":
             value = parse_camera(lineno, obj)
         elif ev == "light":
@@ -563,13 +614,29 @@ def parse_trace(text: str) -> Trace:
             if ev == "undo":
                 if not done:
                     raise _fail(lineno, "ev", "undo with no stroke to undo", "event-order")
-                done.pop()
-                undone += 1
+                step = done.pop()
+                if step is not None:
+                    layers = step[0]
+                undone.append(step)
             else:
-                if undone == 0:
+                if not undone:
                     raise _fail(lineno, "ev", "redo with nothing undone", "event-order")
-                undone -= 1
-                done.append(lineno)
+                step = undone.pop()
+                if step is not None:
+                    layers = step[1]
+                done.append(step)
+        elif ev == "layer" and version == 2:
+            if in_stroke:
+                raise _fail(lineno, "ev", "layer inside a stroke (layers change between strokes)", "event-order")
+            value = parse_layer(lineno, obj)
+            why = check_op(list(layers[0]), list(layers[1]), value)
+            if why:
+                raise TraceError(lineno, "layer", why)
+            after = model_apply(layers, value)
+            if value.op != "select":
+                done.append((layers, after))
+                undone.clear()
+            layers = after
         else:
             raise _fail(lineno, "ev", f"unknown event {json.dumps(ev)}", "event")
         events.append(Event(lineno, t, ev, value))
@@ -578,7 +645,7 @@ def parse_trace(text: str) -> Trace:
     if in_stroke:
         warnings.append(f"line {stroke_begin_line}: the trace ends inside this stroke; it is ended here")
         events.append(Event(len(lines), last_t, "stroke_end", None))
-    return Trace(header[0], header[1], tuple(events), tuple(warnings))
+    return Trace(header[0], header[1], tuple(events), tuple(warnings), version)
 
 
 def read_trace(path) -> Trace:

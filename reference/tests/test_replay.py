@@ -10,7 +10,7 @@ import pytest
 
 from conftest import TRACES
 from octopaint_ref.check import check_arrays
-from octopaint_ref.dump import load_dump
+from octopaint_ref.dump import layer_trees, load_dump
 from octopaint_ref.replay import replay
 from octopaint_ref.trace import read_trace
 
@@ -31,8 +31,9 @@ def test_every_snapshot_is_a_valid_tree(replayed, name):
     dumps = [p for p in stats[name].written if p.endswith(".npz")]
     assert dumps, f"{name} writes no snapshot"
     for path in dumps:
-        problems = check_arrays(load_dump(path))
-        assert not problems, (path, problems)
+        for tree in layer_trees(load_dump(path)):
+            problems = check_arrays(tree)
+            assert not problems, (path, problems)
 
 
 def _arrays(out, name):

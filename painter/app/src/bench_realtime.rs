@@ -382,6 +382,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(hz.is_finite() && hz > 0.0, "--hz {hz}: expected a positive rate");
     }
     let trace = read_trace(&a.trace).map_err(|e| anyhow::anyhow!("{}: {e}", a.trace.display()))?;
+    anyhow::ensure!(trace.version == 1, "{}: a trace of layers (version 2): the real-time pipeline paints one tree", a.trace.display());
     let mut camera = *trace
         .events
         .iter()

@@ -14,7 +14,7 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
         Err(e) => return vec![json!(["error", e.line, e.kind.code()]).to_string()],
     };
     let c = &t.canvas;
-    let mut out = vec![json!(["canvas", c.roots, c.max_depth, c.root_size, c.capacity]).to_string()];
+    let mut out = vec![json!(["canvas", c.roots, c.max_depth, c.root_size, c.capacity, t.version]).to_string()];
     out.extend(t.warnings.iter().map(|w| json!(["warning", w]).to_string()));
     for ev in &t.events {
         let mut row = vec![json!(ev.line), json!(ev.t), json!(ev.kind.ev())];
@@ -42,6 +42,15 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
             EventKind::Light(_) => vec![json!(false)],
             EventKind::Render(n) | EventKind::Snapshot(n) => vec![json!(n)],
             EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => vec![],
+            EventKind::Layer(op) => vec![
+                json!(op.op.code()),
+                json!(op.layer),
+                json!(op.name),
+                json!(op.to),
+                json!(op.visible),
+                json!(op.opacity.map(f64::from)),
+                json!(op.locked),
+            ],
         };
         row.extend(fields);
         out.push(Value::Array(row).to_string());

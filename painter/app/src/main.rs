@@ -21,7 +21,8 @@ use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::CellRecord;
 use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_gpu::{Backend, Precision, Renderer};
-use octopaint_tree::raycast::{RayInput, RayParams};
+use octopaint_tree::layers::Document;
+use octopaint_tree::raycast::{LayerInput, RayInput, RayParams};
 use octopaint_tree::trace::{Camera, Event, Light, read_trace};
 
 #[derive(Parser)]
@@ -269,6 +270,11 @@ struct Reporter<'a> {
     bar: ProgressBar,
     history: Option<(u32, CellRecord)>,
     draw: Draw,
+    /// The trace's version: 2 is a document of layers (spec 14), drawn by
+    /// the CPU port's march through every layer (spec 6.2).
+    version: u32,
+    /// Whether the note that the CPU port draws the layers was printed.
+    noted: bool,
 }
 
 /// Who draws the images and computes the dumps' g3.
@@ -303,9 +309,38 @@ impl ReplayObserver for Reporter<'_> {
         }
     }
 
-    fn render(&mut self, name: &str, camera: &Camera, light: Option<&Light>, painting: &mut Painting, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+    fn render(&mut self, name: &str, camera: &Camera, light: Option<&Light>, doc: &mut Document, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
         let [w, h] = camera.size;
-        let params = RayParams::new(&painting.tree.lat, camera).with_light(light);
+        let params = RayParams::new(&doc.layer(0).tree().lat, camera).with_light(light);
+        if self.version == 2 {
+            // The GPU ray caster draws one tree; a document's march through
+            // its layers runs in the CPU port (f32) for now.
+            if matches!(self.draw, Draw::Nobody) {
+                return Ok(None);
+            }
+            if !self.noted && matches!(self.draw, Draw::Gpu(..)) {
+                self.noted = true;
+                let shown = self.trace.display();
+                self.bar.suspend(|| eprintln!("octopaint: {shown}: a document of layers: its images are drawn by the CPU port (f32)"));
+            }
+            let g3: Vec<Vec<[u32; 3]>> = doc.layers().filter(|l| l.contributes()).map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
+            let layers: Vec<LayerInput> = doc
+                .layers()
+                .filter(|l| l.contributes())
+                .zip(&g3)
+                .map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity })
+                .collect();
+            let rgb = if layers.len() == 1 && layers[0].opacity == 1.0 {
+                octopaint_tree::raycast::render(&layers[0].inp, &params)
+            } else {
+                octopaint_tree::raycast::render_layers(&layers, &params)
+            };
+            let Some(dir) = out_dir else { return Ok(None) };
+            let path = dir.join(format!("{name}.png"));
+            octopaint_gpu::image::write_png(&path, &rgb, w, h)?;
+            return Ok(Some(path));
+        }
+        let painting = &mut doc.current_mut().painting;
         let cpu = |tree: &octopaint_tree::Tree| {
             let g3 = octopaint_tree::g3::g3_table(tree);
             let inp = RayInput::of(tree, &g3);
@@ -381,7 +416,7 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, 
             }
         }
     };
-    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw };
+    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw, version: trace.version, noted: false };
     let result = replay(&trace, Some(out), &mut rep);
     rep.bar.finish_and_clear();
     let (stats, _) = match result {

@@ -216,6 +216,10 @@ impl Session {
             EventKind::Camera(_) => self.has_camera = true,
             EventKind::Mirror(m) => self.mirror = m.active(),
             EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
+            // A document is a version 1 trace, whose reader refuses layer
+            // events; `apply` refuses them too (layers in documents: a
+            // format version still to come, spec 14).
+            EventKind::Layer(_) => {}
         }
         self.last_t = ev.t;
     }
@@ -278,6 +282,7 @@ impl Session {
             EventKind::Mirror(_) => check(parse_mirror(0, &obj).map(drop))?,
             EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
             EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
+            EventKind::Layer(_) => return bad("layer events are not kept in documents of this format (version 1)".into()),
             _ => {}
         }
         let acted = match &ev.kind {

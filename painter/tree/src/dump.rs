@@ -47,7 +47,7 @@ impl Values<'_> {
 
 /// One `.npy` entry: its name (without `.npy`), shape and values.
 pub struct NpyArray<'a> {
-    pub name: &'static str,
+    pub name: &'a str,
     pub shape: Vec<usize>,
     pub values: Values<'a>,
 }
@@ -173,25 +173,39 @@ pub fn dump_bytes(tree: &Tree) -> Vec<u8> {
 pub fn dump_bytes_with(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u8> {
     assert_eq!(g3.len(), tree.n_used() as usize, "one g3 row per cell");
     let origin = origins(tree);
-    write_npz(Cursor::new(Vec::new()), &dump_arrays(tree, g3, &origin)).expect("writing to memory cannot fail").into_inner()
+    let names = TREE_ARRAYS.map(String::from);
+    write_npz(Cursor::new(Vec::new()), &dump_arrays(tree, g3, &origin, &names)).expect("writing to memory cannot fail").into_inner()
+}
+
+/// The names of a tree's per-cell arrays, in the order of spec 11.1 (a
+/// document's dump has them per layer under `k/`, spec 14.5).
+pub const TREE_ARRAYS: [&str; 7] = ["parent", "first_child", "depth", "rgb", "sigma", "g3", "origin"];
+
+/// A tree's per-cell arrays in the order of spec 11.1, named by `names`
+/// (TREE_ARRAYS, or those with a layer's prefix).
+pub fn layer_arrays<'a>(tree: &'a Tree, g3: &'a [[u32; 3]], origin: &'a [[u32; 3]], names: &'a [String]) -> Vec<NpyArray<'a>> {
+    let n = tree.n_used() as usize;
+    vec![
+        NpyArray { name: &names[0], shape: vec![n], values: Values::U32(&tree.parent) },
+        NpyArray { name: &names[1], shape: vec![n], values: Values::U32(&tree.first_child) },
+        NpyArray { name: &names[2], shape: vec![n], values: Values::U8(&tree.depth) },
+        NpyArray { name: &names[3], shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
+        NpyArray { name: &names[4], shape: vec![n], values: Values::F32(&tree.sigma) },
+        NpyArray { name: &names[5], shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(g3)) },
+        NpyArray { name: &names[6], shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(origin)) },
+    ]
 }
 
 /// The arrays of a dump in the order of spec 11.1, borrowing the tree, its
 /// g3 table and its cells' origins.
-fn dump_arrays<'a>(tree: &'a Tree, g3: &'a [[u32; 3]], origin: &'a [[u32; 3]]) -> Vec<NpyArray<'a>> {
-    let n = tree.n_used() as usize;
-    vec![
-        NpyArray { name: "parent", shape: vec![n], values: Values::U32(&tree.parent) },
-        NpyArray { name: "first_child", shape: vec![n], values: Values::U32(&tree.first_child) },
-        NpyArray { name: "depth", shape: vec![n], values: Values::U8(&tree.depth) },
-        NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(bytemuck::cast_slice(&tree.rgb)) },
-        NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&tree.sigma) },
-        NpyArray { name: "g3", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(g3)) },
-        NpyArray { name: "origin", shape: vec![n, 3], values: Values::U32(bytemuck::cast_slice(origin)) },
+fn dump_arrays<'a>(tree: &'a Tree, g3: &'a [[u32; 3]], origin: &'a [[u32; 3]], names: &'a [String]) -> Vec<NpyArray<'a>> {
+    let mut out = layer_arrays(tree, g3, origin, names);
+    out.extend([
         NpyArray { name: "roots", shape: vec![3], values: Values::U32(&tree.lat.roots[..]) },
         NpyArray { name: "max_depth", shape: vec![], values: Values::U32(std::slice::from_ref(&tree.lat.max_depth)) },
         NpyArray { name: "root_size", shape: vec![], values: Values::F64(std::slice::from_ref(&tree.lat.root_size)) },
-    ]
+    ]);
+    out
 }
 
 #[cfg(test)]
@@ -273,8 +287,9 @@ mod tests {
         // Rewrite the dump with one array changed (None: left out).
         let n = tree.n_used() as usize;
         let (origin, g3) = (origins(&tree), g3_table(&tree));
+        let names = TREE_ARRAYS.map(String::from);
         let with = |name: &str, values: Option<Values>, shape: Vec<usize>| {
-            let mut arrays = dump_arrays(&tree, &g3, &origin);
+            let mut arrays = dump_arrays(&tree, &g3, &origin, &names);
             let k = arrays.iter().position(|a| a.name == name).unwrap();
             match values {
                 Some(v) => arrays[k] = NpyArray { name: arrays[k].name, shape, values: v },

@@ -20,6 +20,7 @@
 //! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
 //! | [`clean`] | topology cleaning | clean.py |
 //! | [`history`] | undo and redo | history.py |
+//! | [`layers`] | documents of layers, merge down, document dumps | layers.py, layer_rules.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
 //! | [`trace`] | the event model and the trace reader | trace.py |
 //! | [`trace_write`] | writing traces (recorded sessions) | — |
@@ -35,6 +36,7 @@ pub mod fuzz_harness;
 pub mod g3;
 pub mod history;
 pub mod lattice;
+pub mod layers;
 pub mod noise;
 pub mod paint;
 pub mod pool;

@@ -325,30 +325,106 @@ fn start_walk(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u3
     }
 }
 
+/// Where a walk is: its cell, depth and origin, the point in the cell's
+/// local frame, and whether the cell is composited (spec 7).
+#[derive(Clone, Copy)]
+struct Cursor {
+    cell: u32,
+    depth: u32,
+    origin: [u32; 3],
+    p: [f32; 3],
+    visible: bool,
+}
+
+/// The exit distance from `p` along `d`, the exit axis and the bound per
+/// axis (spec 7 "Step"; ties to the lowest axis).
+fn exit(p: [f32; 3], d: [f32; 3]) -> (f32, usize, [f32; 3]) {
+    let mut t_axes = [60000f32; 3];
+    let mut bound = [-0.5f32; 3];
+    for a in 0..3 {
+        bound[a] = if d[a] > 0.0 { 0.5 } else { -0.5 };
+        if d[a] != 0.0 {
+            t_axes[a] = ((bound[a] - p[a]) / d[a]).max(0.0);
+        }
+    }
+    let mut axis = 0usize;
+    if t_axes[1] < t_axes[axis] {
+        axis = 1;
+    }
+    if t_axes[2] < t_axes[axis] {
+        axis = 2;
+    }
+    (t_axes[axis], axis, bound)
+}
+
+/// The cell after `c` for a ray leaving it after `t` through axis `axis`
+/// (bound `bound`) along `d`, with the point in its frame (spec 7 "Next
+/// cell", one descent at most); None when the ray leaves the canvas or
+/// meets a cell of a depth it cannot enter.
+fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bound: f32, d: [f32; 3]) -> Option<Cursor> {
+    let dd = pr.max_depth;
+    let (rx, ry) = (pr.roots[0], pr.roots[1]);
+    let (cell, depth, origin, p) = (c.cell, c.depth, c.origin, c.p);
+    let mut p_exit = [0, 1, 2].map(|a| p[a] + t * d[a]);
+    p_exit[axis] = bound;
+
+    let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
+    let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
+    let size = 1u32 << (dd - depth);
+    let mut nxt = NONE;
+    if cell < pr.n_roots {
+        let mut r = origin.map(|v| (v >> dd) as i32);
+        r[axis] += sgn;
+        if r.iter().all(|&v| v >= 0) && (0..3).all(|a| (r[a] as u32) < pr.roots[a]) {
+            nxt = r[0] as u32 + rx * (r[1] as u32 + ry * r[2] as u32);
+        }
+    } else if (bits[axis] == 1) == (sgn > 0) {
+        nxt = inp.g3_of(cell, axis);
+    } else {
+        nxt = cell ^ (1 << axis);
+    }
+    if nxt == NONE {
+        return None;
+    }
+    let dn = inp.depth_of(nxt);
+    let coarser = dn + 1 == depth;
+    if dn != depth && !coarser {
+        return None;
+    }
+    let entry = -0.5 * sgn as f32;
+    let mut p_next = p_exit;
+    let mut o_next = origin;
+    if coarser {
+        p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+        o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
+        o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
+    } else {
+        o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
+    }
+    p_next[axis] = entry;
+    let mut out = Cursor { cell: nxt, depth: dn, origin: o_next, p: p_next, visible: consistent(inp, pr, nxt) };
+    let fc = inp.first_child_of(nxt);
+    if out.visible && fc != NONE {
+        let cbits = p_next.map(|v| u32::from(v >= 0.0));
+        let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+        if !pr.skip_invalid || inp.parent_of(child) == nxt {
+            out.p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
+            out.origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
+            out.cell = child;
+            out.depth = dn + 1;
+        }
+    }
+    Some(out)
+}
+
 /// The shader's `walk`: along `d` from `w` until the ray stops,
 /// compositing as it goes; `shadow`: only attenuate.
 fn walk(inp: &RayInput, pr: &RayParams, mut w: Walk, d: [f32; 3], shadow: bool) -> Walk {
     let dd = pr.max_depth;
-    let (rx, ry) = (pr.roots[0], pr.roots[1]);
     let mut steps = 0u32;
     while w.running {
         let (cell, depth, origin, p) = (w.cell, w.depth, w.origin, w.p);
-        let mut t_axes = [60000f32; 3];
-        let mut bound = [-0.5f32; 3];
-        for a in 0..3 {
-            bound[a] = if d[a] > 0.0 { 0.5 } else { -0.5 };
-            if d[a] != 0.0 {
-                t_axes[a] = ((bound[a] - p[a]) / d[a]).max(0.0);
-            }
-        }
-        let mut axis = 0usize;
-        if t_axes[1] < t_axes[axis] {
-            axis = 1;
-        }
-        if t_axes[2] < t_axes[axis] {
-            axis = 2;
-        }
-        let t = t_axes[axis];
+        let (t, axis, bound) = exit(p, d);
 
         if w.visible {
             let edge = ldexp(pr.lattice_unit, (dd - depth) as i32);
@@ -386,78 +462,46 @@ fn walk(inp: &RayInput, pr: &RayParams, mut w: Walk, d: [f32; 3], shadow: bool) 
             }
         }
 
-        let mut p_exit = [0, 1, 2].map(|a| p[a] + t * d[a]);
-        p_exit[axis] = bound[axis];
-
-        let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
-        let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
-        let size = 1u32 << (dd - depth);
-        let mut nxt = NONE;
-        if cell < pr.n_roots {
-            let mut r = origin.map(|v| (v >> dd) as i32);
-            r[axis] += sgn;
-            if r.iter().all(|&v| v >= 0) && (0..3).all(|a| (r[a] as u32) < pr.roots[a]) {
-                nxt = r[0] as u32 + rx * (r[1] as u32 + ry * r[2] as u32);
-            }
-        } else if (bits[axis] == 1) == (sgn > 0) {
-            nxt = inp.g3_of(cell, axis);
-        } else {
-            nxt = cell ^ (1 << axis);
-        }
         steps += 1;
         w.running = false;
-        if w.trans < T_MIN || nxt == NONE {
+        if w.trans < T_MIN {
             break;
         }
-        let dn = inp.depth_of(nxt);
-        let coarser = dn + 1 == depth;
-        if (dn != depth && !coarser) || steps >= pr.max_steps {
+        let here = Cursor { cell, depth, origin, p, visible: w.visible };
+        let Some(next) = next_cell(inp, pr, &here, t, axis, bound[axis], d) else { break };
+        if steps >= pr.max_steps {
             break;
         }
         w.running = true;
-        let entry = -0.5 * sgn as f32;
-        let mut p_next = p_exit;
-        let mut o_next = origin;
-        if coarser {
-            p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
-            o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
-            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
-        } else {
-            o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
-        }
-        p_next[axis] = entry;
-        w.visible = consistent(inp, pr, nxt);
-        w.cell = nxt;
-        w.depth = dn;
-        w.origin = o_next;
-        w.p = p_next;
-        let fc = inp.first_child_of(nxt);
-        if w.visible && fc != NONE {
-            let cbits = p_next.map(|v| u32::from(v >= 0.0));
-            let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
-            if !pr.skip_invalid || inp.parent_of(child) == nxt {
-                w.p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
-                w.origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
-                w.cell = child;
-                w.depth = dn + 1;
-            }
-        }
+        w.cell = next.cell;
+        w.depth = next.depth;
+        w.origin = next.origin;
+        w.p = next.p;
+        w.visible = next.visible;
     }
     w
 }
 
-/// One pixel, as the shader's `main` computes it: 8-bit sRGB.
-pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3] {
-    let pr = params;
+/// A pixel's ray where it starts in the canvas (spec 7 "Start", the
+/// shader's `main` up to the descent): its direction, whether it meets the
+/// canvas, the lattice point and fraction of its start, and its entry axis
+/// (-1 when the eye is inside).
+struct RayStart {
+    dir: [f32; 3],
+    running: bool,
+    q_lat: [u32; 3],
+    q_frac: [f32; 3],
+    entry_axis: i32,
+}
+
+fn ray_start(pr: &RayParams, x: u32, y: u32) -> RayStart {
     let (w, h) = (pr.width, pr.height);
-    let dd = pr.max_depth;
     let [tl, tr, tu, td] = pr.tan_fov;
     let tx = tl + (x as f32 + 0.5) / w as f32 * (tr - tl);
     let ty = tu - (y as f32 + 0.5) / h as f32 * (tu - td);
     let v = pr.rot.map(|row| row[0] * tx + row[1] * ty - row[2]);
     let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let dir = v.map(|c| c / n);
-    let d = dir;
 
     let e = pr.eye_rel;
     let lo = pr.eye_cell.map(|c| -(c as f32));
@@ -504,7 +548,13 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
     for a in 0..3 {
         q_lat[a] = q_lat[a].min(pr.extent_max[a]);
     }
+    RayStart { dir, running, q_lat, q_frac, entry_axis: if inside { -1 } else { entry_axis } }
+}
 
+/// The leaf of `inp` where the ray of `rs` starts, and the point in it.
+fn start_cursor(inp: &RayInput, pr: &RayParams, rs: &RayStart) -> Cursor {
+    let dd = pr.max_depth;
+    let (q_lat, q_frac, dir) = (rs.q_lat, rs.q_frac, rs.dir);
     let (rx, ry) = (pr.roots[0], pr.roots[1]);
     let root = q_lat.map(|v| v >> dd);
     let mut cell = root[0] + rx * (root[1] + ry * root[2]);
@@ -531,12 +581,21 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
         let frac = q_frac[a] * inv;
         (rel + frac) - 0.5
     });
-    if !inside && entry_axis >= 0 {
-        let ax = entry_axis as usize;
+    if rs.entry_axis >= 0 {
+        let ax = rs.entry_axis as usize;
         p[ax] = if dir[ax] > 0.0 { -0.5 } else { 0.5 };
     }
     p = p.map(|v| v.clamp(-0.5, 0.5));
-    let ray = walk(inp, pr, start_walk(inp, pr, cell, depth, origin, p, running), d, false);
+    Cursor { cell, depth, origin, p, visible: consistent(inp, pr, cell) }
+}
+
+/// One pixel, as the shader's `main` computes it: 8-bit sRGB.
+pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3] {
+    let pr = params;
+    let rs = ray_start(pr, x, y);
+    let d = rs.dir;
+    let c = start_cursor(inp, pr, &rs);
+    let ray = walk(inp, pr, start_walk(inp, pr, c.cell, c.depth, c.origin, c.p, rs.running), d, false);
     let mut colour = ray.colour;
     if pr.lit == 1 {
         for i in 0..3 {
@@ -552,11 +611,153 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
             colour[i] += s * ray.direct[i];
         }
     }
-    let back = ground(pr, dir);
+    let back = ground(pr, d);
     for i in 0..3 {
         colour[i] += ray.trans * back[i];
     }
     colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
+}
+
+// ---------------------------------------------------------------- layers
+
+/// One contributing layer of a document (spec 6.2): its pools and opacity.
+pub struct LayerInput<'a> {
+    pub inp: RayInput<'a>,
+    pub opacity: f32,
+}
+
+/// What a march of several layers leaves (spec 6.2).
+struct March {
+    colour: [f32; 3],
+    direct: [f32; 3],
+    trans: f32,
+    found: bool,
+    s_cur: Vec<Cursor>,
+    s_active: Vec<bool>,
+}
+
+/// The march of spec 6.2 along `d` from the cursors `cur` (those `active`
+/// inside the canvas): every step composites the interval up to the
+/// nearest boundary of any layer; `shadow`: only attenuate.
+fn march(layers: &[LayerInput], pr: &RayParams, mut cur: Vec<Cursor>, mut active: Vec<bool>, d: [f32; 3], shadow: bool) -> March {
+    let n = layers.len();
+    let root_size = ldexp(pr.lattice_unit, pr.max_depth as i32);
+    let mut out = March { colour: [0.0; 3], direct: [0.0; 3], trans: 1.0, found: false, s_cur: cur.clone(), s_active: vec![false; n] };
+    let mut exits = vec![(0f32, 0usize, [0f32; 3]); n];
+    let mut u_k = vec![f32::INFINITY; n];
+    let mut sig_k = vec![0f32; n];
+    let mut steps = 0u32;
+    while active.iter().any(|&a| a) {
+        let mut u = f32::INFINITY;
+        let mut sig = 0f32;
+        for k in 0..n {
+            u_k[k] = f32::INFINITY;
+            sig_k[k] = 0.0;
+            if active[k] {
+                exits[k] = exit(cur[k].p, d);
+                u_k[k] = exits[k].0 * ldexp(1.0, -(cur[k].depth as i32));
+                u = u.min(u_k[k]);
+                if cur[k].visible {
+                    sig_k[k] = layers[k].opacity * layers[k].inp.sigma_of(cur[k].cell);
+                }
+            }
+            sig += sig_k[k];
+        }
+        let ext = (-sig * (u * root_size)).exp();
+        if !shadow && sig > 0.0 {
+            let w = out.trans * (1.0 - ext);
+            for k in 0..n {
+                if sig_k[k] == 0.0 {
+                    continue;
+                }
+                let c = &cur[k];
+                let share = sig_k[k] / sig;
+                let rgb = layers[k].inp.rgb.get(c.cell as usize).copied().unwrap_or([0; 3]).map(|v| v as f32 / 255.0);
+                if pr.lit == 0 {
+                    for i in 0..3 {
+                        out.colour[i] += w * share * rgb[i];
+                    }
+                } else {
+                    let f = shade(&layers[k].inp, pr, c.cell, c.depth, c.origin, layers[k].inp.sigma_of(c.cell));
+                    for i in 0..3 {
+                        out.colour[i] += w * share * f[0] * rgb[i];
+                        out.direct[i] += w * share * f[1] * rgb[i];
+                    }
+                }
+            }
+            if pr.lit != 0 && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5 {
+                let per_unit = sig * root_size;
+                let t_half = ((2.0 * out.trans).ln() / per_unit).min(u);
+                out.found = true;
+                for k in 0..n {
+                    let c = cur[k];
+                    let t = t_half * ldexp(1.0, c.depth as i32);
+                    out.s_cur[k] = Cursor { p: [0, 1, 2].map(|a| (c.p[a] + t * d[a]).clamp(-0.5, 0.5)), ..c };
+                    out.s_active[k] = active[k];
+                }
+            }
+        }
+        out.trans *= ext;
+        steps += 1;
+        if out.trans < T_MIN || steps >= pr.max_steps {
+            break;
+        }
+        for k in 0..n {
+            if !active[k] {
+                continue;
+            }
+            let (t, axis, bound) = exits[k];
+            if u_k[k] == u {
+                match next_cell(&layers[k].inp, pr, &cur[k], t, axis, bound[axis], d) {
+                    Some(next) => cur[k] = next,
+                    None => active[k] = false,
+                }
+            } else {
+                let t = u * ldexp(1.0, cur[k].depth as i32);
+                let c = &mut cur[k];
+                c.p = [0, 1, 2].map(|a| (c.p[a] + t * d[a]).clamp(-0.5, 0.5));
+            }
+        }
+    }
+    out
+}
+
+/// One pixel of several layers (spec 6.2), bottom first.
+pub fn trace_pixel_layers(layers: &[LayerInput], params: &RayParams, x: u32, y: u32) -> [u8; 3] {
+    let pr = params;
+    let rs = ray_start(pr, x, y);
+    let d = rs.dir;
+    let cur: Vec<Cursor> = layers.iter().map(|l| start_cursor(&l.inp, pr, &rs)).collect();
+    let ray = march(layers, pr, cur, vec![rs.running; layers.len()], d, false);
+    let mut colour = ray.colour;
+    if pr.lit == 1 {
+        for i in 0..3 {
+            colour[i] += ray.direct[i];
+        }
+    } else if pr.lit == 2 {
+        let l = [pr.light[0], pr.light[1], pr.light[2]];
+        let s = if ray.found { march(layers, pr, ray.s_cur.clone(), ray.s_active.clone(), l, true).trans } else { 1.0 };
+        for i in 0..3 {
+            colour[i] += s * ray.direct[i];
+        }
+    }
+    let back = ground(pr, d);
+    for i in 0..3 {
+        colour[i] += ray.trans * back[i];
+    }
+    colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
+}
+
+/// A whole image of several layers (spec 6.2), row 0 at the top. No layer:
+/// the background (and the grid) alone.
+pub fn render_layers(layers: &[LayerInput], params: &RayParams) -> Vec<u8> {
+    let mut out = Vec::with_capacity((params.width * params.height * 3) as usize);
+    for y in 0..params.height {
+        for x in 0..params.width {
+            out.extend_from_slice(&trace_pixel_layers(layers, params, x, y));
+        }
+    }
+    out
 }
 
 /// A whole image, row 0 at the top: `width·height·3` bytes of sRGB.

@@ -8,6 +8,7 @@ use std::time::Instant;
 use crate::dump::dump_bytes_with;
 use octopaint_platform::durable;
 use crate::g3::g3_table;
+use crate::layers::Document;
 use crate::paint::Painting;
 use crate::pool::FREE;
 use crate::trace::{Brush, Camera, Event, EventKind, Light, Mirror, Trace};
@@ -29,17 +30,19 @@ pub struct ReplayStats {
 pub trait ReplayObserver {
     /// A warning, as soon as it happens.
     fn warning(&mut self, _msg: &str) {}
-    /// After every event, with the painting as that event left it.
+    /// After every event, with the selected layer's painting as that event
+    /// left it.
     fn after_event(&mut self, _ev: &Event, _painting: &Painting) {}
-    /// A `render` event: draw the tree as `camera` sees it, lit by `light`
-    /// (None: unlit, spec 6.1), and write `<name>.png` into `out_dir`
-    /// (nothing when it is None). Returns the path written, or None when
-    /// this observer does not render.
-    fn render(&mut self, _name: &str, _camera: &Camera, _light: Option<&Light>, _painting: &mut Painting, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+    /// A `render` event: draw the document as `camera` sees it, lit by
+    /// `light` (None: unlit, spec 6.1; several layers: spec 6.2), and write
+    /// `<name>.png` into `out_dir` (nothing when it is None). Returns the
+    /// path written, or None when this observer does not render.
+    fn render(&mut self, _name: &str, _camera: &Camera, _light: Option<&Light>, _doc: &mut Document, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
         Ok(None)
     }
-    /// The g3 table a snapshot dumps; None: the CPU port's (g3.rs). The GPU
-    /// replay returns the table it read back from the GPU.
+    /// The g3 table a snapshot of a version 1 trace dumps; None: the CPU
+    /// port's (g3.rs). The GPU replay returns the table it read back from
+    /// the GPU. (A document's dump, spec 14.5, takes the CPU port's.)
     fn dump_g3(&mut self, _painting: &mut Painting) -> std::io::Result<Option<Vec<[u32; 3]>>> {
         Ok(None)
     }
@@ -48,12 +51,19 @@ pub trait ReplayObserver {
 impl ReplayObserver for () {}
 
 /// Replay `trace`, writing `<name>.npz` into `out_dir` at snapshots (nothing
-/// when it is None). Returns the painting as the trace left it.
-pub fn replay(
+/// when it is None). Returns the painting of the selected layer as the trace
+/// left it (the only one of a version 1 trace).
+pub fn replay(trace: &Trace, out_dir: Option<&Path>, obs: &mut dyn ReplayObserver) -> std::io::Result<(ReplayStats, Painting)> {
+    let (stats, doc) = replay_document(trace, out_dir, obs)?;
+    Ok((stats, doc.into_current_painting()))
+}
+
+/// [`replay`], returning the whole document (spec 14).
+pub fn replay_document(
     trace: &Trace,
     out_dir: Option<&Path>,
     obs: &mut dyn ReplayObserver,
-) -> std::io::Result<(ReplayStats, Painting)> {
+) -> std::io::Result<(ReplayStats, Document)> {
     let mut stats = ReplayStats::default();
     for w in &trace.warnings {
         obs.warning(w);
@@ -62,7 +72,7 @@ pub fn replay(
     if let Some(d) = out_dir {
         std::fs::create_dir_all(d)?;
     }
-    let mut painting = Painting::new(&trace.canvas);
+    let mut doc = Document::new(&trace.canvas);
     let mut brush = None;
     let mut camera: Option<Camera> = None;
     let mut light: Option<Light> = None;
@@ -73,34 +83,43 @@ pub fn replay(
             EventKind::Brush(b) => brush = Some(*b),
             EventKind::StrokeBegin => {
                 let b = brush.as_ref().expect("validated: a brush precedes every stroke");
-                painting.begin_stroke(&Brush { mirror, ..*b });
+                doc.begin_stroke(&Brush { mirror, ..*b }, ev.line);
                 stats.strokes += 1;
             }
             EventKind::Sample(s) => {
-                painting.add_sample(s, ev.line);
+                doc.add_sample(s, ev.line);
                 stats.samples += 1;
             }
-            EventKind::StrokeEnd => painting.end_stroke(),
+            EventKind::StrokeEnd => doc.end_stroke(),
             EventKind::Undo => {
-                painting.undo();
+                doc.undo();
             }
             EventKind::Redo => {
-                painting.redo();
+                doc.redo();
+            }
+            EventKind::Layer(op) => {
+                doc.apply(op, ev.line);
             }
             EventKind::Snapshot(name) => {
                 if let Some(d) = out_dir {
-                    let g3 = match obs.dump_g3(&mut painting)? {
-                        Some(g3) => g3,
-                        None => g3_table(&painting.tree),
+                    let bytes = if trace.version == 2 {
+                        doc.dump_bytes()
+                    } else {
+                        let painting = &mut doc.current_mut().painting;
+                        let g3 = match obs.dump_g3(painting)? {
+                            Some(g3) => g3,
+                            None => g3_table(&painting.tree),
+                        };
+                        dump_bytes_with(&painting.tree, &g3)
                     };
                     let path = d.join(format!("{name}.npz"));
-                    durable::write(&path, &dump_bytes_with(&painting.tree, &g3))?;
+                    durable::write(&path, &bytes)?;
                     stats.written.push(path);
                 }
             }
             EventKind::Render(name) => {
                 let cam = camera.as_ref().expect("validated: a camera precedes every render");
-                match obs.render(name, cam, light.as_ref(), &mut painting, out_dir)? {
+                match obs.render(name, cam, light.as_ref(), &mut doc, out_dir)? {
                     Some(path) => stats.written.push(path),
                     None => stats.renders.push(name.clone()),
                 }
@@ -109,15 +128,14 @@ pub fn replay(
             EventKind::Light(l) => light = Some(*l),
             EventKind::Mirror(m) => mirror = m.active(),
         }
-        for w in painting.warnings.drain(..) {
+        for w in doc.take_warnings() {
             obs.warning(&w);
             stats.warnings.push(w);
         }
-        obs.after_event(ev, &painting);
+        obs.after_event(ev, &doc.current().painting);
     }
     stats.seconds = t0.elapsed().as_secs_f64();
-    let t = &painting.tree;
-    stats.cells = t.n_used();
-    stats.deepest = t.depth.iter().filter(|&&d| d != FREE).map(|&d| u32::from(d)).max().unwrap_or(0);
-    Ok((stats, painting))
+    stats.cells = doc.used().min(u64::from(u32::MAX)) as u32;
+    stats.deepest = doc.layers().flat_map(|l| l.tree().depth.iter()).filter(|&&d| d != FREE).map(|&d| u32::from(d)).max().unwrap_or(0);
+    Ok((stats, doc))
 }

@@ -13,11 +13,16 @@ fn line(v: Value) -> String {
     serde_json::to_string(&v).expect("trace values are finite numbers, strings and arrays")
 }
 
-/// The first line of a trace.
+/// The first line of a trace (version 1: one tree).
 pub fn header_line(canvas: &Canvas, meta: &Meta) -> String {
+    header_line_version(canvas, meta, 1)
+}
+
+/// The first line of a trace of `version` (2: a document of layers, spec 14).
+pub fn header_line_version(canvas: &Canvas, meta: &Meta, version: u32) -> String {
     line(json!({
         "format": "ddo-trace",
-        "version": 1,
+        "version": version,
         "canvas": {
             "roots": canvas.roots,
             "max_depth": canvas.max_depth,
@@ -57,6 +62,29 @@ pub fn event_line(ev: &Event) -> String {
         EventKind::Mirror(m) => json!({"axes": m.axes, "centre": m.centre}),
         EventKind::Render(name) | EventKind::Snapshot(name) => json!({"name": name}),
         EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => json!({}),
+        EventKind::Layer(op) => {
+            let mut m = serde_json::Map::new();
+            m.insert("op".into(), json!(op.op.code()));
+            if let Some(l) = &op.layer {
+                m.insert("layer".into(), json!(l));
+            }
+            if let Some(n) = &op.name {
+                m.insert("name".into(), json!(n));
+            }
+            if let Some(to) = op.to {
+                m.insert("to".into(), json!(to));
+            }
+            if let Some(v) = op.visible {
+                m.insert("visible".into(), json!(v));
+            }
+            if let Some(o) = op.opacity {
+                m.insert("opacity".into(), json!(f64::from(o)));
+            }
+            if let Some(k) = op.locked {
+                m.insert("locked".into(), json!(k));
+            }
+            Value::Object(m)
+        }
     };
     let (Value::Object(head), Value::Object(rest)) = (&mut obj, fields) else { unreachable!("objects") };
     head.extend(rest);
@@ -78,13 +106,14 @@ mod tests {
                 continue;
             }
             let trace = crate::read_trace(&path).unwrap();
-            let mut text = header_line(&trace.canvas, &trace.meta);
+            let mut text = header_line_version(&trace.canvas, &trace.meta, trace.version);
             for ev in &trace.events {
                 text.push('\n');
                 text.push_str(&event_line(ev));
             }
             let again = parse_trace(&text).unwrap_or_else(|e| panic!("{}: {e}\n", path.display()));
             assert_eq!(again.canvas, trace.canvas);
+            assert_eq!(again.version, trace.version);
             assert_eq!(again.meta, trace.meta);
             assert_eq!(again.events.len(), trace.events.len());
             for (a, b) in again.events.iter().zip(&trace.events) {

@@ -5,7 +5,7 @@
 use serde_json::Value;
 
 use super::{
-    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, Light, Mirror, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
+    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, LayerOp, LayerOpKind, Light, Mirror, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
     Mode, Sample, Shape, TINY, TraceError,
 };
 
@@ -360,4 +360,57 @@ mod tests {
         assert!(segment_too_long(&b, &Sample::at([1e300, 0.0, 0.0]), &Sample::at([-1e300, 0.0, 0.0])));
         assert!(!segment_too_long(&b, &Sample::at([1.0, 0.0, 0.0]), &Sample::at([1.0, 0.0, 0.0])));
     }
+}
+
+fn layer_ref(line: usize, obj: &Value) -> R<String> {
+    match require(line, obj, "layer", "")? {
+        Value::String(s) => Ok(s.clone()),
+        other => Err(fail(line, "layer", ErrorKind::Type, format!("expected a layer name, got {}", shown(other)))),
+    }
+}
+
+fn layer_name(line: usize, obj: &Value) -> R<String> {
+    match require(line, obj, "name", "")? {
+        Value::String(s) => match crate::layers::name_problem(s) {
+            Some(why) => Err(range(line, "name", why)),
+            None => Ok(s.clone()),
+        },
+        other => Err(fail(line, "name", ErrorKind::Type, format!("expected a string, got {}", shown(other)))),
+    }
+}
+
+/// The `layer` event (spec 14.2): `op`, then its fields in order. The rules
+/// that need the document (names, locks, counts) are crate::layers's.
+pub fn parse_layer(line: usize, obj: &Value) -> R<LayerOp> {
+    let op = require(line, obj, "op", "")?;
+    let Value::String(code) = op else {
+        return Err(fail(line, "op", ErrorKind::Type, format!("expected a string, got {}", shown(op))));
+    };
+    let Some(kind) = LayerOpKind::ALL.into_iter().find(|k| k.code() == code) else {
+        let all: Vec<&str> = LayerOpKind::ALL.iter().map(|k| k.code()).collect();
+        return Err(range(line, "op", format!("{} is not one of {}", shown(op), all.join(", "))));
+    };
+    let mut out = LayerOp::new(kind);
+    if kind == LayerOpKind::Add {
+        out.name = Some(layer_name(line, obj)?);
+        return Ok(out);
+    }
+    out.layer = Some(layer_ref(line, obj)?);
+    match kind {
+        LayerOpKind::Rename | LayerOpKind::Duplicate => out.name = Some(layer_name(line, obj)?),
+        LayerOpKind::Move => {
+            let to = int(line, "to", require(line, obj, "to", "")?, 0, crate::layers::MAX_LAYERS as i64 - 1)?;
+            out.to = Some(to as usize);
+        }
+        LayerOpKind::Set => {
+            out.visible = obj.get("visible").map(|v| boolean(line, "visible", v)).transpose()?;
+            out.opacity = obj.get("opacity").map(|v| ranged(line, "opacity", v, 0.0, 1.0)).transpose()?.map(|x| x as f32);
+            out.locked = obj.get("locked").map(|v| boolean(line, "locked", v)).transpose()?;
+            if out.visible.is_none() && out.opacity.is_none() && out.locked.is_none() {
+                return Err(fail(line, "visible", ErrorKind::Missing, "set needs visible, opacity or locked"));
+            }
+        }
+        _ => {}
+    }
+    Ok(out)
 }

@@ -9,7 +9,7 @@
 mod fields;
 mod read;
 
-pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_light, parse_mirror, parse_sample, segment_too_long};
+pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, segment_too_long};
 pub use read::{MAX_NESTING, io_reason, nesting_depth, parse_trace, parse_trace_bytes, read_trace};
 
 pub const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
@@ -53,10 +53,12 @@ pub enum ErrorKind {
     EventOrder,
     /// A render or snapshot name that is no plain name or is used twice.
     Name,
+    /// A `layer` event or a stroke the document cannot take (spec 14.2).
+    Layer,
 }
 
 impl ErrorKind {
-    pub const ALL: [ErrorKind; 11] = [
+    pub const ALL: [ErrorKind; 12] = [
         ErrorKind::Io,
         ErrorKind::Utf8,
         ErrorKind::Json,
@@ -68,6 +70,7 @@ impl ErrorKind {
         ErrorKind::Event,
         ErrorKind::EventOrder,
         ErrorKind::Name,
+        ErrorKind::Layer,
     ];
 
     /// The code as the spec writes it.
@@ -84,6 +87,7 @@ impl ErrorKind {
             ErrorKind::Event => "event",
             ErrorKind::EventOrder => "event-order",
             ErrorKind::Name => "name",
+            ErrorKind::Layer => "layer",
         }
     }
 
@@ -273,6 +277,65 @@ pub enum EventKind {
     Snapshot(String),
     Undo,
     Redo,
+    Layer(LayerOp),
+}
+
+/// One `layer` event (spec 14.2), as read: the fields its `op` uses.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayerOp {
+    pub op: LayerOpKind,
+    pub layer: Option<String>,
+    pub name: Option<String>,
+    pub to: Option<usize>,
+    pub visible: Option<bool>,
+    /// Rounded to f32 when read (spec 14.1).
+    pub opacity: Option<f32>,
+    pub locked: Option<bool>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayerOpKind {
+    Add,
+    Delete,
+    Select,
+    Rename,
+    Move,
+    Set,
+    Duplicate,
+    MergeDown,
+}
+
+impl LayerOpKind {
+    pub const ALL: [LayerOpKind; 8] = [
+        LayerOpKind::Add,
+        LayerOpKind::Delete,
+        LayerOpKind::Select,
+        LayerOpKind::Rename,
+        LayerOpKind::Move,
+        LayerOpKind::Set,
+        LayerOpKind::Duplicate,
+        LayerOpKind::MergeDown,
+    ];
+
+    /// The `op` string.
+    pub fn code(self) -> &'static str {
+        match self {
+            LayerOpKind::Add => "add",
+            LayerOpKind::Delete => "delete",
+            LayerOpKind::Select => "select",
+            LayerOpKind::Rename => "rename",
+            LayerOpKind::Move => "move",
+            LayerOpKind::Set => "set",
+            LayerOpKind::Duplicate => "duplicate",
+            LayerOpKind::MergeDown => "merge_down",
+        }
+    }
+}
+
+impl LayerOp {
+    pub fn new(op: LayerOpKind) -> Self {
+        LayerOp { op, layer: None, name: None, to: None, visible: None, opacity: None, locked: None }
+    }
 }
 
 impl EventKind {
@@ -290,6 +353,7 @@ impl EventKind {
             EventKind::Snapshot(_) => "snapshot",
             EventKind::Undo => "undo",
             EventKind::Redo => "redo",
+            EventKind::Layer(_) => "layer",
         }
     }
 }
@@ -312,4 +376,6 @@ pub struct Trace {
     pub meta: Meta,
     pub events: Vec<Event>,
     pub warnings: Vec<String>,
+    /// 1, or 2 for a document of layers (spec 14).
+    pub version: u32,
 }

@@ -6,7 +6,8 @@ use std::collections::HashSet;
 
 use serde_json::Value;
 
-use super::fields::{fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
+use super::fields::{fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
+use crate::layers::Model;
 use super::{Brush, ErrorKind, Event, EventKind, Meta, Sample, Trace, TraceError};
 
 /// Deepest bracket nesting a trace line may have; below serde_json's own
@@ -70,21 +71,26 @@ fn is_blank_char(c: char) -> bool {
 }
 
 /// The header line: format, version, canvas, meta.
-fn header(lineno: usize, obj: &Value) -> R<(super::Canvas, Meta)> {
+fn header(lineno: usize, obj: &Value) -> R<(super::Canvas, Meta, u32)> {
     if obj.get("format").and_then(Value::as_str) != Some("ddo-trace") {
         return Err(fail(lineno, "format", ErrorKind::Header, "the first line must be a header with \"format\": \"ddo-trace\""));
     }
-    let version = require(lineno, obj, "version", "")?;
-    if version.as_f64() != Some(1.0) {
-        return Err(fail(lineno, "version", ErrorKind::Header, format!("{} is not supported (this reader knows version 1)", shown(version))));
-    }
+    let v = require(lineno, obj, "version", "")?;
+    let version = match v.as_f64() {
+        Some(x) if x == 1.0 => 1,
+        Some(x) if x == 2.0 => 2,
+        _ => {
+            let msg = format!("{} is not supported (this reader knows versions 1 and 2)", shown(v));
+            return Err(fail(lineno, "version", ErrorKind::Header, msg));
+        }
+    };
     let canvas = parse_canvas(lineno, require(lineno, obj, "canvas", "")?)?;
     let meta = match obj.get("meta") {
         None => Meta::new(),
         Some(Value::Object(m)) => m.clone(),
         Some(_) => return Err(fail(lineno, "meta", ErrorKind::Type, "expected an object")),
     };
-    Ok((canvas, meta))
+    Ok((canvas, meta, version))
 }
 
 /// What the order rules need to know of the events so far.
@@ -95,8 +101,12 @@ struct Order {
     stroke_begin_line: usize,
     last_sample: Option<Sample>,
     last_t: f64,
-    done: usize, // strokes that can be undone
-    undone: usize,
+    /// The undo stack as a model (spec 12.2, 14.2): a step is None (a
+    /// stroke) or the layers before and after a layer event.
+    done: Vec<Option<Box<(Model, Model)>>>,
+    undone: Vec<Option<Box<(Model, Model)>>>,
+    layers: Model,
+    version: u32,
     seen_camera: bool,
     render_names: HashSet<String>,
     snapshot_names: HashSet<String>,
@@ -136,6 +146,10 @@ impl Order {
                 if self.brush.is_none() {
                     return Err(order("stroke_begin before any brush event"));
                 }
+                if self.layers.selected_locked() {
+                    let msg = format!("the selected layer {:?} is locked", self.layers.names[self.layers.selected]);
+                    return Err(fail(lineno, "ev", ErrorKind::Layer, msg));
+                }
                 self.in_stroke = true;
                 self.stroke_begin_line = lineno;
                 self.last_sample = None;
@@ -165,8 +179,8 @@ impl Order {
                     return Err(order("stroke_end outside a stroke"));
                 }
                 self.in_stroke = false;
-                self.done += 1;
-                self.undone = 0;
+                self.done.push(None);
+                self.undone.clear();
                 EventKind::StrokeEnd
             }
             "camera" => {
@@ -200,20 +214,40 @@ impl Order {
                     return Err(order(&format!("{kind} inside a stroke")));
                 }
                 if kind == "undo" {
-                    if self.done == 0 {
+                    let Some(step) = self.done.pop() else {
                         return Err(order("undo with no stroke to undo"));
+                    };
+                    if let Some(b) = &step {
+                        self.layers = b.0.clone();
                     }
-                    self.done -= 1;
-                    self.undone += 1;
+                    self.undone.push(step);
                     EventKind::Undo
                 } else {
-                    if self.undone == 0 {
+                    let Some(step) = self.undone.pop() else {
                         return Err(order("redo with nothing undone"));
+                    };
+                    if let Some(b) = &step {
+                        self.layers = b.1.clone();
                     }
-                    self.undone -= 1;
-                    self.done += 1;
+                    self.done.push(step);
                     EventKind::Redo
                 }
+            }
+            "layer" if self.version == 2 => {
+                if self.in_stroke {
+                    return Err(order("layer inside a stroke (layers change between strokes)"));
+                }
+                let op = parse_layer(lineno, obj)?;
+                if let Some(why) = self.layers.check(&op) {
+                    return Err(TraceError::new(lineno, ErrorKind::Layer, why));
+                }
+                let after = self.layers.apply(&op);
+                if op.op != super::LayerOpKind::Select {
+                    self.done.push(Some(Box::new((self.layers.clone(), after.clone()))));
+                    self.undone.clear();
+                }
+                self.layers = after;
+                EventKind::Layer(op)
             }
             _ => return Err(fail(lineno, "ev", ErrorKind::Event, format!("unknown event {}", shown(ev)))),
         };
@@ -238,12 +272,14 @@ pub fn parse_trace(text: &str) -> R<Trace> {
             return Err(TraceError::new(lineno, ErrorKind::Type, "expected a JSON object"));
         }
         if head.is_none() {
-            head = Some(header(lineno, &obj)?);
+            let h = header(lineno, &obj)?;
+            order.version = h.2;
+            head = Some(h);
         } else {
             events.push(order.event(lineno, &obj)?);
         }
     }
-    let Some((canvas, meta)) = head else {
+    let Some((canvas, meta, version)) = head else {
         return Err(TraceError::new(1, ErrorKind::Header, "format: empty trace (a header line is required)"));
     };
     let mut warnings = Vec::new();
@@ -251,7 +287,7 @@ pub fn parse_trace(text: &str) -> R<Trace> {
         warnings.push(format!("line {}: the trace ends inside this stroke; it is ended here", order.stroke_begin_line));
         events.push(Event { line: n_lines, t: order.last_t, kind: EventKind::StrokeEnd });
     }
-    Ok(Trace { canvas, meta, events, warnings })
+    Ok(Trace { canvas, meta, events, warnings, version })
 }
 
 /// Decode bytes as UTF-8 (naming the line of the first bad byte) and parse.

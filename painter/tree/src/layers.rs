@@ -1,0 +1,610 @@
+//! Layers (spec 14): a document of up to 16 trees under one cell budget, one
+//! history for strokes and layer operations, merge down, and the dump of a
+//! document. The trace reader follows the same operations through a model
+//! of the names, locks and selection ([`check_op`], [`Model`]), so both use
+//! the rules written here once. Reference twin:
+//! reference/octopaint_ref/layers.py (and layer_rules.py).
+
+use std::collections::BTreeMap;
+use std::io::Cursor;
+
+use crate::clean::clean;
+use crate::dump::{NpyArray, TREE_ARRAYS, Values, layer_arrays, write_npz};
+use crate::g3::g3_table;
+use crate::paint::Painting;
+use crate::pool::{FREE, NONE, Tree};
+use crate::trace::{Brush, Canvas, LayerOp, LayerOpKind, Sample};
+
+pub const MAX_LAYERS: usize = 16;
+pub const MAX_NAME_CHARS: usize = 64;
+/// A name's UTF-8 bytes in a dump (64 code points need at most 256).
+pub const NAME_BYTES: usize = 256;
+pub const FIRST_NAME: &str = "Layer 1";
+
+/// Why `name` is not a layer name (spec 14.1), or None.
+pub fn name_problem(name: &str) -> Option<String> {
+    let n = name.chars().count();
+    if !(1..=MAX_NAME_CHARS).contains(&n) {
+        return Some(format!("a layer name has 1 to {MAX_NAME_CHARS} characters, this one {n}"));
+    }
+    name.chars()
+        .find(|&c| c <= '\u{1f}' || ('\u{7f}'..='\u{9f}').contains(&c))
+        .map(|c| format!("a layer name has no control characters (U+{:04X})", c as u32))
+}
+
+/// Why a document with these layer `names` and `locked` flags (bottom
+/// first) cannot take `op`, or None: the rules of spec 14.2 after the
+/// fields were read, in the order written there.
+pub fn check_op(names: &[&str], locked: &[bool], op: &LayerOp) -> Option<String> {
+    let i = match &op.layer {
+        Some(l) => match names.iter().position(|n| n == l) {
+            Some(i) => Some(i),
+            None => return Some(format!("layer: there is no layer named \"{l}\"")),
+        },
+        None => None,
+    };
+    if let Some(name) = &op.name
+        && names.contains(&name.as_str())
+        && !(op.op == LayerOpKind::Rename && i.is_some_and(|i| names[i] == name))
+    {
+        return Some(format!("name: a layer named \"{name}\" exists already"));
+    }
+    match op.op {
+        LayerOpKind::Add | LayerOpKind::Duplicate if names.len() >= MAX_LAYERS => {
+            Some(format!("op: a document holds at most {MAX_LAYERS} layers"))
+        }
+        LayerOpKind::Delete if names.len() == 1 => Some("op: the only layer cannot be deleted".into()),
+        LayerOpKind::Move if op.to.unwrap_or(0) >= names.len() => {
+            Some(format!("to: {} is not a layer position (0 to {})", op.to.unwrap_or(0), names.len() - 1))
+        }
+        LayerOpKind::MergeDown => {
+            let i = i.expect("merge_down names a layer");
+            if i == 0 {
+                Some(format!("op: \"{}\" is the bottom layer: there is nothing below it to merge into", names[i]))
+            } else if locked[i] || locked[i - 1] {
+                Some(format!("op: \"{}\" or the layer below it is locked", names[i]))
+            } else {
+                None
+            }
+        }
+        _ => None,
+    }
+}
+
+/// Where the layers go for `op` (accepted by [`check_op`]) on a document of
+/// `n` layers with `sel` selected and `i` the layer it names: the new order
+/// as old indices (None: a new layer) and the new selection.
+pub fn placed(n: usize, sel: usize, op: &LayerOp, i: Option<usize>) -> (Vec<Option<usize>>, usize) {
+    let mut order: Vec<Option<usize>> = (0..n).map(Some).collect();
+    let i_or = |what: &str| i.unwrap_or_else(|| panic!("{what} names a layer"));
+    match op.op {
+        LayerOpKind::Add => {
+            order.insert(sel + 1, None);
+            (order, sel + 1)
+        }
+        LayerOpKind::Delete => {
+            let i = i_or("delete");
+            order.remove(i);
+            let sel = if sel == i { i.saturating_sub(1) } else if sel > i { sel - 1 } else { sel };
+            (order, sel)
+        }
+        LayerOpKind::Select => (order, i_or("select")),
+        LayerOpKind::Move => {
+            let i = i_or("move");
+            let moved = order.remove(i);
+            order.insert(op.to.expect("move has `to`"), moved);
+            let sel = order.iter().position(|&j| j == Some(sel)).expect("the selected layer stays");
+            (order, sel)
+        }
+        LayerOpKind::Duplicate => {
+            let i = i_or("duplicate");
+            order.insert(i + 1, None);
+            (order, i + 1)
+        }
+        LayerOpKind::MergeDown => {
+            let i = i_or("merge_down");
+            order.remove(i); // the merged layer takes the place of i - 1
+            (order, i - 1)
+        }
+        LayerOpKind::Rename | LayerOpKind::Set => (order, sel),
+    }
+}
+
+/// The trace reader's model of a document (spec 12.2, 14.2): the layers'
+/// names and locks, bottom first, and the selection.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Model {
+    pub names: Vec<String>,
+    pub locked: Vec<bool>,
+    pub selected: usize,
+}
+
+impl Default for Model {
+    fn default() -> Self {
+        Model { names: vec![FIRST_NAME.to_string()], locked: vec![false], selected: 0 }
+    }
+}
+
+impl Model {
+    /// Why the document cannot take `op` now, or None.
+    pub fn check(&self, op: &LayerOp) -> Option<String> {
+        let names: Vec<&str> = self.names.iter().map(String::as_str).collect();
+        check_op(&names, &self.locked, op)
+    }
+
+    /// The model after `op`, which [`Model::check`] accepted.
+    pub fn apply(&self, op: &LayerOp) -> Model {
+        let i = op.layer.as_ref().map(|l| self.names.iter().position(|n| n == l).expect("checked"));
+        let (order, selected) = placed(self.names.len(), self.selected, op, i);
+        let mut names = Vec::with_capacity(order.len());
+        let mut locked = Vec::with_capacity(order.len());
+        for j in &order {
+            match j {
+                None => {
+                    names.push(op.name.clone().expect("add and duplicate name the new layer"));
+                    locked.push(false);
+                }
+                Some(j) => {
+                    names.push(self.names[*j].clone());
+                    locked.push(self.locked[*j]);
+                }
+            }
+        }
+        let i = i.unwrap_or(0);
+        match op.op {
+            LayerOpKind::Rename => names[i] = op.name.clone().expect("rename has a name"),
+            LayerOpKind::Set => {
+                if let Some(l) = op.locked {
+                    locked[i] = l;
+                }
+            }
+            LayerOpKind::MergeDown => locked[i - 1] = false,
+            _ => {}
+        }
+        Model { names, locked, selected }
+    }
+
+    /// Whether the selected layer is locked (a stroke may not begin).
+    pub fn selected_locked(&self) -> bool {
+        self.locked[self.selected]
+    }
+}
+
+/// One layer: its settings and its tree with its own undo steps.
+pub struct Layer {
+    pub name: String,
+    pub visible: bool,
+    /// In [0, 1], the f32 every implementation uses (spec 14.1).
+    pub opacity: f32,
+    pub locked: bool,
+    pub painting: Painting,
+}
+
+impl Layer {
+    fn new(name: &str, painting: Painting) -> Layer {
+        Layer { name: name.to_string(), visible: true, opacity: 1.0, locked: false, painting }
+    }
+
+    pub fn tree(&self) -> &Tree {
+        &self.painting.tree
+    }
+
+    /// Rendering counts it (spec 6.2): visible with an opacity above 0.
+    pub fn contributes(&self) -> bool {
+        self.visible && self.opacity > 0.0
+    }
+}
+
+/// A layer's settings as a layer operation's undo step restores them.
+#[derive(Clone)]
+struct Row {
+    id: u32,
+    name: String,
+    visible: bool,
+    opacity: f32,
+    locked: bool,
+}
+
+#[derive(Clone)]
+struct Settings {
+    rows: Vec<Row>,
+    selected: usize,
+}
+
+enum Step {
+    Stroke(u32),
+    Layers(Box<(Settings, Settings)>),
+}
+
+/// The layers of a version 2 trace and their one history (spec 14). Layers
+/// live in an arena by id so that undo steps can hold on to layers that are
+/// no longer in the list (deleted or merged).
+pub struct Document {
+    canvas: Canvas,
+    arena: BTreeMap<u32, Layer>,
+    order: Vec<u32>,
+    selected: usize,
+    next_id: u32,
+    done: Vec<Step>,
+    undone: Vec<Step>,
+    painting_on: Option<u32>,
+    /// Warnings in the order they happened (the replay prints them).
+    pub warnings: Vec<String>,
+}
+
+impl Document {
+    pub fn new(canvas: &Canvas) -> Document {
+        let mut d = Document {
+            canvas: *canvas,
+            arena: BTreeMap::new(),
+            order: Vec::new(),
+            selected: 0,
+            next_id: 0,
+            done: Vec::new(),
+            undone: Vec::new(),
+            painting_on: None,
+            warnings: Vec::new(),
+        };
+        let id = d.insert(Layer::new(FIRST_NAME, Painting::new(canvas)));
+        d.order.push(id);
+        d
+    }
+
+    fn insert(&mut self, layer: Layer) -> u32 {
+        let id = self.next_id;
+        self.next_id += 1;
+        self.arena.insert(id, layer);
+        id
+    }
+
+    pub fn canvas(&self) -> &Canvas {
+        &self.canvas
+    }
+
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// Layer `k` from the bottom.
+    pub fn layer(&self, k: usize) -> &Layer {
+        &self.arena[&self.order[k]]
+    }
+
+    pub fn layer_mut(&mut self, k: usize) -> &mut Layer {
+        self.arena.get_mut(&self.order[k]).expect("listed layers live in the arena")
+    }
+
+    /// The layers, bottom first.
+    pub fn layers(&self) -> impl Iterator<Item = &Layer> + '_ {
+        self.order.iter().map(|id| &self.arena[id])
+    }
+
+    pub fn selected(&self) -> usize {
+        self.selected
+    }
+
+    pub fn current(&self) -> &Layer {
+        self.layer(self.selected)
+    }
+
+    pub fn current_mut(&mut self) -> &mut Layer {
+        let k = self.selected;
+        self.layer_mut(k)
+    }
+
+    /// Cells in use over all layers (the one budget of spec 14.1).
+    pub fn used(&self) -> u64 {
+        self.layers().map(|l| u64::from(l.tree().n_used())).sum()
+    }
+
+    fn used_but(&self, but: &[u32]) -> u64 {
+        self.order.iter().filter(|id| !but.contains(id)).map(|id| u64::from(self.arena[id].tree().n_used())).sum()
+    }
+
+    /// The painting of the selected layer, taken out of the document.
+    pub fn into_current_painting(mut self) -> Painting {
+        let id = self.order[self.selected];
+        self.arena.remove(&id).expect("listed").painting
+    }
+
+    /// Every warning of the document and its layers' paintings so far.
+    pub fn take_warnings(&mut self) -> Vec<String> {
+        let mut out = std::mem::take(&mut self.warnings);
+        for l in self.arena.values_mut() {
+            out.append(&mut l.painting.warnings);
+        }
+        out
+    }
+
+    // ------------------------------------------------------------ strokes
+
+    /// Begin a stroke on the selected layer; false (with a warning) when it
+    /// is locked: the stroke is skipped (spec 14.2).
+    pub fn begin_stroke(&mut self, brush: &Brush, line: usize) -> bool {
+        if self.current().locked {
+            let msg = format!("line {line}: layer \"{}\" is locked; this stroke is skipped", self.current().name);
+            self.warnings.push(msg);
+            return false;
+        }
+        self.drop_redo();
+        let id = self.order[self.selected];
+        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
+        let layer = self.arena.get_mut(&id).expect("listed");
+        layer.painting.tree.capacity = share as u32;
+        layer.painting.begin_stroke(brush);
+        self.painting_on = Some(id);
+        true
+    }
+
+    pub fn add_sample(&mut self, sample: &Sample, line: usize) {
+        if let Some(id) = self.painting_on {
+            self.arena.get_mut(&id).expect("listed").painting.add_sample(sample, line);
+        }
+    }
+
+    /// The painting of the open stroke, if one is open and not skipped.
+    pub fn stroke_painting(&mut self) -> Option<&mut Painting> {
+        let id = self.painting_on?;
+        Some(&mut self.arena.get_mut(&id).expect("listed").painting)
+    }
+
+    pub fn end_stroke(&mut self) {
+        if let Some(id) = self.painting_on.take() {
+            self.arena.get_mut(&id).expect("listed").painting.end_stroke();
+            self.done.push(Step::Stroke(id));
+        }
+    }
+
+    fn drop_redo(&mut self) {
+        self.undone.clear();
+        for l in self.arena.values_mut() {
+            l.painting.history.undone.clear();
+        }
+        // Layers that no step and no list position refer to any more.
+        let mut keep: Vec<u32> = self.order.clone();
+        for s in &self.done {
+            match s {
+                Step::Stroke(id) => keep.push(*id),
+                Step::Layers(b) => keep.extend(b.0.rows.iter().chain(b.1.rows.iter()).map(|r| r.id)),
+            }
+        }
+        self.arena.retain(|id, _| keep.contains(id));
+    }
+
+    // --------------------------------------------------------------- undo
+
+    fn settings(&self) -> Settings {
+        let rows = self
+            .order
+            .iter()
+            .map(|&id| {
+                let l = &self.arena[&id];
+                Row { id, name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }
+            })
+            .collect();
+        Settings { rows, selected: self.selected }
+    }
+
+    fn restore(&mut self, s: &Settings) {
+        self.order = s.rows.iter().map(|r| r.id).collect();
+        for r in &s.rows {
+            let l = self.arena.get_mut(&r.id).expect("a step's layers stay in the arena");
+            l.name.clone_from(&r.name);
+            l.visible = r.visible;
+            l.opacity = r.opacity;
+            l.locked = r.locked;
+        }
+        self.selected = s.selected;
+    }
+
+    /// Undo the last step (spec 14.3); false when there is none.
+    pub fn undo(&mut self) -> bool {
+        let Some(step) = self.done.pop() else { return false };
+        match &step {
+            Step::Stroke(id) => {
+                self.arena.get_mut(id).expect("listed").painting.undo();
+            }
+            Step::Layers(b) => self.restore(&b.0),
+        }
+        self.undone.push(step);
+        true
+    }
+
+    /// Redo the last undone step; false when there is none.
+    pub fn redo(&mut self) -> bool {
+        let Some(step) = self.undone.pop() else { return false };
+        match &step {
+            Step::Stroke(id) => {
+                self.arena.get_mut(id).expect("listed").painting.redo();
+            }
+            Step::Layers(b) => self.restore(&b.1),
+        }
+        self.done.push(step);
+        true
+    }
+
+    // --------------------------------------------------------- operations
+
+    /// Run one `layer` event; false (with a warning) when the document
+    /// cannot take it now (spec 14.2: refused by the budget, or out of step
+    /// with the reader's model after such a refusal).
+    pub fn apply(&mut self, op: &LayerOp, line: usize) -> bool {
+        let names: Vec<&str> = self.layers().map(|l| l.name.as_str()).collect();
+        let locked: Vec<bool> = self.layers().map(|l| l.locked).collect();
+        if let Some(why) = check_op(&names, &locked, op) {
+            self.warnings.push(format!("line {line}: {why}; it is skipped"));
+            return false;
+        }
+        let i = op.layer.as_ref().map(|l| names.iter().position(|n| n == l).expect("checked"));
+        drop(names);
+        if op.op == LayerOpKind::Select {
+            self.selected = i.expect("select names a layer");
+            return true;
+        }
+        let capacity = u64::from(self.canvas.capacity);
+        let made: Option<Layer> = match op.op {
+            LayerOpKind::Add => {
+                let l = Layer::new(op.name.as_deref().expect("add has a name"), Painting::new(&self.canvas));
+                (u64::from(l.tree().n_used()) <= capacity - self.used()).then_some(l)
+            }
+            LayerOpKind::Duplicate => {
+                let src = self.layer(i.expect("names a layer"));
+                let mut tree = src.tree().clone();
+                tree.capacity = self.canvas.capacity;
+                let mut l = Layer::new(op.name.as_deref().expect("duplicate has a name"), Painting::from_parts(tree, Default::default()));
+                l.visible = src.visible;
+                l.opacity = src.opacity;
+                (u64::from(l.tree().n_used()) <= capacity - self.used()).then_some(l)
+            }
+            LayerOpKind::MergeDown => {
+                let i = i.expect("names a layer");
+                let (lo, up) = (self.order[i - 1], self.order[i]);
+                let limit = capacity - self.used_but(&[lo, up]);
+                let (lower, upper) = (&self.arena[&lo], &self.arena[&up]);
+                merge_trees(lower, upper, limit).map(|mut tree| {
+                    tree.capacity = self.canvas.capacity;
+                    Layer::new(&lower.name, Painting::from_parts(tree, Default::default()))
+                })
+            }
+            _ => None,
+        };
+        let makes = matches!(op.op, LayerOpKind::Add | LayerOpKind::Duplicate | LayerOpKind::MergeDown);
+        if makes && made.is_none() {
+            self.warnings.push(format!("line {line}: the cell budget cannot hold this layer operation; it is skipped"));
+            return false;
+        }
+        self.drop_redo();
+        let before = self.settings();
+        let (order, sel) = placed(self.order.len(), self.selected, op, i);
+        let new_id = made.map(|l| self.insert(l));
+        let old = std::mem::take(&mut self.order);
+        self.order = order.iter().map(|j| j.map_or_else(|| new_id.expect("a new layer"), |j| old[j])).collect();
+        match op.op {
+            LayerOpKind::MergeDown => {
+                let i = i.expect("names a layer");
+                self.order[i - 1] = new_id.expect("merged");
+            }
+            LayerOpKind::Rename => {
+                let l = self.arena.get_mut(&old[i.expect("names a layer")]).expect("listed");
+                l.name = op.name.clone().expect("rename has a name");
+            }
+            LayerOpKind::Set => {
+                let l = self.arena.get_mut(&old[i.expect("names a layer")]).expect("listed");
+                if let Some(v) = op.visible {
+                    l.visible = v;
+                }
+                if let Some(o) = op.opacity {
+                    l.opacity = o;
+                }
+                if let Some(k) = op.locked {
+                    l.locked = k;
+                }
+            }
+            _ => {}
+        }
+        self.selected = sel;
+        let after = self.settings();
+        self.done.push(Step::Layers(Box::new((before, after))));
+        true
+    }
+
+    // --------------------------------------------------------------- dump
+
+    /// The dump of the document (spec 14.5), with the CPU port's g3 tables.
+    pub fn dump_bytes(&self) -> Vec<u8> {
+        let n = self.len();
+        let t0 = self.layer(0).tree();
+        let count = n as u32;
+        let selected = self.selected as u32;
+        let mut names = vec![0u8; n * NAME_BYTES];
+        for (k, l) in self.layers().enumerate() {
+            let b = l.name.as_bytes();
+            names[k * NAME_BYTES..k * NAME_BYTES + b.len()].copy_from_slice(b);
+        }
+        let visible: Vec<u8> = self.layers().map(|l| u8::from(l.visible)).collect();
+        let locked: Vec<u8> = self.layers().map(|l| u8::from(l.locked)).collect();
+        let opacity: Vec<f32> = self.layers().map(|l| l.opacity).collect();
+        let g3: Vec<Vec<[u32; 3]>> = self.layers().map(|l| g3_table(l.tree())).collect();
+        let origins: Vec<Vec<[u32; 3]>> = self.layers().map(|l| crate::dump::origins(l.tree())).collect();
+        let names_k: Vec<Vec<String>> = (0..n).map(|k| TREE_ARRAYS.iter().map(|a| format!("{k}/{a}")).collect()).collect();
+        let mut arrays = vec![
+            NpyArray { name: "roots", shape: vec![3], values: Values::U32(&t0.lat.roots[..]) },
+            NpyArray { name: "max_depth", shape: vec![], values: Values::U32(std::slice::from_ref(&t0.lat.max_depth)) },
+            NpyArray { name: "root_size", shape: vec![], values: Values::F64(std::slice::from_ref(&t0.lat.root_size)) },
+            NpyArray { name: "layer_count", shape: vec![], values: Values::U32(std::slice::from_ref(&count)) },
+            NpyArray { name: "selected", shape: vec![], values: Values::U32(std::slice::from_ref(&selected)) },
+            NpyArray { name: "layer_names", shape: vec![n, NAME_BYTES], values: Values::U8(&names) },
+            NpyArray { name: "layer_visible", shape: vec![n], values: Values::U8(&visible) },
+            NpyArray { name: "layer_locked", shape: vec![n], values: Values::U8(&locked) },
+            NpyArray { name: "layer_opacity", shape: vec![n], values: Values::F32(&opacity) },
+        ];
+        for (k, l) in self.layers().enumerate() {
+            arrays.extend(layer_arrays(l.tree(), &g3[k], &origins[k], &names_k[k]));
+        }
+        write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory cannot fail").into_inner()
+    }
+}
+
+/// The tree of `upper` merged down into `lower` (spec 14.4), or None when it
+/// would need more than `limit` cells.
+pub fn merge_trees(lower: &Layer, upper: &Layer, limit: u64) -> Option<Tree> {
+    let (a, b) = (lower.tree(), upper.tree());
+    let mut m = a.clone();
+    m.capacity = limit.min(u64::from(u32::MAX)) as u32;
+    if u64::from(m.n_used()) > limit {
+        return None;
+    }
+    for d in 0..m.lat.max_depth {
+        let n = m.n_used() as usize;
+        let origins = crate::dump::origins(&m);
+        let mut cand: Vec<u32> = (0..n)
+            .filter(|&c| u32::from(m.depth[c]) == d && m.first_child[c] == NONE)
+            .filter(|&c| {
+                let bc = b.cell_at(origins[c], d) as usize;
+                u32::from(b.depth[bc]) == d && b.first_child[bc] != NONE
+            })
+            .map(|c| c as u32)
+            .collect();
+        if cand.is_empty() {
+            continue;
+        }
+        if cand.len() as u64 > m.available_units() {
+            return None;
+        }
+        let (_, refusal) = m.refine_round(&mut cand);
+        if refusal.is_some() {
+            return None;
+        }
+    }
+    let n = m.n_used() as usize;
+    let origins = crate::dump::origins(&m);
+    let o_a = if lower.visible { f64::from(lower.opacity) } else { 0.0 };
+    let o_b = if upper.visible { f64::from(upper.opacity) } else { 0.0 };
+    let mut leaves = Vec::new();
+    for c in 0..n {
+        if m.depth[c] == FREE || m.first_child[c] != NONE {
+            continue;
+        }
+        let bc = b.cell_at(origins[c], u32::from(m.depth[c])) as usize;
+        let w_a = o_a * f64::from(m.sigma[c]);
+        let w_b = o_b * f64::from(b.sigma[bc]);
+        let w = w_a + w_b;
+        let mut rgb = m.rgb[c];
+        if w > 0.0 {
+            for ch in 0..3 {
+                let v = ((w_a * f64::from(m.rgb[c][ch]) + w_b * f64::from(b.rgb[bc][ch])) / w + 0.5).floor();
+                rgb[ch] = v.clamp(0.0, 255.0) as u8;
+            }
+        }
+        m.set_value(c as u32, rgb, crate::brush::quantize_sigma(w));
+        if m.depth[c] > 0 {
+            leaves.push(c as u32);
+        }
+    }
+    clean(&mut m, leaves);
+    Some(m)
+}
