@@ -93,12 +93,27 @@ fn probe_put3(base: u32, k: u32, v: vec3<u32>) {
     pixels[base + k + 2u] = v.z;
 }
 
+// The first cell of the tree being walked in the pages: 0 for one tree; a
+// document's layers lie one after the other (spec 6.2, `main_layers`),
+// each walked with its own cell indices.
+var<private> layer_base: u32;
+
+// Cell c of the tree being walked; at or past the cells the pages hold
+// (NONE included) a free cell.
+fn tcell(c: u32) -> Cell {
+    if (c >= cells_held - min(layer_base, cells_held)) {
+        return FREE_CELL;
+    }
+    return cell_at(layer_base + c);
+}
+
 fn g3_at(c: u32, a: u32) -> u32 {
-    if (c >= cells_held) {
+    if (c >= cells_held - min(layer_base, cells_held)) {
         return NONE;
     }
-    let j = (c & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
-    switch (c >> PAGE_SHIFT) {
+    let i = layer_base + c;
+    let j = (i & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
+    switch (i >> PAGE_SHIFT) {
         case 0u: { return g3_0[j]; }
         case 1u: { return g3_1[j]; }
         case 2u: { return g3_2[j]; }
@@ -112,8 +127,8 @@ fn consistent(c: u32) -> bool {
     if (c < params.misc.z || params.flags.x == 0u) {
         return true;
     }
-    let par = cell_at(c).parent;
-    return par != NONE && cell_at(par).first_child == (c & 0xFFFFFFF8u);
+    let par = tcell(c).parent;
+    return par != NONE && tcell(par).first_child == (c & 0xFFFFFFF8u);
 }
 
 // base + fl (an integral float) clamped to [0, top], without wrapping.
@@ -190,7 +205,7 @@ fn face(cell: u32, depth: u32, origin: vec3<u32>, a: u32, side: i32) -> vec2<f32
     if (nb == NONE) {
         return vec2<f32>(0.0, 1.0);
     }
-    let n = cell_at(nb);
+    let n = tcell(nb);
     let dn = depth_of(n);
     if (dn == depth) {
         if (n.first_child == NONE) {
@@ -202,7 +217,7 @@ fn face(cell: u32, depth: u32, origin: vec3<u32>, a: u32, side: i32) -> vec2<f32
         for (var j = 0u; j < 4u; j = j + 1u) {
             let lo = j & ((1u << a) - 1u);
             let k = ((j >> a) << (a + 1u)) | (want << a) | lo;
-            kid[j] = cell_at(n.first_child + k).sigma;
+            kid[j] = tcell(n.first_child + k).sigma;
         }
         return vec2<f32>(((kid.x + kid.y) + (kid.z + kid.w)) * 0.25, 0.75);
     }
@@ -265,13 +280,118 @@ fn start_walk(cell: u32, depth: u32, origin: vec3<u32>, p: vec3<real>, status: u
         vec3<real>(real(0.0)), false, NONE, 0u, vec3<u32>(0u), vec3<real>(real(0.0)));
 }
 
+// Where a walk is (spec 7): the cell, its depth and origin, the point in
+// its local frame, whether it is composited, and RUNNING, or LEFT / LOST
+// when a step found no cell to enter.
+struct Cur {
+    cell: u32,
+    depth: u32,
+    origin: vec3<u32>,
+    p: vec3<real>,
+    visible: bool,
+    status: u32,
+}
+
+struct Exit {
+    t: real,
+    axis: u32,
+    bound: real,
+}
+
+// Exit distances, clamped at 0; the smallest, ties to the lowest axis
+// (spec 7 'Step').
+fn exit_of(p: vec3<real>, d: vec3<real>) -> Exit {
+    var t_axes = vec3<real>(real(60000.0));
+    var bound = vec3<real>(real(-0.5));
+    for (var a = 0; a < 3; a = a + 1) {
+        bound[a] = select(real(-0.5), real(0.5), d[a] > real(0.0));
+        if (d[a] != real(0.0)) {
+            t_axes[a] = max((bound[a] - p[a]) / d[a], real(0.0));
+        }
+    }
+    var axis = 0u;
+    if (t_axes.y < t_axes[axis]) {
+        axis = 1u;
+    }
+    if (t_axes.z < t_axes[axis]) {
+        axis = 2u;
+    }
+    return Exit(t_axes[axis], axis, bound[axis]);
+}
+
+// The cell after `c` for a ray leaving it after `t` through `axis` (at
+// `bound`) along d, with the point in its frame (spec 7 'Next cell', one
+// descent at most): a sibling across an inward face, g3 across an outward
+// one, root-array arithmetic for roots. Status LEFT when the ray leaves the
+// canvas, LOST at a cell of a depth it cannot enter (only mid-upload).
+fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
+    let D = params.roots.w;
+    let rx = params.roots.x;
+    let ry = params.roots.y;
+    let cell = c.cell;
+    let depth = c.depth;
+    let origin = c.origin;
+    var p_exit = c.p + t * d;
+    p_exit[axis] = bound;
+    let sgn = select(-1, 1, d[axis] > real(0.0));
+    let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
+    let size = 1u << (D - depth);
+    var nxt = NONE;
+    if (cell < params.misc.z) {
+        var r = vec3<i32>(origin >> vec3<u32>(D));
+        r[axis] = r[axis] + sgn;
+        if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
+            nxt = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+        }
+    } else if ((bits[axis] == 1u) == (sgn > 0)) {
+        nxt = g3_at(cell, axis);
+    } else {
+        nxt = cell ^ (1u << axis);
+    }
+    var out = c;
+    if (nxt == NONE) {
+        out.status = LEFT;
+        return out;
+    }
+    let next = tcell(nxt);
+    let dn = depth_of(next);
+    let coarser = dn + 1u == depth;
+    if (dn != depth && !coarser) {
+        out.status = LOST; // a freed or unbalanced cell: only mid-upload
+        return out;
+    }
+    // Into the next frame: p' = p * scale + shift (spec 7).
+    let entry = real(-0.5) * real(sgn);
+    var p_next = p_exit;
+    var o_next = origin;
+    if (coarser) {
+        p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+        o_next = origin - bits * size;
+        o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
+    } else {
+        o_next[axis] = o_next[axis] + u32(sgn) * size;
+    }
+    p_next[axis] = entry;
+    out = Cur(nxt, dn, o_next, p_next, consistent(nxt), RUNNING);
+    // At most one descent, into the child holding the entry point.
+    if (out.visible && next.first_child != NONE) {
+        let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
+        let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+        if (params.flags.x == 0u || tcell(child).parent == nxt) {
+            out.p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+            out.origin = o_next + cbits * (1u << (D - dn - 1u));
+            out.cell = child;
+            out.depth = dn + 1u;
+        }
+    }
+    return out;
+}
+
 // Walk along d from w0 until the ray stops (spec 7 'Step', 'Next cell'),
 // compositing as it goes (spec 6, 6.1). shadow: only attenuate.
 fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
     var w = w0;
     let D = params.roots.w;
-    let rx = params.roots.x;
-    let ry = params.roots.y;
     loop {
         if (w.status != RUNNING) {
             break;
@@ -280,24 +400,10 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
         let depth = w.depth;
         let origin = w.origin;
         let p = w.p;
-        let here = cell_at(cell);
-        // Exit distances, clamped at 0; the smallest, ties to the lowest axis.
-        var t_axes = vec3<real>(real(60000.0));
-        var bound = vec3<real>(real(-0.5));
-        for (var a = 0; a < 3; a = a + 1) {
-            bound[a] = select(real(-0.5), real(0.5), d[a] > real(0.0));
-            if (d[a] != real(0.0)) {
-                t_axes[a] = max((bound[a] - p[a]) / d[a], real(0.0));
-            }
-        }
-        var axis = 0u;
-        if (t_axes.y < t_axes[axis]) {
-            axis = 1u;
-        }
-        if (t_axes.z < t_axes[axis]) {
-            axis = 2u;
-        }
-        let t = t_axes[axis];
+        let here = tcell(cell);
+        let ex = exit_of(p, d);
+        let axis = ex.axis;
+        let t = ex.t;
 
         // Emission-absorption over the segment (f32; spec 6).
         if (w.visible) {
@@ -333,88 +439,45 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
         }
 
         var p_exit = p + t * d;
-        p_exit[axis] = bound[axis];
+        p_exit[axis] = ex.bound;
         w.last_exit = p_exit;
-
-        // The next cell: sibling across an inward face, g3 across an
-        // outward one, root-array arithmetic for roots.
-        let sgn = select(-1, 1, d[axis] > real(0.0));
-        let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
-        let size = 1u << (D - depth);
-        var nxt = NONE;
-        if (cell < params.misc.z) {
-            var r = vec3<i32>(origin >> vec3<u32>(D));
-            r[axis] = r[axis] + sgn;
-            if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
-                nxt = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
-            }
-        } else if ((bits[axis] == 1u) == (sgn > 0)) {
-            nxt = g3_at(cell, axis);
-        } else {
-            nxt = cell ^ (1u << axis);
-        }
         w.steps = w.steps + 1u;
         if (w.trans < T_MIN) {
             w.status = OPAQUE;
             break;
         }
-        if (nxt == NONE) {
-            w.status = LEFT;
-            break;
-        }
-        let next = cell_at(nxt);
-        let dn = depth_of(next);
-        let coarser = dn + 1u == depth;
-        if (dn != depth && !coarser) {
-            w.status = LOST; // a freed or unbalanced cell: only mid-upload
+        let next = next_cell(Cur(cell, depth, origin, p, w.visible, RUNNING), t, axis, ex.bound, d);
+        if (next.status != RUNNING) {
+            w.status = next.status;
             break;
         }
         if (w.steps >= params.misc.y) {
             w.status = OVERFLOW;
             break;
         }
-        // Into the next frame: p' = p * scale + shift (spec 7).
-        let entry = real(-0.5) * real(sgn);
-        var p_next = p_exit;
-        var o_next = origin;
-        if (coarser) {
-            p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
-            o_next = origin - bits * size;
-            o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
-        } else {
-            o_next[axis] = o_next[axis] + u32(sgn) * size;
-        }
-        p_next[axis] = entry;
-        w.visible = consistent(nxt);
-        // At most one descent, into the child holding the entry point.
-        w.cell = nxt;
-        w.depth = dn;
-        w.origin = o_next;
-        w.p = p_next;
-        if (w.visible && next.first_child != NONE) {
-            let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
-            let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
-            if (params.flags.x == 0u || cell_at(child).parent == nxt) {
-                w.p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
-                w.origin = o_next + cbits * (1u << (D - dn - 1u));
-                w.cell = child;
-                w.depth = dn + 1u;
-            }
-        }
+        w.cell = next.cell;
+        w.depth = next.depth;
+        w.origin = next.origin;
+        w.p = next.p;
+        w.visible = next.visible;
     }
     return w;
 }
 
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    cells_held = params.extent_max.w;
+// A pixel's ray where it starts in the canvas (spec 6, 7 'Start'): its
+// direction, RUNNING or LEFT (it misses the canvas), the lattice point and
+// fraction of its start, and its entry axis (-1 when the eye is inside).
+struct RayStart {
+    dir: vec3<f32>,
+    status: u32,
+    q_lat: vec3<u32>,
+    q_frac: vec3<f32>,
+    entry_axis: i32,
+}
+
+fn ray_start(gid: vec3<u32>) -> RayStart {
     let w = params.eye_cell.w;
     let h = params.misc.x;
-    if (gid.x >= w || gid.y >= h) {
-        return;
-    }
-    let D = params.roots.w;
-
     // The pixel's ray (spec 6).
     let tl = params.tan_fov.x;
     let tr = params.tan_fov.y;
@@ -428,7 +491,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         params.rot2.x * tx + params.rot2.y * ty - params.rot2.z,
     );
     let dir = v / sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
-    let d = vec3<real>(dir);
 
     // Clip to the canvas box (spec 7 'Start'), in lattice units relative
     // to eye_cell: exact bounds, the eye offset rounded once.
@@ -477,50 +539,76 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         q_frac[ax] = 0.0;
     }
     q_lat = min(q_lat, params.extent_max.xyz);
+    return RayStart(dir, status, q_lat, q_frac, select(entry_axis, -1, inside));
+}
 
-    // Locate the leaf containing the start point (spec 1.3), refusing a
-    // descent into a child whose parent does not point back.
+// The leaf of the tree being walked where the ray of `rs` starts (spec
+// 1.3: a descent refusing a child whose parent does not point back), and
+// the local position ((E - o) + phi) / S - 1/2 in it, (E - o) exact.
+fn start_cursor(rs: RayStart) -> Cur {
+    let D = params.roots.w;
     let rx = params.roots.x;
     let ry = params.roots.y;
+    let q_lat = rs.q_lat;
     let root = q_lat >> vec3<u32>(D);
     var cell = root.x + rx * (root.y + ry * root.z);
     var depth = 0u;
     var origin = root << vec3<u32>(D);
     for (var i = 0u; i < D; i = i + 1u) {
-        let fc = cell_at(cell).first_child;
+        let fc = tcell(cell).first_child;
         if (fc == NONE) {
             break;
         }
         let half = 1u << (D - depth - 1u);
         let bits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), q_lat - origin >= vec3<u32>(half)));
         let child = fc + (bits.x | (bits.y << 1u) | (bits.z << 2u));
-        if (params.flags.x != 0u && cell_at(child).parent != cell) {
+        if (params.flags.x != 0u && tcell(child).parent != cell) {
             break;
         }
         cell = child;
         depth = depth + 1u;
         origin = origin + bits * half;
     }
-    // The local position: ((E - o) + phi) / S - 1/2, (E - o) exact.
     let inv = inv_edge(depth);
     let rel = vec3<real>(vec3<f32>(q_lat - origin) * inv);
-    let frac = vec3<real>(vec3<real>(q_frac) * real(inv));
+    let frac = vec3<real>(vec3<real>(rs.q_frac) * real(inv));
     var p = (rel + frac) - real(0.5);
-    if (!inside && entry_axis >= 0) {
-        let ax = u32(entry_axis);
-        p[ax] = select(real(0.5), real(-0.5), dir[ax] > 0.0);
+    if (rs.entry_axis >= 0) {
+        let ax = u32(rs.entry_axis);
+        p[ax] = select(real(0.5), real(-0.5), rs.dir[ax] > 0.0);
     }
     p = clamp(p, vec3<real>(-0.5), vec3<real>(0.5));
+    return Cur(cell, depth, origin, p, consistent(cell), rs.status);
+}
+
+fn write_pixel(gid: vec3<u32>, colour: vec3<f32>) {
+    let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));
+    pixels[gid.y * params.eye_cell.w + gid.x] = px.x | (px.y << 8u) | (px.z << 16u) | (255u << 24u);
+}
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    cells_held = params.extent_max.w;
+    layer_base = 0u;
+    let w = params.eye_cell.w;
+    let h = params.misc.x;
+    if (gid.x >= w || gid.y >= h) {
+        return;
+    }
+    let rs = ray_start(gid);
+    let dir = rs.dir;
+    let d = vec3<real>(dir);
+    let c = start_cursor(rs);
     let probe = params.flags.y != 0u;
     let record = (gid.y * w + gid.x) * PROBE_WORDS;
     if (probe) {
         probe_put3(record, 10u, bitcast<vec3<u32>>(dir));
-        probe_put(record, 13u, depth);
-        probe_put3(record, 14u, origin);
-        probe_put3(record, 17u, bitcast<vec3<u32>>(vec3<f32>(p)));
+        probe_put(record, 13u, c.depth);
+        probe_put3(record, 14u, c.origin);
+        probe_put3(record, 17u, bitcast<vec3<u32>>(vec3<f32>(c.p)));
     }
 
-    let ray = walk(start_walk(cell, depth, origin, p, status), d, false);
+    let ray = walk(start_walk(c.cell, c.depth, c.origin, c.p, rs.status), d, false);
     if (probe) {
         probe_put(record, 0u, ray.status);
         probe_put(record, 1u, ray.steps);
@@ -540,7 +628,152 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let shadow = walk(start, vec3<real>(params.light.xyz), true);
         colour = colour + shadow.trans * ray.direct;
     }
-    colour = colour + ray.trans * ground(dir);
-    let px = vec3<u32>(clamp(floor(colour * 255.0 + 0.5), vec3<f32>(0.0), vec3<f32>(255.0)));
-    pixels[gid.y * w + gid.x] = px.x | (px.y << 8u) | (px.z << 16u) | (255u << 24u);
+    write_pixel(gid, colour + ray.trans * ground(dir));
+}
+
+// ------------------------------------------------------------------ layers
+// A document of several layers (spec 6.2): their pools lie one after the
+// other in the pages; per layer k, `at[k].x` is its first cell and
+// `at[k].y` its opacity (f32 bits); `count.x` the layers. Kept in sync with
+// painter/gpu/src/raycast.rs (LayerTableGpu).
+const MAX_LAYERS: u32 = 16u;
+
+struct LayerTable {
+    count: vec4<u32>,
+    at: array<vec4<u32>, 16>,
+}
+
+@group(2) @binding(2) var<uniform> layer_table: LayerTable;
+
+struct March {
+    colour: vec3<f32>,
+    direct: vec3<f32>,
+    trans: f32,
+    found: bool,
+    s_cur: array<Cur, 16>,
+}
+
+// The march of spec 6.2 along d from the cursors `cur0` (status RUNNING:
+// inside the canvas): every step composites the interval up to the
+// nearest boundary of any layer. shadow: only attenuate. Kept line for line
+// with painter/tree/src/raycast.rs `march`.
+fn march(cur0: array<Cur, 16>, d: vec3<real>, shadow: bool) -> March {
+    let n = layer_table.count.x;
+    var cur = cur0;
+    let root_size = ldexp(params.eye_rel.w, i32(params.roots.w));
+    var out: March;
+    out.colour = vec3<f32>(0.0);
+    out.direct = vec3<f32>(0.0);
+    out.trans = 1.0;
+    out.found = false;
+    out.s_cur = cur0;
+    for (var k = 0u; k < n; k = k + 1u) {
+        out.s_cur[k].status = LEFT;
+    }
+    var ex: array<Exit, 16>;
+    var u_k: array<f32, 16>;
+    var sig_k: array<f32, 16>;
+    var steps = 0u;
+    loop {
+        var running = false;
+        var u = 3.0e38;
+        var sig = 0.0;
+        for (var k = 0u; k < n; k = k + 1u) {
+            u_k[k] = 3.0e38;
+            sig_k[k] = 0.0;
+            if (cur[k].status == RUNNING) {
+                running = true;
+                layer_base = layer_table.at[k].x;
+                ex[k] = exit_of(cur[k].p, d);
+                u_k[k] = f32(ex[k].t) * ldexp(1.0, -i32(cur[k].depth));
+                u = min(u, u_k[k]);
+                if (cur[k].visible) {
+                    sig_k[k] = bitcast<f32>(layer_table.at[k].y) * tcell(cur[k].cell).sigma;
+                }
+            }
+            sig = sig + sig_k[k];
+        }
+        if (!running) {
+            break;
+        }
+        let ext = exp(-sig * (u * root_size));
+        if (!shadow && sig > 0.0) {
+            let w = out.trans * (1.0 - ext);
+            for (var k = 0u; k < n; k = k + 1u) {
+                if (sig_k[k] == 0.0) {
+                    continue;
+                }
+                layer_base = layer_table.at[k].x;
+                let c = cur[k];
+                let here = tcell(c.cell);
+                let share = sig_k[k] / sig;
+                let rgb = vec3<f32>(f32(here.rgbd & 255u), f32((here.rgbd >> 8u) & 255u), f32((here.rgbd >> 16u) & 255u)) / 255.0;
+                if (LIT == 0u) {
+                    out.colour = out.colour + w * share * rgb;
+                } else {
+                    let f = shade(c.cell, c.depth, c.origin, here.sigma);
+                    out.colour = out.colour + w * share * f.x * rgb;
+                    out.direct = out.direct + w * share * f.y * rgb;
+                }
+            }
+            if (LIT != 0u && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5) {
+                let per_unit = sig * root_size;
+                let t_half = min(log(2.0 * out.trans) / per_unit, u);
+                out.found = true;
+                for (var k = 0u; k < n; k = k + 1u) {
+                    let c = cur[k];
+                    let t = real(t_half * ldexp(1.0, i32(c.depth)));
+                    out.s_cur[k] = c;
+                    out.s_cur[k].p = clamp(c.p + t * d, vec3<real>(real(-0.5)), vec3<real>(real(0.5)));
+                }
+            }
+        }
+        out.trans = out.trans * ext;
+        steps = steps + 1u;
+        if (out.trans < T_MIN || steps >= params.misc.y) {
+            break;
+        }
+        for (var k = 0u; k < n; k = k + 1u) {
+            if (cur[k].status != RUNNING) {
+                continue;
+            }
+            layer_base = layer_table.at[k].x;
+            if (u_k[k] == u) {
+                cur[k] = next_cell(cur[k], ex[k].t, ex[k].axis, ex[k].bound, d);
+            } else {
+                let t = real(u * ldexp(1.0, i32(cur[k].depth)));
+                cur[k].p = clamp(cur[k].p + t * d, vec3<real>(real(-0.5)), vec3<real>(real(0.5)));
+            }
+        }
+    }
+    return out;
+}
+
+// One pixel of a document's contributing layers, bottom first (spec 6.2).
+@compute @workgroup_size(8, 8)
+fn main_layers(@builtin(global_invocation_id) gid: vec3<u32>) {
+    cells_held = params.extent_max.w;
+    if (gid.x >= params.eye_cell.w || gid.y >= params.misc.x) {
+        return;
+    }
+    let rs = ray_start(gid);
+    let d = vec3<real>(rs.dir);
+    let n = layer_table.count.x;
+    var cur: array<Cur, 16>;
+    for (var k = 0u; k < n; k = k + 1u) {
+        layer_base = layer_table.at[k].x;
+        cur[k] = start_cursor(rs);
+    }
+    let ray = march(cur, d, false);
+    var colour = ray.colour;
+    if (LIT == 1u) {
+        colour = colour + ray.direct;
+    } else if (LIT == 2u) {
+        var s = 1.0;
+        if (ray.found) {
+            s = march(ray.s_cur, vec3<real>(params.light.xyz), true).trans;
+        }
+        colour = colour + s * ray.direct;
+    }
+    write_pixel(gid, colour + ray.trans * ground(rs.dir));
 }

@@ -347,3 +347,71 @@ def test_refusals_write_nothing(painter, tmp_path):
     # An unwritable folder: exit 1, the reason.
     r = run([painter, "export", trace, "--vdb", str(tmp_path / "missing" / "x.vdb")])
     assert r.returncode == 1 and "cannot write" in r.stderr, r.stderr
+
+
+def test_a_document_exports_one_pair_of_grids_node_and_prim_per_layer(openvdb, painter, tmp_path):
+    """A trace of layers (spec 14): each visible layer becomes the grids
+    `NAME.density` and `NAME.color` (its density scaled by its opacity),
+    equal voxel for voxel to the reference's export of that layer's tree;
+    one glTF node, one OBJ object and one USD Xform (with its Volume and
+    Surface) per layer; --layers picks layers by name."""
+    from pxr import Usd, UsdVol
+
+    from octopaint_ref.dump import dump_bytes, layer_trees, load_dump
+
+    trace = os.path.join(TRACES, "layers.jsonl")
+    r = run([painter, "replay", trace, "--out", str(tmp_path / "replay"), "--renderer", "none", "--quiet"])
+    assert r.returncode == 0, r.stderr
+    doc = load_dump(str(tmp_path / "replay" / "layers.npz"))  # the last snapshot: the final document
+    names = [bytes(row[row != 0]).decode() for row in doc["layer_names"]]
+    shown = [n for n, v, o in zip(names, doc["layer_visible"], doc["layer_opacity"]) if v and o > 0]
+    assert shown == ["ground haze", "Layer 1"]
+    out = {k: tmp_path / f"d.{k}" for k in ("vdb", "glb", "obj", "usda")}
+    r = run([painter, "export", trace, "--vdb", str(out["vdb"]), "--depth", "7", "--gltf", str(out["glb"]), "--obj", str(out["obj"]), "--quiet"])
+    assert r.returncode == 0, r.stderr
+    _, grids = probe(out["vdb"], tmp_path)
+    assert set(grids) == {f"{n}.{g}" for n in shown for g in ("density", "color")}
+    trees = layer_trees(doc)
+    for name in shown:
+        k = names.index(name)
+        single = tmp_path / f"layer{k}.npz"
+        single.write_bytes(dump_bytes(trees[k]))
+        ref = reference_regions(str(single), 7, "linear", tmp_path)
+        opacity = np.float64(doc["layer_opacity"][k])
+        dens = (ref["density"].astype(np.float64) * opacity).astype(np.float32) if opacity != 1.0 else ref["density"]
+        mins, edges, dvals = tiles(ref["origin"], ref["log2_edge"], dens, False, [0, 0, 0])
+        _, _, cvals = tiles(ref["origin"], ref["log2_edge"], ref["color"], False, [0, 0, 0])
+        mins, edges, dvals, cvals = sort_by_corner(mins, edges, dvals, cvals)
+        for g, want in (("density", dvals), ("color", cvals)):
+            got = grids[f"{name}.{g}"]
+            gmin, gedge, gval = sort_by_corner(got["min"], got["max"][:, 0] - got["min"][:, 0] + 1, got["value"])
+            np.testing.assert_array_equal(gmin, mins)
+            np.testing.assert_array_equal(gedge, edges)
+            np.testing.assert_allclose(gval, want, rtol=2.5e-7, atol=0)
+    # glTF: a node and a mesh per layer, named after it; OBJ: an object per layer.
+    data = out["glb"].read_bytes()
+    jlen = int.from_bytes(data[12:16], "little")
+    gl = json.loads(data[20 : 20 + jlen])
+    assert [n["name"] for n in gl["nodes"]] == shown and len(gl["meshes"]) == 2
+    objects = [l[2:] for l in out["obj"].read_text().splitlines() if l.startswith("o ")]
+    assert objects == shown
+    # USD, with --layers choosing one layer (a hidden one may be named).
+    r = run([painter, "export", trace, "--usd", str(out["usda"]), "--usd-mesh", "--layers", "Layer 1,detail copy", "--quiet"])
+    assert r.returncode == 0, r.stderr
+    stage = Usd.Stage.Open(str(out["usda"]))
+    kids = [p.GetName() for p in stage.GetPrimAtPath("/Painting").GetChildren()]
+    assert kids == ["Layer_1", "detail_copy"]
+    for prim, name in (("Layer_1", "Layer 1"), ("detail_copy", "detail copy")):
+        volume = UsdVol.Volume(stage.GetPrimAtPath(f"/Painting/{prim}/Volume"))
+        assert volume and stage.GetPrimAtPath(f"/Painting/{prim}/Surface").IsValid()
+        fields = volume.GetFieldPaths()
+        for field, path in fields.items():
+            asset = UsdVol.OpenVDBAsset(stage.GetPrimAtPath(path))
+            assert asset.GetFieldNameAttr().Get() == f"{name}.{field}"
+    # Names that are not layers, and --layers on a painting, are refused.
+    for extra, what in ((["--layers", "nope"], "no layer named"), (["--layers", "Layer 1,Layer 1"], "twice")):
+        r = run([painter, "export", trace, "--vdb", str(tmp_path / "x.vdb")] + extra)
+        assert r.returncode == 2 and what in r.stderr, r.stderr
+    r = run([painter, "export", os.path.join(TRACES, "single_stamp.jsonl"), "--vdb", str(tmp_path / "x.vdb"), "--layers", "a"])
+    assert r.returncode == 2 and "not a document of layers" in r.stderr, r.stderr
+    assert not (tmp_path / "x.vdb").exists()

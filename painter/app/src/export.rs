@@ -15,7 +15,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use octopaint_export::voxels::{self, VoxelGrid};
 use octopaint_export::{ColourSpace, Crop, ExportError, Placement, SurfaceOptions, default_iso, mesh, surface, usd, vdb};
 use octopaint_tree::paint::Painting;
-use octopaint_tree::replay::{ReplayObserver, replay};
+use octopaint_tree::layers::Document;
+use octopaint_tree::replay::{ReplayObserver, replay_document};
 use octopaint_tree::trace::{EventKind, read_trace};
 
 #[derive(clap::Args)]
@@ -122,6 +123,13 @@ pub struct Args {
     /// stop without writing anything.
     #[arg(long)]
     pub plan: bool,
+    /// For a trace of layers (version 2, spec 14): export these layers,
+    /// by name, comma-separated (default: every visible layer of non-zero
+    /// opacity). Each layer's density is scaled by its opacity, as drawn;
+    /// the VDB holds `NAME.density` and `NAME.color` per layer, glTF and
+    /// OBJ one node or object per layer, USD one Xform per layer.
+    #[arg(long, value_name = "NAME,NAME,...", value_delimiter = ',')]
+    pub layers: Option<Vec<String>>,
     /// Print nothing but warnings and errors.
     #[arg(long)]
     pub quiet: bool,
@@ -300,6 +308,7 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         }
     };
     let is_doc = crate::document::is_document(&args.input);
+    let mut document = None;
     let painting = if is_doc && args.at.is_none() {
         // A document opens as saved, plus what its journal holds.
         let s = octopaint_doc::Session::open(&args.input).map_err(|e| match e {
@@ -343,9 +352,14 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         let b = bar(args.quiet, None, "{spinner} replaying {msg} [{elapsed_precise}]");
         b.set_message(args.input.display().to_string());
         b.enable_steady_tick(std::time::Duration::from_millis(200));
-        let (stats, painting): (_, Painting) =
-            replay(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
+        let (stats, doc) = replay_document(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
         b.finish_and_clear();
+        let painting = if trace.version == 2 {
+            document = Some(doc);
+            Painting::new(&trace.canvas)
+        } else {
+            doc.into_current_painting()
+        };
         say(format!(
             "replayed {}: {} strokes, {} cells, deepest depth {} ({:.1} s)",
             args.input.display(),
@@ -356,7 +370,14 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         ));
         painting
     };
-    let tree = &painting.tree;
+    let parts = match document {
+        None if args.layers.is_some() => {
+            return Err(refuse(format!("--layers: {} is one painting, not a document of layers (a version 2 trace)", args.input.display())));
+        }
+        None => vec![(None, painting.tree)],
+        Some(doc) => chosen_layers(&doc, args.layers.as_deref())?,
+    };
+    let tree = &parts[0].1;
     let colour = match args.colour {
         ColourChoice::Linear => ColourSpace::Linear,
         ColourChoice::Srgb => ColourSpace::Srgb,
@@ -380,78 +401,126 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
             )));
         }
     }
+    let layered = parts[0].0.is_some();
+    // The VDB's cap is shared by the layers' grids, which are all built
+    // before the file is written.
+    let cap_each = (cap / parts.len() as u64).max(1);
     if args.plan {
-        print_plan(tree, placement, crop, cap);
+        for (name, tree) in &parts {
+            if let Some(name) = name {
+                println!("layer {name}:");
+            }
+            print_plan(tree, placement, crop, cap_each);
+        }
         return Ok(());
     }
 
     // Everything that can refuse, before anything is written.
-    let vdb_plan = match &vdb_out {
-        None => None,
-        Some(_) => Some(voxels::plan(tree, args.depth, crop, cap)?),
-    };
     if args.depth.is_some() && vdb_out.is_none() {
         return Err(refuse("--depth is the VDB's voxel depth: it needs --vdb or --usd (the mesh's is --mesh-depth)"));
     }
-    let mesh = if args.gltf.is_some() || args.obj.is_some() || args.usd_mesh {
-        let iso = match args.iso.or_else(|| default_iso(tree)) {
-            Some(iso) => iso,
-            None => return Err(refuse("the painting is empty: there is no surface to mesh")),
-        };
+    let mut vdb_plans = Vec::new();
+    if vdb_out.is_some() {
+        for (name, tree) in &parts {
+            let plan = voxels::plan(tree, args.depth, crop, cap_each).map_err(|e| match name {
+                Some(n) => refuse(format!("layer {n:?}: {e}")),
+                None => Refusal::from(e),
+            })?;
+            vdb_plans.push(plan);
+        }
+    }
+    let mut meshes = Vec::new();
+    if args.gltf.is_some() || args.obj.is_some() || args.usd_mesh {
         let depth_cap = args.mesh_depth.unwrap_or(tree.lat.max_depth);
         if depth_cap > tree.lat.max_depth {
             return Err(ExportError::DepthOutOfRange { depth: depth_cap, deepest: tree.lat.max_depth }.into());
         }
-        let t = Instant::now();
-        let b = bar(args.quiet, None, "{spinner} meshing: {pos} triangles [{elapsed_precise}]");
-        let m = surface(tree, SurfaceOptions { iso, depth_cap, max_triangles: args.max_triangles, crop }, &mut |n| b.set_position(n as u64));
-        b.finish_and_clear();
-        let m = m.ok_or(ExportError::TooManyTriangles { max: args.max_triangles })?;
-        say(format!(
-            "surface at extinction {iso}: {} vertices, {} triangles ({:.1} s)",
-            m.positions.len(),
-            m.triangles.len(),
-            t.elapsed().as_secs_f64()
-        ));
-        if m.triangles.is_empty() {
-            say(format!("warning: no leaf reaches extinction {iso}: the mesh is empty (lower --iso)"));
+        for (name, tree) in &parts {
+            let of = name.as_ref().map(|n| format!("layer {n:?}: ")).unwrap_or_default();
+            let Some(iso) = args.iso.or_else(|| default_iso(tree)) else {
+                if !layered {
+                    return Err(refuse("the painting is empty: there is no surface to mesh"));
+                }
+                say(format!("{of}empty: no surface"));
+                meshes.push(octopaint_export::Mesh::default());
+                continue;
+            };
+            let t = Instant::now();
+            let b = bar(args.quiet, None, "{spinner} meshing: {pos} triangles [{elapsed_precise}]");
+            let m = surface(tree, SurfaceOptions { iso, depth_cap, max_triangles: args.max_triangles, crop }, &mut |n| b.set_position(n as u64));
+            b.finish_and_clear();
+            let m = m.ok_or(ExportError::TooManyTriangles { max: args.max_triangles })?;
+            say(format!(
+                "{of}surface at extinction {iso}: {} vertices, {} triangles ({:.1} s)",
+                m.positions.len(),
+                m.triangles.len(),
+                t.elapsed().as_secs_f64()
+            ));
+            if m.triangles.is_empty() {
+                say(format!("warning: {of}no leaf reaches extinction {iso}: the mesh is empty (lower --iso)"));
+            }
+            meshes.push(m);
         }
-        Some(m)
-    } else {
-        None
-    };
-    let glb = match (&args.gltf, &mesh) {
-        (Some(_), Some(m)) => Some(mesh::glb_bytes(m, placement, &generator())?),
-        _ => None,
+        let triangles: usize = meshes.iter().map(|m| m.triangles.len()).sum();
+        if triangles > args.max_triangles {
+            return Err(ExportError::TooManyTriangles { max: args.max_triangles }.into());
+        }
+        if layered && meshes.iter().all(|m| m.positions.is_empty()) && args.iso.is_none() && parts.iter().all(|(_, t)| default_iso(t).is_none()) {
+            return Err(refuse("every exported layer is empty: there is no surface to mesh"));
+        }
+    }
+    let names: Vec<&str> = parts.iter().map(|(n, _)| n.as_deref().unwrap_or("painting")).collect();
+    let named_meshes: Vec<(&str, &octopaint_export::Mesh)> = names.iter().copied().zip(meshes.iter()).collect();
+    let glb = match &args.gltf {
+        Some(_) => Some(mesh::glb_bytes_named(&named_meshes, placement, &generator())?),
+        None => None,
     };
     for p in &outs {
         check_writable(p)?;
     }
 
-    let mut volume_extent = None;
-    if let (Some(path), Some(plan)) = (&vdb_out, vdb_plan) {
+    let mut volume_extents = vec![None; parts.len()];
+    if let Some(path) = &vdb_out {
         let t = Instant::now();
-        let e = plan.depth();
-        let b = bar(args.quiet, Some(plan.estimate().regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
-        b.set_message(e.to_string());
-        let grid = VoxelGrid::build(tree, &plan, colour, placement, &mut |n| b.set_position(n));
-        b.finish_and_clear();
-        // Voxel i spans [i, i + 1) voxel sizes from the grid's translation.
-        volume_extent = grid.bbox.map(|(lo, hi)| {
-            let at = |i: [i32; 3], k: f64| glam::DVec3::from_array([0, 1, 2].map(|a| (f64::from(i[a]) + k) * grid.voxel_size + grid.translation[a]));
-            [at(lo, 0.0), at(hi, 1.0)]
-        });
+        let mut grids = Vec::with_capacity(parts.len());
+        for ((name, tree), plan) in parts.iter().zip(&vdb_plans) {
+            let e = plan.depth();
+            let b = bar(args.quiet, Some(plan.estimate().regions), "{spinner} voxels at depth {msg}: {wide_bar} {pos}/{len} cells [{elapsed_precise}]");
+            b.set_message(match name {
+                Some(n) => format!("{e} ({n})"),
+                None => e.to_string(),
+            });
+            grids.push(VoxelGrid::build(tree, plan, colour, placement, &mut |n| b.set_position(n)));
+            b.finish_and_clear();
+        }
+        for (k, grid) in grids.iter().enumerate() {
+            // Voxel i spans [i, i + 1) voxel sizes from the grid's translation.
+            volume_extents[k] = grid.bbox.map(|(lo, hi)| {
+                let at = |i: [i32; 3], k: f64| glam::DVec3::from_array([0, 1, 2].map(|a| (f64::from(i[a]) + k) * grid.voxel_size + grid.translation[a]));
+                [at(lo, 0.0), at(hi, 1.0)]
+            });
+        }
         let resample_s = t.elapsed().as_secs_f64();
         let b = bar(args.quiet, None, "{spinner} writing {msg} [{elapsed_precise}]");
         b.set_message(path.display().to_string());
         b.enable_steady_tick(std::time::Duration::from_millis(200));
-        let size = write_with(path, |w| vdb::write_vdb(w, &grid, &generator()))?;
+        let prefixes: Vec<String> = parts.iter().map(|(n, _)| n.as_ref().map(|n| format!("{n}.")).unwrap_or_default()).collect();
+        let named: Vec<(&str, &VoxelGrid)> = prefixes.iter().map(String::as_str).zip(grids.iter()).collect();
+        let size = write_with(path, |w| vdb::write_vdb_named(w, &named, &generator()))?;
         b.finish_and_clear();
+        for ((name, grid), plan) in parts.iter().map(|(n, _)| n).zip(&grids).zip(&vdb_plans) {
+            say(format!(
+                "{}{}: depth {}, voxel {} file units, {} active voxels",
+                path.display(),
+                name.as_ref().map(|n| format!(" ({n})")).unwrap_or_default(),
+                plan.depth(),
+                grid.voxel_size,
+                grid.active_voxels,
+            ));
+        }
         say(format!(
-            "{}: depth {e}, voxel {} file units, {} active voxels, {} ({:.2} s: resampling {:.2} s, writing {:.2} s)",
+            "{}: {} ({:.2} s: resampling {:.2} s, writing {:.2} s)",
             path.display(),
-            grid.voxel_size,
-            grid.active_voxels,
             human(size),
             t.elapsed().as_secs_f64(),
             resample_s,
@@ -462,17 +531,25 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         write_with(path, |w| w.write_all(bytes))?;
         say(format!("{}: {}", path.display(), human(bytes.len() as u64)));
     }
-    if let (Some(path), Some(m)) = (&args.obj, &mesh) {
-        let size = write_with(path, |w| mesh::write_obj(w, m, placement, colour, &generator()))?;
+    if let Some(path) = &args.obj {
+        let size = write_with(path, |w| mesh::write_obj_named(w, &named_meshes, placement, colour, &generator()))?;
         say(format!("{}: {}", path.display(), human(size)));
     }
     if let (Some(path), Some(vdb)) = (&args.usd, &vdb_out) {
         let name = vdb.file_name().and_then(|n| n.to_str()).expect("checked by vdb_path");
-        // An empty painting has no active voxel: the volume is left out
-        // (a Volume needs an extent), the stage still says its units.
+        // An empty painting or layer has no active voxel: its volume is
+        // left out (a Volume needs an extent), the stage still says its units.
         let stage = usd::Stage {
-            volume: volume_extent.map(|e| (name, e)),
-            mesh: if args.usd_mesh { mesh.as_ref() } else { None },
+            vdb: name,
+            parts: parts
+                .iter()
+                .enumerate()
+                .map(|(k, (layer, _))| usd::Part {
+                    layer: layer.as_deref(),
+                    volume: volume_extents[k].map(|e| (layer.as_ref().map(|n| format!("{n}.")).unwrap_or_default(), e)),
+                    mesh: if args.usd_mesh { meshes.get(k) } else { None },
+                })
+                .collect(),
             placement,
             colour,
             metres_per_canvas_unit: 1.0,
@@ -481,6 +558,44 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         say(format!("{}: {} (the volume's grids in {})", path.display(), human(size), vdb.display()));
     }
     Ok(())
+}
+
+/// The layers of `doc` to export: those `names` gives (refused when one is
+/// not a layer), or every visible one of non-zero opacity; each tree with
+/// its sigma scaled by the layer's opacity (spec 14.1: opacity scales
+/// density as drawn).
+fn chosen_layers(doc: &Document, names: Option<&[String]>) -> Result<Vec<(Option<String>, octopaint_tree::Tree)>, Refusal> {
+    let all: Vec<&str> = doc.layers().map(|l| l.name.as_str()).collect();
+    let picked: Vec<&octopaint_tree::layers::Layer> = match names {
+        Some(names) => {
+            let mut out = Vec::new();
+            for n in names {
+                match doc.layers().find(|l| l.name == *n) {
+                    Some(l) if !out.iter().any(|o: &&octopaint_tree::layers::Layer| o.name == l.name) => out.push(l),
+                    Some(_) => return Err(refuse(format!("--layers names {n:?} twice"))),
+                    None => return Err(refuse(format!("--layers: no layer named {n:?} (the document has: {})", all.join(", ")))),
+                }
+            }
+            out
+        }
+        None => doc.layers().filter(|l| l.contributes()).collect(),
+    };
+    if picked.is_empty() {
+        return Err(refuse(format!("no layer to export: none is visible with an opacity above 0 (the document has: {}; --layers picks)", all.join(", "))));
+    }
+    Ok(picked
+        .into_iter()
+        .map(|l| {
+            let mut tree = l.tree().clone();
+            if l.opacity != 1.0 {
+                let o = f64::from(l.opacity);
+                for s in tree.sigma.iter_mut() {
+                    *s = octopaint_tree::brush::quantize_sigma(f64::from(*s) * o);
+                }
+            }
+            (Some(l.name.clone()), tree)
+        })
+        .collect())
 }
 
 /// The table of --plan. Counting stops once a depth is past the cap

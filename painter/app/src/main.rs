@@ -271,10 +271,8 @@ struct Reporter<'a> {
     history: Option<(u32, CellRecord)>,
     draw: Draw,
     /// The trace's version: 2 is a document of layers (spec 14), drawn by
-    /// the CPU port's march through every layer (spec 6.2).
+    /// one march through every contributing layer (spec 6.2).
     version: u32,
-    /// Whether the note that the CPU port draws the layers was printed.
-    noted: bool,
 }
 
 /// Who draws the images and computes the dumps' g3.
@@ -313,27 +311,35 @@ impl ReplayObserver for Reporter<'_> {
         let [w, h] = camera.size;
         let params = RayParams::new(&doc.layer(0).tree().lat, camera).with_light(light);
         if self.version == 2 {
-            // The GPU ray caster draws one tree; a document's march through
-            // its layers runs in the CPU port (f32) for now.
-            if matches!(self.draw, Draw::Nobody) {
-                return Ok(None);
-            }
-            if !self.noted && matches!(self.draw, Draw::Gpu(..)) {
-                self.noted = true;
-                let shown = self.trace.display();
-                self.bar.suspend(|| eprintln!("octopaint: {shown}: a document of layers: its images are drawn by the CPU port (f32)"));
-            }
-            let g3: Vec<Vec<[u32; 3]>> = doc.layers().filter(|l| l.contributes()).map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
-            let layers: Vec<LayerInput> = doc
-                .layers()
-                .filter(|l| l.contributes())
-                .zip(&g3)
-                .map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity })
-                .collect();
-            let rgb = if layers.len() == 1 && layers[0].opacity == 1.0 {
-                octopaint_tree::raycast::render(&layers[0].inp, &params)
-            } else {
-                octopaint_tree::raycast::render_layers(&layers, &params)
+            // A document: one march through its contributing layers (spec
+            // 6.2), on the GPU with every layer's pools in the pages, or in
+            // the CPU port.
+            let contributing: Vec<&octopaint_tree::layers::Layer> = doc.layers().filter(|l| l.contributes()).collect();
+            let cpu_layers = || {
+                let g3: Vec<Vec<[u32; 3]>> = contributing.iter().map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
+                let layers: Vec<LayerInput> =
+                    contributing.iter().zip(&g3).map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity }).collect();
+                if layers.len() == 1 && layers[0].opacity == 1.0 {
+                    octopaint_tree::raycast::render(&layers[0].inp, &params)
+                } else {
+                    octopaint_tree::raycast::render_layers(&layers, &params)
+                }
+            };
+            let rgb = match &mut self.draw {
+                Draw::Nobody => return Ok(None),
+                Draw::Cpu => cpu_layers(),
+                Draw::Gpu(renderer, precision) => {
+                    let trees: Vec<(&octopaint_tree::Tree, f32)> = contributing.iter().map(|l| (l.tree(), l.opacity)).collect();
+                    match renderer.render_layers(&trees, &params, *precision) {
+                        Ok(rgb) => rgb,
+                        // More than one binding of pixels or the pages hold.
+                        Err(e @ (octopaint_gpu::GpuError::TooBig(_) | octopaint_gpu::GpuError::Capacity { .. })) => {
+                            self.bar.suspend(|| eprintln!("octopaint: render {name:?}: {e}; drawn by the CPU port instead"));
+                            cpu_layers()
+                        }
+                        Err(e) => return Err(std::io::Error::other(format!("render {name:?}: {e}"))),
+                    }
+                }
             };
             let Some(dir) = out_dir else { return Ok(None) };
             let path = dir.join(format!("{name}.png"));
@@ -416,7 +422,7 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, 
             }
         }
     };
-    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw, version: trace.version, noted: false };
+    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw, version: trace.version };
     let result = replay(&trace, Some(out), &mut rep);
     rep.bar.finish_and_clear();
     let (stats, _) = match result {

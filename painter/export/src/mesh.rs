@@ -46,33 +46,50 @@ fn pad4(v: &mut Vec<u8>, byte: u8) {
 /// and u32 indices, a rough dielectric material whose base colour is the
 /// vertex colour.
 pub fn glb_bytes(mesh: &Mesh, placement: Placement, generator: &str) -> Result<Vec<u8>, ExportError> {
-    let positions: Vec<DVec3> = mesh.positions.iter().map(|&p| placement.apply(p, false)).collect();
-    let (lo, hi) = bounds(&positions);
-    let centre = (lo + hi) * 0.5;
-    let rel: Vec<[f32; 3]> = positions.iter().map(|&p| (p - centre).as_vec3().to_array()).collect();
-    let normals = vertex_normals(mesh);
-    let colours: Vec<[f32; 3]> = mesh.colours.iter().map(|&c| ColourSpace::Linear.encode(c)).collect();
+    glb_bytes_named(&[("painting", mesh)], placement, generator)
+}
 
-    let nv = rel.len();
-    let ni = mesh.triangles.len() * 3;
-    let bytes = (nv * 36 + ni * 4) as u64 + 4096;
-    if bytes > u64::from(u32::MAX) {
-        return Err(ExportError::FormatLimit { what: "a glTF binary", bytes });
+/// [`glb_bytes`] for several meshes (a document's layers, spec 14): one
+/// node and one mesh per entry, named by it, in order, sharing the buffer
+/// and the material.
+pub fn glb_bytes_named(meshes: &[(&str, &Mesh)], placement: Placement, generator: &str) -> Result<Vec<u8>, ExportError> {
+    struct Part {
+        centre: DVec3,
+        rel: Vec<[f32; 3]>,
+        nv: usize,
+        ni: usize,
+        offset: usize,
     }
-    let mut bin: Vec<u8> = Vec::with_capacity(bytes as usize);
-    for p in &rel {
-        bin.extend_from_slice(bytemuck_f32(p));
+    let mut bin: Vec<u8> = Vec::new();
+    let mut parts = Vec::with_capacity(meshes.len());
+    let total: u64 = meshes.iter().map(|(_, m)| (m.positions.len() * 36 + m.triangles.len() * 12) as u64).sum::<u64>() + 4096;
+    if total > u64::from(u32::MAX) {
+        return Err(ExportError::FormatLimit { what: "a glTF binary", bytes: total });
     }
-    for n in &normals {
-        bin.extend_from_slice(bytemuck_f32(&n.as_vec3().to_array()));
-    }
-    for c in &colours {
-        bin.extend_from_slice(bytemuck_f32(c));
-    }
-    for t in &mesh.triangles {
-        for i in t {
-            bin.extend_from_slice(&i.to_le_bytes());
+    bin.reserve(total as usize);
+    for (_, mesh) in meshes {
+        let positions: Vec<DVec3> = mesh.positions.iter().map(|&p| placement.apply(p, false)).collect();
+        let (lo, hi) = bounds(&positions);
+        let centre = (lo + hi) * 0.5;
+        let rel: Vec<[f32; 3]> = positions.iter().map(|&p| (p - centre).as_vec3().to_array()).collect();
+        let normals = vertex_normals(mesh);
+        let colours: Vec<[f32; 3]> = mesh.colours.iter().map(|&c| ColourSpace::Linear.encode(c)).collect();
+        let offset = bin.len();
+        for p in &rel {
+            bin.extend_from_slice(bytemuck_f32(p));
         }
+        for n in &normals {
+            bin.extend_from_slice(bytemuck_f32(&n.as_vec3().to_array()));
+        }
+        for c in &colours {
+            bin.extend_from_slice(bytemuck_f32(c));
+        }
+        for t in &mesh.triangles {
+            for i in t {
+                bin.extend_from_slice(&i.to_le_bytes());
+            }
+        }
+        parts.push(Part { centre, nv: rel.len(), ni: mesh.triangles.len() * 3, rel, offset });
     }
     pad4(&mut bin, 0);
 
@@ -97,11 +114,6 @@ pub fn glb_bytes(mesh: &Mesh, placement: Placement, generator: &str) -> Result<V
             target: Some(Valid(target)),
         })
     };
-    let vec3 = nv * 12;
-    let v_pos = view(&mut root, 0, vec3, json::buffer::Target::ArrayBuffer);
-    let v_nrm = view(&mut root, vec3, vec3, json::buffer::Target::ArrayBuffer);
-    let v_col = view(&mut root, 2 * vec3, vec3, json::buffer::Target::ArrayBuffer);
-    let v_idx = view(&mut root, 3 * vec3, ni * 4, json::buffer::Target::ElementArrayBuffer);
     let accessor = |root: &mut json::Root,
                     view: json::Index<json::buffer::View>,
                     count: usize,
@@ -124,11 +136,21 @@ pub fn glb_bytes(mesh: &Mesh, placement: Placement, generator: &str) -> Result<V
         })
     };
     use json::accessor::{ComponentType as C, Type as T};
-    let (rlo, rhi) = f32_bounds(&rel);
-    let a_pos = accessor(&mut root, v_pos, nv, C::F32, T::Vec3, Some((rlo, rhi)));
-    let a_nrm = accessor(&mut root, v_nrm, nv, C::F32, T::Vec3, None);
-    let a_col = accessor(&mut root, v_col, nv, C::F32, T::Vec3, None);
-    let a_idx = accessor(&mut root, v_idx, ni, C::U32, T::Scalar, None);
+    let mut attributes = Vec::with_capacity(parts.len());
+    for part in &parts {
+        let (nv, ni, o) = (part.nv, part.ni, part.offset);
+        let vec3 = nv * 12;
+        let v_pos = view(&mut root, o, vec3, json::buffer::Target::ArrayBuffer);
+        let v_nrm = view(&mut root, o + vec3, vec3, json::buffer::Target::ArrayBuffer);
+        let v_col = view(&mut root, o + 2 * vec3, vec3, json::buffer::Target::ArrayBuffer);
+        let v_idx = view(&mut root, o + 3 * vec3, ni * 4, json::buffer::Target::ElementArrayBuffer);
+        let (rlo, rhi) = f32_bounds(&part.rel);
+        let a_pos = accessor(&mut root, v_pos, nv, C::F32, T::Vec3, Some((rlo, rhi)));
+        let a_nrm = accessor(&mut root, v_nrm, nv, C::F32, T::Vec3, None);
+        let a_col = accessor(&mut root, v_col, nv, C::F32, T::Vec3, None);
+        let a_idx = accessor(&mut root, v_idx, ni, C::U32, T::Scalar, None);
+        attributes.push((a_pos, a_nrm, a_col, a_idx));
+    }
     let material = root.push(json::Material {
         name: Some("paint".into()),
         pbr_metallic_roughness: json::material::PbrMetallicRoughness {
@@ -139,37 +161,40 @@ pub fn glb_bytes(mesh: &Mesh, placement: Placement, generator: &str) -> Result<V
         },
         ..Default::default()
     });
-    let primitive = json::mesh::Primitive {
-        attributes: BTreeMap::from([
-            (Valid(json::mesh::Semantic::Positions), a_pos),
-            (Valid(json::mesh::Semantic::Normals), a_nrm),
-            (Valid(json::mesh::Semantic::Colors(0)), a_col),
-        ]),
-        extensions: Default::default(),
-        extras: Default::default(),
-        indices: Some(a_idx),
-        material: Some(material),
-        mode: Valid(json::mesh::Mode::Triangles),
-        targets: None,
-    };
-    let gmesh = root.push(json::Mesh {
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: Some("painting".into()),
-        primitives: vec![primitive],
-        weights: None,
-    });
-    let node = root.push(json::Node {
-        mesh: Some(gmesh),
-        name: Some("painting".into()),
-        translation: Some(centre.as_vec3().to_array()),
-        ..Default::default()
-    });
+    let mut nodes = Vec::with_capacity(parts.len());
+    for ((part, (a_pos, a_nrm, a_col, a_idx)), (name, _)) in parts.iter().zip(attributes).zip(meshes) {
+        let primitive = json::mesh::Primitive {
+            attributes: BTreeMap::from([
+                (Valid(json::mesh::Semantic::Positions), a_pos),
+                (Valid(json::mesh::Semantic::Normals), a_nrm),
+                (Valid(json::mesh::Semantic::Colors(0)), a_col),
+            ]),
+            extensions: Default::default(),
+            extras: Default::default(),
+            indices: Some(a_idx),
+            material: Some(material),
+            mode: Valid(json::mesh::Mode::Triangles),
+            targets: None,
+        };
+        let gmesh = root.push(json::Mesh {
+            extensions: Default::default(),
+            extras: Default::default(),
+            name: Some((*name).to_string()),
+            primitives: vec![primitive],
+            weights: None,
+        });
+        nodes.push(root.push(json::Node {
+            mesh: Some(gmesh),
+            name: Some((*name).to_string()),
+            translation: Some(part.centre.as_vec3().to_array()),
+            ..Default::default()
+        }));
+    }
     let scene = root.push(json::Scene {
         extensions: Default::default(),
         extras: Default::default(),
         name: None,
-        nodes: vec![node],
+        nodes,
     });
     root.scene = Some(scene);
 
@@ -216,32 +241,43 @@ fn f32_bounds(p: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
 /// c//c` faces. Positions in f64 (shortest round-trip decimal), relative
 /// to the canvas origin; colours in `colour`.
 pub fn write_obj(w: &mut dyn Write, mesh: &Mesh, placement: Placement, colour: ColourSpace, generator: &str) -> std::io::Result<()> {
+    write_obj_named(w, &[("painting", mesh)], placement, colour, generator)
+}
+
+/// [`write_obj`] for several meshes (a document's layers): one object
+/// (`o NAME`) per entry, in order, indices running on across them.
+pub fn write_obj_named(w: &mut dyn Write, meshes: &[(&str, &Mesh)], placement: Placement, colour: ColourSpace, generator: &str) -> std::io::Result<()> {
     let mut w = std::io::BufWriter::with_capacity(1 << 20, w);
     writeln!(w, "# {generator}")?;
     writeln!(
         w,
         "# {} vertices, {} triangles; colours {}; {} up",
-        mesh.positions.len(),
-        mesh.triangles.len(),
+        meshes.iter().map(|(_, m)| m.positions.len()).sum::<usize>(),
+        meshes.iter().map(|(_, m)| m.triangles.len()).sum::<usize>(),
         match colour {
             ColourSpace::Linear => "linear",
             ColourSpace::Srgb => "sRGB",
         },
         if placement.z_up { "+z" } else { "+y" }
     )?;
-    writeln!(w, "o painting")?;
-    for (p, c) in mesh.positions.iter().zip(&mesh.colours) {
-        let p = placement.apply(*p, true);
-        let c = colour.encode(*c);
-        writeln!(w, "v {} {} {} {} {} {}", p.x, p.y, p.z, c[0], c[1], c[2])?;
-    }
-    for n in vertex_normals(mesh) {
-        let n = placement.turn(n, true).as_vec3();
-        writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
-    }
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| i + 1);
-        writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+    let mut base = 1u64;
+    for (name, mesh) in meshes {
+        // OBJ names end at the line: a name's line breaks become spaces.
+        writeln!(w, "o {}", name.replace(['\n', '\r'], " "))?;
+        for (p, c) in mesh.positions.iter().zip(&mesh.colours) {
+            let p = placement.apply(*p, true);
+            let c = colour.encode(*c);
+            writeln!(w, "v {} {} {} {} {} {}", p.x, p.y, p.z, c[0], c[1], c[2])?;
+        }
+        for n in vertex_normals(mesh) {
+            let n = placement.turn(n, true).as_vec3();
+            writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
+        }
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| u64::from(i) + base);
+            writeln!(w, "f {a}//{a} {b}//{b} {c}//{c}")?;
+        }
+        base += mesh.positions.len() as u64;
     }
     w.flush()
 }

@@ -303,6 +303,12 @@ fn write_grid<V: GridValue, W: Write + Seek>(w: &mut W, g: &VoxelGrid, name: &st
 /// Write `g` as an OpenVDB file with the grids `density` and `color`.
 /// `creator` goes into the file's metadata.
 pub fn write_vdb<W: Write + Seek>(w: &mut W, g: &VoxelGrid, creator: &str) -> io::Result<()> {
+    write_vdb_named(w, &[("", g)], creator)
+}
+
+/// [`write_vdb`] for several grids (a document's layers, spec 14): the pair
+/// `{prefix}density`, `{prefix}color` for each entry, in order.
+pub fn write_vdb_named<W: Write + Seek>(w: &mut W, grids: &[(&str, &VoxelGrid)], creator: &str) -> io::Result<()> {
     let mut out = Vec::new();
     out.extend_from_slice(&MAGIC.to_le_bytes());
     for v in [FILE_VERSION, LIBRARY_MAJOR, LIBRARY_MINOR] {
@@ -311,9 +317,12 @@ pub fn write_vdb<W: Write + Seek>(w: &mut W, g: &VoxelGrid, creator: &str) -> io
     out.push(1);
     out.extend_from_slice(uuid::Uuid::new_v4().hyphenated().to_string().as_bytes());
     put_metadata(&mut out, &mut [("creator", Meta::Str(creator.into()))]);
-    out.extend_from_slice(&2i32.to_le_bytes());
+    let count = i32::try_from(2 * grids.len()).map_err(|_| io::Error::other("too many grids"))?;
+    out.extend_from_slice(&count.to_le_bytes());
     w.write_all(&out)?;
-    write_grid::<f32, W>(w, g, "density", "fog volume")?;
-    write_grid::<[f32; 3], W>(w, g, "color", "unknown")?;
+    for (prefix, g) in grids {
+        write_grid::<f32, W>(w, g, &format!("{prefix}density"), "fog volume")?;
+        write_grid::<[f32; 3], W>(w, g, &format!("{prefix}color"), "unknown")?;
+    }
     Ok(())
 }

@@ -13,8 +13,8 @@ use octopaint_tree::trace::Camera;
 
 use crate::context::{Backend, Gpu, GpuError};
 use crate::g3::G3Pass;
-use crate::pools::{GpuPools, stage_block};
-use crate::raycast::RayCaster;
+use crate::pools::{GpuPools, stage_block, stage_into};
+use crate::raycast::{LayerTableGpu, RayCaster};
 use crate::shaders::Precision;
 
 /// What one `sync` or frame did.
@@ -142,6 +142,40 @@ impl Renderer {
     pub fn probe(&mut self, tree: &mut Tree, camera: &Camera, precision: Precision) -> Result<Vec<crate::raycast::ProbeRecord>, GpuError> {
         self.sync(tree)?;
         self.ray.probe(&self.gpu, &self.pools, &RayParams::new(&tree.lat, camera), precision)
+    }
+
+    /// The image of a document's contributing layers, bottom first, each a
+    /// tree with its opacity (spec 6.2): their pools one after the other in
+    /// the pages, with the g3 tables of the CPU port (g3.rs), and one march
+    /// through all of them; one layer at opacity 1 is the one-tree image.
+    /// The pages then hold the document, not the tree this renderer
+    /// follows: its next sync uploads that tree whole again.
+    pub fn render_layers(&mut self, layers: &[(&Tree, f32)], params: &RayParams, precision: Precision) -> Result<Vec<u8>, GpuError> {
+        let mut cells = Vec::new();
+        let mut g3 = Vec::new();
+        let mut bases = Vec::with_capacity(layers.len());
+        let mut staged = Vec::new();
+        for (tree, _) in layers {
+            bases.push(u32::try_from(cells.len()).map_err(|_| GpuError::TooBig("a document of more than 2^32 cells".into()))?);
+            stage_into(tree, 0, tree.n_used() as usize, &mut staged);
+            cells.extend_from_slice(&staged);
+            g3.extend(octopaint_tree::g3::g3_table(tree));
+        }
+        self.pools.ensure(&self.gpu, cells.len() as u64)?;
+        self.pools.upload_cells(&self.gpu, 0, &cells);
+        self.pools.upload_g3(&self.gpu, 0, &g3);
+        self.attached = false;
+        self.pending_blocks.clear();
+        self.pending_mask = NeighbourMask::default();
+        let opacity: Vec<f32> = layers.iter().map(|(_, o)| *o).collect();
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast layers") });
+        if layers.len() == 1 && opacity[0] == 1.0 {
+            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
+        } else {
+            self.ray.encode_layers(&self.gpu, &self.pools, &mut enc, params, precision, &LayerTableGpu::new(&bases, &opacity))?;
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        self.ray.read_image(&self.gpu, params.width, params.height)
     }
 
     /// g3 of every used cell, as the GPU holds it (after a sync).

@@ -245,6 +245,21 @@ impl GpuPools {
         }
     }
 
+    /// Write g3 rows from cell `first` on, split at page boundaries (a
+    /// document's layers, whose g3 the CPU port computes: spec 6.2).
+    pub fn upload_g3(&self, gpu: &Gpu, first: u64, rows: &[[u32; 3]]) {
+        let page_cells = self.page_cells();
+        let mut at = 0usize;
+        while at < rows.len() {
+            let c = first + at as u64;
+            let page = (c >> self.page_shift) as usize;
+            let offset = c & (page_cells - 1);
+            let n = ((page_cells - offset) as usize).min(rows.len() - at);
+            gpu.queue.write_buffer(&self.g3[page], offset * 12, bytemuck::cast_slice(&rows[at..at + n]));
+            at += n;
+        }
+    }
+
     /// Cells `0..n` as the GPU holds them (tests).
     pub fn read_cells(&self, gpu: &Gpu, n: u64) -> Result<Vec<GpuCell>, GpuError> {
         let mut out = Vec::with_capacity(n as usize);

@@ -56,6 +56,32 @@ impl RayParamsGpu {
     }
 }
 
+/// The most layers a document has (spec 14.1), and the shader's table.
+pub const MAX_LAYERS: usize = 16;
+
+/// shaders/raycast.wgsl `LayerTable`: the contributing layers of a document
+/// (spec 6.2), whose pools lie one after the other in the pages: per layer
+/// its first cell and its opacity (f32 bits); `count[0]` the layers.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct LayerTableGpu {
+    pub count: [u32; 4],
+    pub at: [[u32; 4]; MAX_LAYERS],
+}
+
+impl LayerTableGpu {
+    /// The table of layers at `bases` (first cells) with `opacity`.
+    pub fn new(bases: &[u32], opacity: &[f32]) -> Self {
+        assert!(bases.len() <= MAX_LAYERS && bases.len() == opacity.len());
+        let mut t = LayerTableGpu::zeroed();
+        t.count[0] = bases.len() as u32;
+        for (k, (&b, &o)) in bases.iter().zip(opacity).enumerate() {
+            t.at[k] = [b, o.to_bits(), 0, 0];
+        }
+        t
+    }
+}
+
 /// Words of one ray's probe record (shaders/raycast.wgsl `PROBE_WORDS`).
 pub const PROBE_WORDS: u64 = 20;
 
@@ -108,18 +134,42 @@ pub struct RayCaster {
     modules: Vec<(Precision, wgpu::ShaderModule)>,
     layout: wgpu::PipelineLayout,
     page_shift: u32,
-    /// Pipelines made so far, per precision and lighting mode (the
-    /// shader's `LIT`: 0 unlit, 1 lit, 2 with shadow rays), each compiled
+    /// Pipelines made so far, per precision, lighting mode (the shader's
+    /// `LIT`: 0 unlit, 1 lit, 2 with shadow rays) and entry point (`main`
+    /// for one tree, `main_layers` for a document's layers), each compiled
     /// on first use.
-    pipelines: Vec<((Precision, u32), wgpu::ComputePipeline)>,
+    pipelines: Vec<((Precision, u32, bool), wgpu::ComputePipeline)>,
     layout_params: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
+    layers: wgpu::Buffer,
     pixels: Option<(u64, wgpu::Buffer)>,
 }
 
 impl RayCaster {
     pub fn new(gpu: &Gpu, pools: &GpuPools) -> RayCaster {
-        let layout_params = gpu.params_layout("ray params", wgpu::ShaderStages::COMPUTE, false);
+        let uniform = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let layout_params = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("ray params"),
+            entries: &[
+                uniform(0),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                uniform(2),
+            ],
+        });
         let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("ray caster"),
             bind_group_layouts: &[Some(&pools.layout_cells), Some(&pools.layout_g3_ro), Some(&layout_params)],
@@ -142,18 +192,24 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, pixels: None };
-        // The unlit pipelines now; lit ones when first asked for.
+        let layers = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("layer table"),
+            size: std::mem::size_of::<LayerTableGpu>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None };
+        // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
-            let _ = caster.pipeline(gpu, precision, 0);
+            let _ = caster.pipeline(gpu, precision, 0, false);
         }
         caster
     }
 
-    /// The pipeline for `precision` and lighting mode `lit`, compiled on
-    /// first use.
-    fn pipeline(&mut self, gpu: &Gpu, precision: Precision, lit: u32) -> Result<wgpu::ComputePipeline, GpuError> {
-        if let Some((_, p)) = self.pipelines.iter().find(|(k, _)| *k == (precision, lit)) {
+    /// The pipeline for `precision`, lighting mode `lit` and one tree or
+    /// a document's `layered` march, compiled on first use.
+    fn pipeline(&mut self, gpu: &Gpu, precision: Precision, lit: u32, layered: bool) -> Result<wgpu::ComputePipeline, GpuError> {
+        if let Some((_, p)) = self.pipelines.iter().find(|(k, _)| *k == (precision, lit, layered)) {
             return Ok(p.clone());
         }
         let module = self.modules.iter().find(|(p, _)| *p == precision).map(|(_, m)| m).ok_or(GpuError::NoF16)?;
@@ -161,14 +217,14 @@ impl RayCaster {
             label: Some("ray caster"),
             layout: Some(&self.layout),
             module,
-            entry_point: Some("main"),
+            entry_point: Some(if layered { "main_layers" } else { "main" }),
             compilation_options: wgpu::PipelineCompilationOptions {
                 constants: &[("PAGE_SHIFT", f64::from(self.page_shift)), ("LIT", f64::from(lit))],
                 zero_initialize_workgroup_memory: false,
             },
             cache: None,
         });
-        self.pipelines.push(((precision, lit), pipeline.clone()));
+        self.pipelines.push(((precision, lit, layered), pipeline.clone()));
         Ok(pipeline)
     }
 
@@ -191,11 +247,27 @@ impl RayCaster {
     /// Encode the ray cast of one image into `enc`; the pixels stay on the
     /// GPU until [`RayCaster::read_image`].
     pub fn encode(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision) -> Result<(), GpuError> {
-        self.encode_words(gpu, pools, enc, params, precision, false)
+        self.encode_words(gpu, pools, enc, params, precision, false, None)
     }
 
-    fn encode_words(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, probe: bool) -> Result<(), GpuError> {
-        let pipeline = self.pipeline(gpu, precision, params.lit)?;
+    /// [`RayCaster::encode`] for the layers of a document whose pools lie
+    /// in the pages as `table` says (spec 6.2).
+    pub fn encode_layers(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, table: &LayerTableGpu) -> Result<(), GpuError> {
+        self.encode_words(gpu, pools, enc, params, precision, false, Some(table))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn encode_words(
+        &mut self,
+        gpu: &Gpu,
+        pools: &GpuPools,
+        enc: &mut wgpu::CommandEncoder,
+        params: &RayParams,
+        precision: Precision,
+        probe: bool,
+        table: Option<&LayerTableGpu>,
+    ) -> Result<(), GpuError> {
+        let pipeline = self.pipeline(gpu, precision, params.lit, table.is_some())?;
         let n = u64::from(params.width) * u64::from(params.height);
         let words = if probe { n * PROBE_WORDS } else { n };
         // One binding holds every pixel (or record): refuse what the device
@@ -217,12 +289,14 @@ impl RayCaster {
         let mut uniform = RayParamsGpu::from_params(params, held);
         uniform.flags[1] = u32::from(probe);
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&uniform));
+        gpu.queue.write_buffer(&self.layers, 0, bytemuck::bytes_of(table.unwrap_or(&LayerTableGpu::zeroed())));
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("ray params"),
             layout: &self.layout_params,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: pixels.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.layers.as_entire_binding() },
             ],
         });
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("ray cast"), timestamp_writes: None });
@@ -240,7 +314,7 @@ impl RayCaster {
     pub fn probe(&mut self, gpu: &Gpu, pools: &GpuPools, params: &RayParams, precision: Precision) -> Result<Vec<ProbeRecord>, GpuError> {
         let bytes = u64::from(params.width) * u64::from(params.height) * PROBE_WORDS * 4;
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray probe") });
-        self.encode_words(gpu, pools, &mut enc, params, precision, true)?;
+        self.encode_words(gpu, pools, &mut enc, params, precision, true, None)?;
         gpu.queue.submit([enc.finish()]);
         let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
         let raw = read_buffer(gpu, buf, bytes)?;

@@ -56,6 +56,15 @@ fn ray_params_layout_agrees() {
 }
 
 #[test]
+fn layer_table_layout_agrees() {
+    for precision in [Precision::F32, Precision::F16] {
+        let (size, offsets) = wgsl_layout(&raycast_source(precision), "LayerTable");
+        assert_eq!(size as usize, std::mem::size_of::<octopaint_gpu::raycast::LayerTableGpu>());
+        assert_eq!(offsets, offsets!(octopaint_gpu::raycast::LayerTableGpu, count, at));
+    }
+}
+
+#[test]
 fn the_blit_shader_is_valid_wgsl() {
     let module = naga::front::wgsl::parse_str(octopaint_gpu::blit::BLIT_WGSL).unwrap_or_else(|e| panic!("{}", e.emit_to_string(octopaint_gpu::blit::BLIT_WGSL)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty()).validate(&module).unwrap();

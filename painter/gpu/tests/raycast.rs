@@ -104,3 +104,39 @@ fn cells_with_broken_links_are_skipped_alike() {
     assert!(within >= 0.999 && worst <= 2, "{within} within a step, worst {worst}");
     assert!(gpu != before || cpu == before, "the broken unit changed nothing on the GPU only");
 }
+
+/// A document's layers (spec 6.2): the GPU's march through them matches the
+/// CPU port's, unlit and lit with shadows; one layer at opacity 1 is the
+/// one-tree image exactly; and the renderer follows its tree again after.
+#[test]
+fn a_documents_layers_on_the_gpu_match_the_cpu_port() {
+    use octopaint_tree::raycast::{LayerInput, render_layers};
+    let t = trace("layers");
+    let camera = t.events.iter().rev().find_map(|e| if let octopaint_tree::trace::EventKind::Camera(c) = &e.kind { Some(*c) } else { None }).unwrap();
+    let (_, doc) = octopaint_tree::replay::replay_document(&t, None, &mut ()).unwrap();
+    let layers: Vec<_> = doc.layers().filter(|l| l.contributes()).collect();
+    assert!(layers.len() >= 2);
+    let g3: Vec<_> = layers.iter().map(|l| g3_table(l.tree())).collect();
+    let inputs: Vec<LayerInput> = layers.iter().zip(&g3).map(|(l, g)| LayerInput { inp: RayInput::of(l.tree(), g), opacity: l.opacity }).collect();
+    let trees: Vec<_> = layers.iter().map(|l| (l.tree(), l.opacity)).collect();
+    let mut r = renderer(Backend::Vulkan);
+    let plain = RayParams::new(&layers[0].tree().lat, &camera);
+    for params in [plain, plain.with_light(Some(&light(true)))] {
+        let cpu = render_layers(&inputs, &params);
+        let gpu = r.render_layers(&trees, &params, Precision::F32).unwrap();
+        let (within, worst) = closeness(&gpu, &cpu, 1);
+        assert!(within >= 0.999 && worst <= 2, "lit {}: {within} within a step, worst {worst}", params.lit);
+        let f16 = r.render_layers(&trees, &params, Precision::F16).unwrap();
+        let (within, _) = closeness(&f16, &cpu, 2);
+        assert!(within >= 0.999, "f16, lit {}: {within} within 2 steps", params.lit);
+    }
+    // One layer at opacity 1: the one-tree pipeline, the one-tree image.
+    let single = render(&inputs[0].inp, &plain);
+    let gpu_one = r.render_layers(&trees[..1].iter().map(|(t, _)| (*t, 1.0)).collect::<Vec<_>>(), &plain, Precision::F32).unwrap();
+    assert_eq!(closeness(&gpu_one, &single, 1).0, 1.0);
+    // The renderer's own tree is uploaded whole again after a document.
+    let (mut painting, camera) = painted("single_stamp");
+    let gpu = r.render(&mut painting.tree, &camera, Precision::F32).unwrap();
+    let (within, _) = closeness(&gpu, &cpu_image(&painting, &camera), 1);
+    assert!(within >= 0.999, "{within}");
+}
