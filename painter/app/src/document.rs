@@ -33,6 +33,10 @@ pub struct NewArgs {
     /// A title for the document's metadata.
     #[arg(long, default_value = "untitled")]
     pub title: String,
+    /// A document of layers (a version 2 session, docs/spec.md 14): it
+    /// starts with one layer, `Layer 1`, and takes layer events.
+    #[arg(long)]
+    pub layers: bool,
 }
 
 #[derive(clap::Args)]
@@ -109,7 +113,8 @@ pub fn new(a: &NewArgs) -> ExitCode {
             (Canvas { roots, max_depth: a.max_depth, root_size: a.root_size, capacity }, meta)
         }
     };
-    match Session::create(&a.doc, &canvas, &meta) {
+    let created = if a.layers { Session::create_layered(&a.doc, &canvas, &meta) } else { Session::create(&a.doc, &canvas, &meta) };
+    match created {
         Ok(_) => {
             println!("{}", a.doc.display());
             ExitCode::SUCCESS
@@ -127,7 +132,7 @@ pub fn import(trace: &Path, doc: &Path) -> ExitCode {
         }
     };
     let result = (|| {
-        let mut s = Session::create(doc, &t.canvas, &t.meta)?;
+        let mut s = if t.version == 2 { Session::create_layered(doc, &t.canvas, &t.meta)? } else { Session::create(doc, &t.canvas, &t.meta)? };
         for ev in &t.events {
             s.apply(ev)?;
         }
@@ -139,7 +144,7 @@ pub fn import(trace: &Path, doc: &Path) -> ExitCode {
     })();
     match result {
         Ok(s) => {
-            eprintln!("{}: {} events, {} cells", doc.display(), s.event_count(), s.painting.tree.n_used());
+            eprintln!("{}: {} events, {} cells", doc.display(), s.event_count(), s.doc.used());
             ExitCode::SUCCESS
         }
         Err(e) => {
@@ -174,9 +179,9 @@ pub fn paint(a: &PaintArgs) -> ExitCode {
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    let canvas = s.painting.tree.lat.roots;
+    let canvas = s.painting().tree.lat.roots;
     let (dc, ic) = (
-        (canvas, s.painting.tree.lat.max_depth, s.painting.tree.lat.root_size, s.painting.tree.capacity),
+        (canvas, s.painting().tree.lat.max_depth, s.painting().tree.lat.root_size, s.painting().tree.capacity),
         (input.canvas.roots, input.canvas.max_depth, input.canvas.root_size, input.canvas.capacity),
     );
     if dc != ic {
@@ -223,7 +228,7 @@ pub fn paint(a: &PaintArgs) -> ExitCode {
         eprintln!(
             "{}: {strokes} stroke(s) painted, {} cells{}",
             a.doc.display(),
-            s.painting.tree.n_used(),
+            s.painting().tree.n_used(),
             if a.no_save { " (in the journal; not saved)" } else { ", saved" }
         );
     }
@@ -241,21 +246,33 @@ pub fn info(doc: &Path) -> ExitCode {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
-    let t = &s.painting.tree;
+    let t = &s.painting().tree;
     let l = &t.lat;
     println!("document   {} ({} bytes)", doc.display(), size);
     println!(
         "canvas     roots {}x{}x{}, root size {}, max depth {}, capacity {} cells",
-        l.roots[0], l.roots[1], l.roots[2], l.root_size, l.max_depth, t.capacity
+        l.roots[0], l.roots[1], l.roots[2], l.root_size, l.max_depth, s.doc.canvas().capacity
     );
     println!("session    {} events", s.event_count());
-    println!("tree       {} cells in use", t.n_used());
-    println!(
-        "undo       {} stroke(s) to undo, {} to redo, {} bytes",
-        s.painting.history.done.len(),
-        s.painting.history.undone.len(),
-        s.painting.history.bytes()
-    );
+    if s.version == 2 {
+        println!("layers     {} ({} cells in use), bottom first:", s.doc.len(), s.doc.used());
+        for (k, layer) in s.doc.layers().enumerate() {
+            println!(
+                "  {}{} {:?}: {} cells, opacity {}{}{}",
+                if k == s.doc.selected() { "*" } else { " " },
+                k,
+                layer.name,
+                layer.tree().n_used(),
+                layer.opacity,
+                if layer.visible { "" } else { ", hidden" },
+                if layer.locked { ", locked" } else { "" }
+            );
+        }
+    } else {
+        println!("tree       {} cells in use", t.n_used());
+    }
+    let (done, undone) = s.doc.steps();
+    println!("undo       {done} step(s) to undo, {undone} to redo, {} bytes", s.doc.history_bytes());
     if s.recovered > 0 {
         println!("journal    {} stroke(s) not saved yet, recovered here (`octopaint recover` saves them)", s.recovered);
     } else {
@@ -306,11 +323,11 @@ pub fn step(a: &StepArgs, redo: bool) -> ExitCode {
     let kind = if redo { EventKind::Redo } else { EventKind::Undo };
     let mut n = 0;
     for _ in 0..a.steps {
-        let before = (s.painting.history.done.len(), s.painting.history.undone.len());
+        let before = (s.doc.steps().0, s.doc.steps().1);
         if let Err(e) = s.apply(&Event { line: 0, t: s.last_time(), kind: kind.clone() }) {
             return fail(e);
         }
-        if (s.painting.history.done.len(), s.painting.history.undone.len()) == before {
+        if (s.doc.steps().0, s.doc.steps().1) == before {
             break;
         }
         n += 1;
@@ -347,6 +364,9 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, fr
     };
     if let Err(e) = create_default(doc) {
         return fail(e);
+    }
+    if let Some(code) = refuse_layers(doc, "the window") {
+        return code;
     }
     let opts = octopaint_desktop::Options {
         doc: doc.to_path_buf(),
@@ -398,12 +418,31 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
     Ok(())
 }
 
+/// Documents of layers (spec 14) are painted in traces and drawn by
+/// `render` and `export`; the window and the headset paint one tree until
+/// they have a layer panel (issue 17): they refuse such a document rather
+/// than show and paint one of its layers as if it were the painting.
+fn refuse_layers(doc: &Path, what: &str) -> Option<ExitCode> {
+    let s = Session::open(doc).ok()?;
+    (s.version == 2).then(|| {
+        eprintln!(
+            "octopaint: {}: a document of {} layers; {what} paints one-tree documents for now (octopaint render and export draw it, octopaint record gives its session)",
+            doc.display(),
+            s.doc.len()
+        );
+        ExitCode::from(2)
+    })
+}
+
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
     let mut s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
     say_recovered(&s);
+    if let Some(code) = refuse_layers(doc, "the headset") {
+        return code;
+    }
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
     let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution };
     let result = octopaint_xr::session::run(&mut s, &opts);
@@ -452,7 +491,7 @@ pub fn dump(doc: &Path, out: &Path) -> ExitCode {
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    let bytes = octopaint_tree::dump::dump_bytes(&s.painting.tree);
+    let bytes = octopaint_tree::dump::dump_bytes(&s.painting().tree);
     match octopaint_platform::durable::write(out, &bytes) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -319,10 +319,16 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
             "opened {}: {} events, {} cells{}",
             args.input.display(),
             s.event_count(),
-            s.painting.tree.n_used(),
+            s.doc.used(),
             if s.recovered > 0 { format!(", {} unsaved stroke(s) from its journal", s.recovered) } else { String::new() }
         ));
-        s.painting
+        if s.version == 2 {
+            let canvas = *s.doc.canvas();
+            document = Some(s.doc);
+            Painting::new(&canvas)
+        } else {
+            s.doc.into_current_painting()
+        }
     } else {
         let mut trace = if is_doc {
             // --at in a document: its session, replayed to the snapshot.

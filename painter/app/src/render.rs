@@ -19,9 +19,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use octopaint_doc::Session;
 use octopaint_gpu::{Precision, Renderer};
 use octopaint_tree::Tree;
-use octopaint_tree::raycast::{RayInput, RayParams};
+use octopaint_tree::raycast::{LayerInput, RayInput, RayParams};
 use octopaint_tree::trace::{Camera, Light, MAX_IMAGE_SIZE};
-use octopaint_tree::view::{BACKGROUND, DEFAULT_LIGHT, OrbitCamera, frame_painting};
+use octopaint_tree::view::{BACKGROUND, DEFAULT_LIGHT, OrbitCamera, frame_trees};
 
 /// The most frames a turntable takes (one per 0.1°).
 pub const MAX_FRAMES: u32 = 3600;
@@ -134,7 +134,7 @@ fn light_arg(a: &Args) -> Result<Option<Light>, String> {
     Ok(light)
 }
 
-fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
+fn plan(a: &Args, trees: &[&Tree]) -> Result<Plan, String> {
     let size = a.size.as_deref().map(parse_size).transpose()?;
     let light = light_arg(a)?;
     if let Some(n) = a.turntable {
@@ -142,7 +142,7 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
             return Err(format!("--turntable {n}: from 1 to {MAX_FRAMES} frames"));
         }
         // The framing view, raised to --elevation when given.
-        let mut start = frame_painting(tree);
+        let mut start = frame_trees(trees);
         if let Some(elevation) = a.elevation {
             if !(elevation.is_finite() && elevation.abs() < 90.0) {
                 return Err(format!("--elevation {elevation}: must be strictly between -90 and 90 degrees"));
@@ -169,45 +169,54 @@ fn plan(a: &Args, tree: &Tree) -> Result<Plan, String> {
             }
             c
         }
-        None => frame_painting(tree).camera(size.unwrap_or([1280, 720]), BACKGROUND),
+        None => frame_trees(trees).camera(size.unwrap_or([1280, 720]), BACKGROUND),
     };
     Ok(Plan { cameras: vec![camera], light, folder: None })
 }
 
 enum Draw {
     Gpu(Box<Renderer>, Precision),
-    Cpu(Vec<[u32; 3]>),
+    /// The CPU port, with each layer's g3 table.
+    Cpu(Vec<Vec<[u32; 3]>>),
 }
 
 impl Draw {
-    fn image(&mut self, tree: &Tree, camera: &Camera, grid: bool, light: Option<&Light>) -> Result<Vec<u8>, String> {
-        let mut params = RayParams::new(&tree.lat, camera).with_light(light);
+    /// The image of `layers` (each tree with its opacity; one at opacity 1
+    /// for a one-tree document): the one-tree ray caster, or the march
+    /// through every layer (spec 6.2).
+    fn image(&mut self, layers: &[(&Tree, f32)], camera: &Camera, grid: bool, light: Option<&Light>) -> Result<Vec<u8>, String> {
+        let mut params = RayParams::new(&layers[0].0.lat, camera).with_light(light);
         if grid {
             params = params.with_grid(camera.eye);
         }
+        let one = layers.len() == 1 && layers[0].1 == 1.0;
         match self {
-            Draw::Gpu(r, precision) => match r.cast_params(&params, *precision) {
+            Draw::Gpu(r, precision) => match if one { r.cast_params(&params, *precision) } else { r.render_layers(layers, &params, *precision) } {
                 Ok(rgb) => Ok(rgb),
                 // Larger than the GPU can bind: the CPU port draws this and
                 // every later frame (they have the same size).
-                Err(octopaint_gpu::GpuError::TooBig(why)) => {
-                    eprintln!("octopaint: render: {why}; drawn by the CPU port instead");
-                    *self = Draw::Cpu(octopaint_tree::g3::g3_table(tree));
-                    self.image(tree, camera, grid, light)
+                Err(e @ (octopaint_gpu::GpuError::TooBig(_) | octopaint_gpu::GpuError::Capacity { .. })) => {
+                    eprintln!("octopaint: render: {e}; drawn by the CPU port instead");
+                    *self = Draw::Cpu(layers.iter().map(|(t, _)| octopaint_tree::g3::g3_table(t)).collect());
+                    self.image(layers, camera, grid, light)
                 }
                 Err(e) => Err(e.to_string()),
             },
             Draw::Cpu(g3) => {
-                let inp = RayInput::of(tree, g3);
-                Ok(octopaint_tree::raycast::render(&inp, &params))
+                let inputs: Vec<LayerInput> = layers.iter().zip(g3.iter()).map(|((t, o), g)| LayerInput { inp: RayInput::of(t, g), opacity: *o }).collect();
+                if one {
+                    Ok(octopaint_tree::raycast::render(&inputs[0].inp, &params))
+                } else {
+                    Ok(octopaint_tree::raycast::render_layers(&inputs, &params))
+                }
             }
         }
     }
 }
 
-fn drawer(a: &Args, tree: &mut Tree) -> Result<Draw, String> {
+fn drawer(a: &Args, layers: &mut [&mut Tree]) -> Result<Draw, String> {
     match a.renderer {
-        crate::RendererChoice::Cpu => Ok(Draw::Cpu(octopaint_tree::g3::g3_table(tree))),
+        crate::RendererChoice::Cpu => Ok(Draw::Cpu(layers.iter().map(|t| octopaint_tree::g3::g3_table(t)).collect())),
         crate::RendererChoice::None => Err("--renderer none draws nothing: use gpu or cpu".into()),
         crate::RendererChoice::Gpu => {
             let precision = Precision::from(a.precision);
@@ -218,7 +227,9 @@ fn drawer(a: &Args, tree: &mut Tree) -> Result<Draw, String> {
             if !a.quiet {
                 eprintln!("octopaint: rendering on {}", r.gpu.describe());
             }
-            r.sync(tree).map_err(|e| e.to_string())?;
+            if let [tree] = layers {
+                r.sync(tree).map_err(|e| e.to_string())?;
+            }
             Ok(Draw::Gpu(Box::new(r), precision))
         }
     }
@@ -234,12 +245,27 @@ pub fn run(a: &Args) -> ExitCode {
         Ok(s) => s,
         Err(e) => return refuse(format!("{}: {e}", a.doc.display())),
     };
-    let tree = &mut session.painting.tree;
-    let plan = match plan(a, tree) {
-        Ok(p) => p,
-        Err(e) => return refuse(e),
+    // A document of layers draws its contributing ones (spec 6.2); a
+    // one-tree document its tree, through the one-tree ray caster.
+    let opacity: Vec<f32> = session.doc.layers().filter(|l| l.contributes()).map(|l| l.opacity).collect();
+    let one_tree = session.version == 1;
+    let mut trees: Vec<Tree> = if one_tree { Vec::new() } else { session.doc.layers().filter(|l| l.contributes()).map(|l| l.tree().clone()).collect() };
+    let mut own = if one_tree { Some(&mut session.painting_mut().tree) } else { None };
+    let mut refs: Vec<&mut Tree> = match own.take() {
+        Some(t) => vec![t],
+        None => trees.iter_mut().collect(),
     };
-    let mut draw = match drawer(a, tree) {
+    if refs.is_empty() {
+        return refuse(format!("{}: no layer is visible with an opacity above 0: nothing to draw", a.doc.display()));
+    }
+    let plan = {
+        let shown: Vec<&Tree> = refs.iter().map(|t| &**t).collect();
+        match plan(a, &shown) {
+            Ok(p) => p,
+            Err(e) => return refuse(e),
+        }
+    };
+    let mut draw = match drawer(a, &mut refs) {
         Ok(d) => d,
         Err(e) => {
             eprintln!("octopaint: render: {e}");
@@ -262,7 +288,8 @@ pub fn run(a: &Args) -> ExitCode {
     // the GIF, which streams into a temporary file that replaces
     // turntable.gif only once every frame is in (durable::write_with).
     let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut std::io::BufWriter<std::fs::File>>>| -> Result<(), String> {
-        let rgb = draw.image(tree, camera, a.grid, plan.light.as_ref())?;
+        let layers: Vec<(&Tree, f32)> = if one_tree { vec![(&*refs[0], 1.0)] } else { refs.iter().map(|t| &**t).zip(opacity.iter().copied()).collect() };
+        let rgb = draw.image(&layers, camera, a.grid, plan.light.as_ref())?;
         let path = match &plan.folder {
             Some(dir) => dir.join(format!("frame-{k:03}.png")),
             None => a.out.clone(),

@@ -343,7 +343,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     // The document: one stroke, saved, recorded as a trace that replays.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();
     let info = String::from_utf8_lossy(&res.stdout);
-    assert!(info.contains("1 stroke(s) to undo") && info.contains("nothing unsaved"), "{info}");
+    assert!(info.contains("1 step(s) to undo") && info.contains("nothing unsaved"), "{info}");
     let rec = s.join("rec.jsonl");
     assert!(octopaint().arg("record").arg(&doc).arg("--out").arg(&rec).status().unwrap().success());
     let text = std::fs::read_to_string(&rec).unwrap();

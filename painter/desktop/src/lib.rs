@@ -444,7 +444,7 @@ impl App {
 
     fn sample(&mut self) {
         let Some(r) = self.running.as_ref() else { return };
-        let (eye, dir, depth) = brush_point(r, &self.session.painting.tree);
+        let (eye, dir, depth) = brush_point(r, &self.session.painting().tree);
         let p = eye + dir * depth;
         self.apply(EventKind::Sample(Sample::at(p.to_array())));
     }
@@ -462,7 +462,7 @@ impl App {
     /// button).
     fn frame_view(&mut self) {
         if let Some(r) = self.running.as_mut() {
-            r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting.tree) };
+            r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting().tree) };
             r.stats.message = "framed the painting".into();
         }
     }
@@ -517,7 +517,7 @@ impl App {
         let egui_ctx = egui::Context::default();
         let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, None);
         let egui_renderer = egui_wgpu::Renderer::new(device, format, egui_wgpu::RendererOptions::default());
-        let camera = frame_painting(&self.session.painting.tree);
+        let camera = frame_painting(&self.session.painting().tree);
         let brush = BrushUi {
             shape: Shape::Sphere,
             mode: Mode::Paint,
@@ -582,7 +582,7 @@ impl App {
         let precision = self.opts.precision;
         let screenshot_path = self.opts.screenshot.clone();
         let Some(r) = self.running.as_mut() else { return Ok(()) };
-        let tree = &mut self.session.painting.tree;
+        let tree = &mut self.session.painting_mut().tree;
         let synced = r.renderer.sync(tree).map_err(|e| e.to_string())?;
         let size = [r.config.width, r.config.height];
         let light = r.brush.light.light(r.camera.rotation());
@@ -604,9 +604,9 @@ impl App {
             busy_ms: r.stats.busy_ms,
             cells: tree.n_used(),
             capacity: tree.capacity,
-            bytes: tree.pool_bytes_allocated() + self.session.painting.history.bytes(),
-            undo: self.session.painting.history.done.len(),
-            redo: self.session.painting.history.undone.len(),
+            bytes: tree.pool_bytes_allocated() + self.session.painting().history.bytes(),
+            undo: self.session.painting().history.done.len(),
+            redo: self.session.painting().history.undone.len(),
             message: r.stats.message.clone(),
             in_stroke: self.session.in_stroke(),
         };

@@ -29,13 +29,18 @@ use flate2::Compression;
 use flate2::read::ZlibDecoder;
 use flate2::write::ZlibEncoder;
 use octopaint_tree::history::{History, UndoStep};
+use octopaint_tree::layers::{self, Layer, Row, Settings, Step};
+use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::{CellRecord, FREE, NONE, Tree};
 use octopaint_tree::trace::{Trace, parse_trace};
 
 use crate::DocError;
 
 pub const MAGIC: &[u8; 16] = b"OCTOPAINTDOC\r\n\x1a\n";
-pub const VERSION: u32 = 1;
+/// The newest version this reader reads and the version a document of
+/// layers is written in; a one-tree document is still written as version 1,
+/// which every reader opens.
+pub const VERSION: u32 = 2;
 const HEADER: usize = 32;
 const SECTION_HEAD: usize = 32;
 const TRAILER: usize = 16;
@@ -47,10 +52,16 @@ const RECORD: usize = 16;
 pub struct Document {
     /// The session so far: a valid trace (header and events).
     pub trace_text: String,
-    pub tree: Tree,
-    pub history: History,
+    pub content: Content,
     /// Free-form JSON written at save (application, time, counts).
     pub meta: String,
+}
+
+/// What a document paints: one tree (version 1, a version 1 session) or
+/// the layers of a version 2 session (format version 2, spec 14).
+pub enum Content {
+    Tree { tree: Tree, history: History },
+    Layers(layers::Document),
 }
 
 /// What `read` found, besides the document.
@@ -135,14 +146,105 @@ fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io:
 pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
     let mut out = Vec::new();
     out.extend_from_slice(MAGIC);
-    put_u32(&mut out, VERSION);
-    put_u32(&mut out, VERSION);
+    // One tree: version 1, which every reader opens.
+    put_u32(&mut out, 1);
+    put_u32(&mut out, 1);
     put_u32(&mut out, 4);
     let crc = crc32fast::hash(&out);
     put_u32(&mut out, crc);
     section(&mut out, b"TRCE", trace_text.as_bytes(), 0)?;
     section(&mut out, b"POOL", &pools_bytes(tree), 0)?;
     section(&mut out, b"HIST", &history_bytes(history), 0)?;
+    section(&mut out, b"META", meta.as_bytes(), OPTIONAL)?;
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(b"END!");
+    put_u32(&mut out, crc);
+    let len = out.len() as u64 + 8;
+    out.extend_from_slice(&len.to_le_bytes());
+    Ok((out, crc))
+}
+
+fn put_name(out: &mut Vec<u8>, name: &str) {
+    put_u32(out, name.len() as u32);
+    out.extend_from_slice(name.as_bytes());
+}
+
+fn settings_bytes(out: &mut Vec<u8>, s: &Settings) {
+    put_u32(out, s.selected as u32);
+    put_u32(out, s.rows.len() as u32);
+    for r in &s.rows {
+        put_u32(out, r.id);
+        out.push(u8::from(r.visible));
+        out.push(u8::from(r.locked));
+        out.extend_from_slice(&r.opacity.to_le_bytes());
+        put_name(out, &r.name);
+    }
+}
+
+/// The `DOCU` section: the next id, the selection, the list of layer ids,
+/// then the history's done and undone steps (0 and a layer id: a stroke;
+/// 1 and the settings before and after: a layer operation).
+fn document_bytes(doc: &layers::Document) -> Vec<u8> {
+    let (_, order, selected, next_id, done, undone) = doc.parts();
+    let mut out = Vec::new();
+    put_u32(&mut out, next_id);
+    put_u32(&mut out, selected as u32);
+    put_u32(&mut out, order.len() as u32);
+    for id in order {
+        put_u32(&mut out, *id);
+    }
+    put_u32(&mut out, done.len() as u32);
+    put_u32(&mut out, undone.len() as u32);
+    for step in done.iter().chain(undone) {
+        match step {
+            Step::Stroke(id) => {
+                out.push(0);
+                put_u32(&mut out, *id);
+            }
+            Step::Layers(b) => {
+                out.push(1);
+                settings_bytes(&mut out, &b.0);
+                settings_bytes(&mut out, &b.1);
+            }
+        }
+    }
+    out
+}
+
+/// One `LAYR` section: the layer's id and settings, its pools (with their
+/// length in bytes first) and its own undo steps.
+fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
+    let mut out = Vec::new();
+    put_u32(&mut out, id);
+    out.push(u8::from(l.visible));
+    out.push(u8::from(l.locked));
+    out.extend_from_slice(&l.opacity.to_le_bytes());
+    put_name(&mut out, &l.name);
+    let pools = pools_bytes(l.tree());
+    out.extend_from_slice(&(pools.len() as u64).to_le_bytes());
+    out.extend_from_slice(&pools);
+    out.extend_from_slice(&history_bytes(&l.painting.history));
+    out
+}
+
+/// A document of layers as bytes (format version 2: `TRCE`, `DOCU`, one
+/// `LAYR` per layer the document or its history holds, `META`), and the
+/// file's CRC.
+pub fn write_layers(trace_text: &str, doc: &layers::Document, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
+    let (layers, ..) = doc.parts();
+    let layers: Vec<(u32, &Layer)> = layers.collect();
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    put_u32(&mut out, 2);
+    put_u32(&mut out, 2);
+    put_u32(&mut out, 3 + layers.len() as u32);
+    let crc = crc32fast::hash(&out);
+    put_u32(&mut out, crc);
+    section(&mut out, b"TRCE", trace_text.as_bytes(), 0)?;
+    section(&mut out, b"DOCU", &document_bytes(doc), 0)?;
+    for (id, l) in layers {
+        section(&mut out, b"LAYR", &layer_bytes(id, l), 0)?;
+    }
     section(&mut out, b"META", meta.as_bytes(), OPTIONAL)?;
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(b"END!");
@@ -170,6 +272,24 @@ impl<'a> Cursor<'a> {
     }
     fn u32(&mut self) -> Result<u32, DocError> {
         Ok(u32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+    fn u8(&mut self) -> Result<u8, DocError> {
+        Ok(self.take(1)?[0])
+    }
+    fn flag(&mut self) -> Result<bool, DocError> {
+        match self.u8()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            _ => Err(DocError::Corrupt(format!("the {} section holds a flag that is neither 0 nor 1", self.what))),
+        }
+    }
+    fn f32(&mut self) -> Result<f32, DocError> {
+        Ok(f32::from_le_bytes(self.take(4)?.try_into().expect("4 bytes")))
+    }
+    fn name(&mut self) -> Result<String, DocError> {
+        let n = self.u32()? as usize;
+        let b = self.take(n)?;
+        String::from_utf8(b.to_vec()).map_err(|_| DocError::Corrupt(format!("the {} section holds a name that is not UTF-8", self.what)))
     }
     fn u32s(&mut self, n: usize) -> Result<Vec<u32>, DocError> {
         Ok(self.take(n.checked_mul(4).ok_or_else(|| self.too_big())?)?.chunks_exact(4).map(|c| u32::from_le_bytes(c.try_into().expect("4"))).collect())
@@ -246,6 +366,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
     }
     let mut at = HEADER;
     let (mut trace_text, mut pools, mut hist, mut meta) = (None, None, None, String::new());
+    let (mut docu, mut layrs) = (None, Vec::new());
     for _ in 0..sections {
         if body.len() - at < SECTION_HEAD {
             return Err(DocError::Corrupt("a section header runs past the end".into()));
@@ -262,7 +383,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
         }
         let stored = &body[at..at + stored_len as usize];
         at += stored_len as usize;
-        let known = matches!(&h[..4], b"TRCE" | b"POOL" | b"HIST" | b"META");
+        let known = matches!(&h[..4], b"TRCE" | b"POOL" | b"HIST" | b"META" | b"DOCU" | b"LAYR");
         if !known {
             if flags & OPTIONAL != 0 {
                 continue;
@@ -277,6 +398,8 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
             b"TRCE" => trace_text = Some(String::from_utf8(raw).map_err(|_| DocError::Corrupt("the session is not UTF-8".into()))?),
             b"POOL" => pools = Some(raw),
             b"HIST" => hist = Some(raw),
+            b"DOCU" => docu = Some(raw),
+            b"LAYR" => layrs.push(raw),
             _ => meta = String::from_utf8_lossy(&raw).into_owned(),
         }
     }
@@ -286,9 +409,93 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
     let missing = |what: &str| DocError::Corrupt(format!("the {what} section is missing"));
     let trace_text = trace_text.ok_or_else(|| missing("TRCE"))?;
     let trace = parse_trace(&trace_text).map_err(|e| DocError::Corrupt(format!("its session does not read as a trace: {e}")))?;
-    let tree = decode_pools(&trace, &pools.ok_or_else(|| missing("POOL"))?)?;
-    let history = decode_history(&tree, &hist.ok_or_else(|| missing("HIST"))?)?;
-    Ok(Loaded { doc: Document { trace_text, tree, history, meta }, trace, crc })
+    let content = match docu {
+        None => {
+            if trace.version != 1 {
+                return Err(DocError::Corrupt("its session has layers but the file holds one tree".into()));
+            }
+            let tree = decode_pools(&trace, &pools.ok_or_else(|| missing("POOL"))?)?;
+            let history = decode_history(&tree, &hist.ok_or_else(|| missing("HIST"))?)?;
+            Content::Tree { tree, history }
+        }
+        Some(docu) => {
+            if trace.version != 2 || pools.is_some() || hist.is_some() {
+                return Err(DocError::Corrupt("it mixes a document of layers with a one-tree one".into()));
+            }
+            Content::Layers(decode_document(&trace, &docu, &layrs)?)
+        }
+    };
+    Ok(Loaded { doc: Document { trace_text, content, meta }, trace, crc })
+}
+
+fn decode_settings(c: &mut Cursor) -> Result<Settings, DocError> {
+    let selected = c.u32()? as usize;
+    let n = c.u32()? as usize;
+    if n > layers::MAX_LAYERS {
+        return Err(c.too_big());
+    }
+    let mut rows = Vec::with_capacity(n);
+    for _ in 0..n {
+        let id = c.u32()?;
+        let visible = c.flag()?;
+        let locked = c.flag()?;
+        let opacity = c.f32()?;
+        let name = c.name()?;
+        rows.push(Row { id, name, visible, opacity, locked });
+    }
+    Ok(Settings { rows, selected })
+}
+
+fn decode_document(trace: &Trace, docu: &[u8], layrs: &[Vec<u8>]) -> Result<layers::Document, DocError> {
+    let mut c = Cursor { data: docu, at: 0, what: "DOCU" };
+    let next_id = c.u32()?;
+    let selected = c.u32()? as usize;
+    let n = c.u32()? as usize;
+    if n > layers::MAX_LAYERS {
+        return Err(c.too_big());
+    }
+    let order = c.u32s(n)?;
+    let done = c.u32()? as usize;
+    let undone = c.u32()? as usize;
+    if done.saturating_add(undone) > docu.len() / 5 {
+        return Err(c.too_big());
+    }
+    let mut steps = Vec::with_capacity(done + undone);
+    for _ in 0..done + undone {
+        steps.push(match c.u8()? {
+            0 => Step::Stroke(c.u32()?),
+            1 => {
+                let before = decode_settings(&mut c)?;
+                let after = decode_settings(&mut c)?;
+                Step::Layers(Box::new((before, after)))
+            }
+            k => return Err(DocError::Corrupt(format!("the DOCU section holds a step of unknown kind {k}"))),
+        });
+    }
+    c.done()?;
+    let undone_steps = steps.split_off(done);
+    let mut found = Vec::with_capacity(layrs.len());
+    for raw in layrs {
+        let mut c = Cursor { data: raw, at: 0, what: "LAYR" };
+        let id = c.u32()?;
+        let visible = c.flag()?;
+        let locked = c.flag()?;
+        let opacity = c.f32()?;
+        let name = c.name()?;
+        let pools_len = u64::from_le_bytes(c.take(8)?.try_into().expect("8 bytes"));
+        if pools_len > (raw.len() - c.at) as u64 {
+            return Err(c.too_big());
+        }
+        let tree = decode_pools(trace, c.take(pools_len as usize)?)?;
+        let history = decode_history(&tree, &raw[c.at..])?;
+        let mut layer = Layer::new(&name, Painting::from_parts(tree, history));
+        layer.visible = visible;
+        layer.locked = locked;
+        layer.opacity = opacity;
+        found.push((id, layer));
+    }
+    layers::Document::from_parts(&trace.canvas, found, order, selected, next_id, steps, undone_steps)
+        .map_err(|e| DocError::Corrupt(format!("its layers do not fit together: {e}")))
 }
 
 fn decode_pools(trace: &Trace, raw: &[u8]) -> Result<Tree, DocError> {

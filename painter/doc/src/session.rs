@@ -16,6 +16,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use octopaint_platform::durable;
+use octopaint_tree::layers::Document as Layers;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
     Brush, Canvas, Event, EventKind, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace, segment_too_long,
@@ -23,7 +24,7 @@ use octopaint_tree::trace::{
 use octopaint_tree::trace_write::{event_line, header_line};
 
 use crate::DocError;
-use crate::format::{self, Document};
+use crate::format::{self, Content, Document};
 
 /// Undo history kept by default (the history beyond it is forgotten,
 /// oldest strokes first).
@@ -31,7 +32,11 @@ pub const DEFAULT_UNDO_BYTES: usize = 1 << 30;
 
 pub struct Session {
     pub path: PathBuf,
-    pub painting: Painting,
+    /// What the session paints: one layer for a one-tree document (a
+    /// version 1 session), the layers of a version 2 one (spec 14).
+    pub doc: Layers,
+    /// The session's trace version: 1 one tree, 2 layers.
+    pub version: u32,
     /// The session's trace: header and the events committed so far.
     trace_text: String,
     events: usize,
@@ -73,15 +78,39 @@ impl Session {
         }
         let trace_text = header_line(canvas, meta);
         let trace = parse_trace(&trace_text).map_err(|e| DocError::BadEvent(e.to_string()))?;
-        let mut s = Session::from_parts(path, Painting::new(&trace.canvas), trace_text, 0, 0);
+        let doc = Layers::new(&trace.canvas);
+        let mut s = Session::from_parts(path, doc, trace.version, trace_text, 0, 0);
         s.save()?;
         Ok(s)
     }
 
-    fn from_parts(path: &Path, painting: Painting, trace_text: String, events: usize, crc: u32) -> Session {
+    /// A new, empty document of layers at `path` (a version 2 session,
+    /// spec 14), refused if a file is there.
+    pub fn create_layered(path: &Path, canvas: &Canvas, meta: &Meta) -> Result<Session, DocError> {
+        if path.exists() {
+            return Err(DocError::Exists(path.to_path_buf()));
+        }
+        let trace_text = octopaint_tree::trace_write::header_line_version(canvas, meta, 2);
+        let trace = parse_trace(&trace_text).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let mut s = Session::from_parts(path, Layers::new(&trace.canvas), 2, trace_text, 0, 0);
+        s.save()?;
+        Ok(s)
+    }
+
+    /// The selected layer's painting (the only one of a one-tree document).
+    pub fn painting(&self) -> &Painting {
+        &self.doc.current().painting
+    }
+
+    pub fn painting_mut(&mut self) -> &mut Painting {
+        &mut self.doc.current_mut().painting
+    }
+
+    fn from_parts(path: &Path, doc: Layers, version: u32, trace_text: String, events: usize, crc: u32) -> Session {
         Session {
             path: path.to_path_buf(),
-            painting,
+            doc,
+            version,
             trace_text,
             events,
             pending: Vec::new(),
@@ -105,10 +134,13 @@ impl Session {
     pub fn open(path: &Path) -> Result<Session, DocError> {
         let data = std::fs::read(path).map_err(io(path))?;
         let loaded = format::read(&data)?;
-        let Document { trace_text, tree, history, .. } = loaded.doc;
+        let Document { trace_text, content, .. } = loaded.doc;
         let trace = loaded.trace;
-        let painting = Painting::from_parts(tree, history);
-        let mut s = Session::from_parts(path, painting, trace_text, trace.events.len(), loaded.crc);
+        let doc = match content {
+            Content::Tree { tree, history } => Layers::from_painting(&trace.canvas, Painting::from_parts(tree, history)),
+            Content::Layers(doc) => doc,
+        };
+        let mut s = Session::from_parts(path, doc, trace.version, trace_text, trace.events.len(), loaded.crc);
         s.resume_state(&trace);
         let jp = journal_path(path);
         match std::fs::read(&jp) {
@@ -150,7 +182,7 @@ impl Session {
         // progress at the crash is not a stroke.
         let mut keep = 0;
         for (i, l) in body.iter().enumerate() {
-            if l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") {
+            if l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") || l.contains("\"ev\": \"layer\"") || l.contains("\"ev\":\"layer\"") {
                 keep = i + 1;
             }
         }
@@ -178,7 +210,7 @@ impl Session {
         let trace = parse_trace(&all).map_err(|e| DocError::Journal { path: jp.to_path_buf(), why: format!("its events do not read: {e}") })?;
         for ev in &trace.events[self.events..] {
             self.apply_parsed(ev);
-            if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo) {
+            if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo | EventKind::Layer(_)) {
                 self.recovered += 1;
             }
         }
@@ -194,32 +226,34 @@ impl Session {
             EventKind::Brush(b) => self.brush = Some(*b),
             EventKind::StrokeBegin => {
                 let b = self.brush.as_ref().expect("validated");
-                self.painting.begin_stroke(&Brush { mirror: self.mirror, ..*b });
+                self.doc.begin_stroke(&Brush { mirror: self.mirror, ..*b }, ev.line);
                 self.in_stroke = true;
                 self.last_sample = None;
             }
             EventKind::Sample(s) => {
-                self.painting.add_sample(s, 0);
+                self.doc.add_sample(s, 0);
                 self.last_sample = Some(*s);
             }
             EventKind::StrokeEnd => {
-                self.painting.end_stroke();
+                self.doc.end_stroke();
                 self.in_stroke = false;
-                self.forgotten += self.painting.history.trim_to(self.undo_bytes);
+                self.forgotten += self.doc.trim_to(self.undo_bytes);
             }
             EventKind::Undo => {
-                self.painting.undo();
+                self.doc.undo();
             }
             EventKind::Redo => {
-                self.painting.redo();
+                self.doc.redo();
             }
             EventKind::Camera(_) => self.has_camera = true,
             EventKind::Mirror(m) => self.mirror = m.active(),
             EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
-            // A document is a version 1 trace, whose reader refuses layer
-            // events; `apply` refuses them too (layers in documents: a
-            // format version still to come, spec 14).
-            EventKind::Layer(_) => {}
+            // The reader took it (a version 2 session): applied to the
+            // layers; one the budget refuses is skipped with a warning
+            // (spec 14.2), as in a replay.
+            EventKind::Layer(op) => {
+                self.doc.apply(op, ev.line);
+            }
         }
         self.last_t = ev.t;
     }
@@ -282,24 +316,38 @@ impl Session {
             EventKind::Mirror(_) => check(parse_mirror(0, &obj).map(drop))?,
             EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
             EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
-            EventKind::Layer(_) => return bad("layer events are not kept in documents of this format (version 1)".into()),
+            EventKind::Layer(_) if self.version != 2 => {
+                return bad("layer events need a document of layers (octopaint new --layers, or a version 2 trace imported)".into());
+            }
+            EventKind::Layer(_) if self.in_stroke => return bad("layer inside a stroke (layers change between strokes)".into()),
+            EventKind::Layer(_) => check(octopaint_tree::trace::parse_layer(0, &obj).map(drop))?,
+            EventKind::StrokeBegin if self.doc.current().locked => {
+                return bad(format!("the selected layer \"{}\" is locked", self.doc.current().name));
+            }
             _ => {}
         }
         let acted = match &ev.kind {
-            EventKind::Undo => self.painting.undo(),
-            EventKind::Redo => self.painting.redo(),
+            EventKind::Undo => self.doc.undo(),
+            EventKind::Redo => self.doc.redo(),
+            EventKind::Layer(op) => {
+                if !self.doc.apply(op, 0) {
+                    let why = self.doc.take_warnings().join("; ");
+                    return bad(why.trim_start_matches("line 0: ").to_string());
+                }
+                true
+            }
             _ => true,
         };
         if !acted {
             return Ok(());
         }
-        if !matches!(ev.kind, EventKind::Undo | EventKind::Redo) {
+        if !matches!(ev.kind, EventKind::Undo | EventKind::Redo | EventKind::Layer(_)) {
             self.apply_parsed(ev);
         } else {
             self.last_t = ev.t;
         }
         self.pending.push(line);
-        if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo) {
+        if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo | EventKind::Layer(_)) {
             self.flush()?;
         }
         Ok(())
@@ -351,13 +399,19 @@ impl Session {
             self.events += 1;
         }
         let meta = format!(
-            "{{\"app\": \"octopaint {}\", \"events\": {}, \"cells\": {}, \"undo_steps\": {}}}",
+            "{{\"app\": \"octopaint {}\", \"events\": {}, \"cells\": {}, \"layers\": {}, \"undo_steps\": {}}}",
             env!("CARGO_PKG_VERSION"),
             self.events,
-            self.painting.tree.n_used(),
-            self.painting.history.done.len()
+            self.doc.used(),
+            self.doc.len(),
+            self.doc.steps().0
         );
-        let written = format::write(&self.trace_text, &self.painting.tree, &self.painting.history, &meta);
+        let written = if self.version == 2 {
+            format::write_layers(&self.trace_text, &self.doc, &meta)
+        } else {
+            let p = self.painting();
+            format::write(&self.trace_text, &p.tree, &p.history, &meta)
+        };
         let (bytes, crc) = written.map_err(io(&self.path))?;
         durable::write(&self.path, &bytes).map_err(io(&self.path))?;
         // The new journal extends the new document; until it exists, the

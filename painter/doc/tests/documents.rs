@@ -13,7 +13,7 @@ use octopaint_doc::{DocError, Session, journal_path};
 use octopaint_tree::dump::dump_bytes;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::replay::{ReplayObserver, replay};
-use octopaint_tree::trace::{EventKind, Trace, parse_trace};
+use octopaint_tree::trace::{Event, EventKind, LayerOp, LayerOpKind, Trace, parse_trace};
 
 struct Silent;
 impl ReplayObserver for Silent {}
@@ -64,14 +64,14 @@ fn a_saved_session_opens_as_its_replay() {
         let want = replayed(&t);
         let opened = Session::open(&path).unwrap();
         assert_eq!(opened.recovered, 0);
-        assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&want.tree), "{name}");
-        same_history(&opened.painting, &want);
+        assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&want.tree), "{name}");
+        same_history(opened.painting(), &want);
         // The session reads back as a trace that replays to the same tree.
         let again = parse_trace(&opened.trace_text()).unwrap();
         assert_eq!(again.events.len(), t.events.len());
         assert_eq!(dump_bytes(&replayed(&again).tree), dump_bytes(&want.tree), "{name}");
         // Undo and redo continue from the saved history exactly.
-        let mut a = opened.painting.clone();
+        let mut a = opened.painting().clone();
         let mut b = want.clone();
         while a.undo() {
             assert!(b.undo());
@@ -134,13 +134,13 @@ fn damage_anywhere_is_refused() {
 #[test]
 fn a_newer_format_is_refused_with_a_message() {
     let mut d = small_document();
-    // Version 2 that version 1 cannot read: bump both fields, fix the CRC.
-    d[16..20].copy_from_slice(&2u32.to_le_bytes());
-    d[20..24].copy_from_slice(&2u32.to_le_bytes());
+    // Version 3 that version 2 cannot read: bump both fields, fix the CRC.
+    d[16..20].copy_from_slice(&3u32.to_le_bytes());
+    d[20..24].copy_from_slice(&3u32.to_le_bytes());
     let crc = crc32(&d[..28]);
     d[28..32].copy_from_slice(&crc.to_le_bytes());
     let e = format::read(&d).err().expect("refused");
-    assert!(matches!(e, DocError::TooNew { version: 2, reads: 1 }), "{e}");
+    assert!(matches!(e, DocError::TooNew { version: 3, reads: 2 }), "{e}");
     assert!(e.to_string().contains("newer octopaint"));
     assert!(format::read(b"not a document at all").is_err());
     assert_eq!(&MAGIC[..12], b"OCTOPAINTDOC");
@@ -190,21 +190,21 @@ fn a_session_that_dies_keeps_its_completed_strokes() {
     let opened = Session::open(&path).unwrap();
     assert_eq!(opened.recovered, 19);
     let want = replayed(&prefix(&t, last_end));
-    assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&want.tree));
-    same_history(&opened.painting, &want);
+    assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&want.tree));
+    same_history(opened.painting(), &want);
     // Saving the recovered session makes it the document; the journal
     // starts again.
     let mut opened = opened;
     opened.save().unwrap();
     let again = Session::open(&path).unwrap();
     assert_eq!(again.recovered, 0);
-    assert_eq!(dump_bytes(&again.painting.tree), dump_bytes(&want.tree));
+    assert_eq!(dump_bytes(&again.painting().tree), dump_bytes(&want.tree));
     // And it continues: the rest of the trace gives the whole replay.
     let mut again = again;
     for ev in &t.events[last_end..] {
         again.apply(ev).unwrap();
     }
-    assert_eq!(dump_bytes(&again.painting.tree), dump_bytes(&replayed(&t).tree));
+    assert_eq!(dump_bytes(&again.painting().tree), dump_bytes(&replayed(&t).tree));
 }
 
 #[test]
@@ -220,7 +220,7 @@ fn a_crash_between_save_and_new_journal_loses_nothing() {
     std::fs::write(&jp, &old_journal).unwrap();
     let opened = Session::open(&path).unwrap();
     assert_eq!(opened.recovered, 0, "the document holds the journal's events already");
-    assert_eq!(dump_bytes(&opened.painting.tree), dump_bytes(&replayed(&t).tree));
+    assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&replayed(&t).tree));
     // A journal that belongs to nothing here is refused, not applied.
     let other = tempfile::tempdir().unwrap();
     let (mut s2, p2) = session_from(other.path(), &trace("single_stamp"));
@@ -246,16 +246,16 @@ fn a_bounded_undo_history_still_records_its_tree() {
         s.apply(ev).unwrap();
     }
     assert!(s.forgotten > 0);
-    assert!(s.painting.history.bytes() <= 200_000 || s.painting.history.done.len() == 1);
+    assert!(s.painting().history.bytes() <= 200_000 || s.painting().history.done.len() == 1);
     // Undo everything it still can, then more: the extra undos do nothing
     // and are not recorded, so the trace replays to this tree.
     let undo = octopaint_tree::trace::Event { line: 0, t: 1e6, kind: EventKind::Undo };
     for _ in 0..100 {
         s.apply(&undo).unwrap();
     }
-    assert!(s.painting.history.done.is_empty());
+    assert!(s.painting().history.done.is_empty());
     let recorded = parse_trace(&s.trace_text()).unwrap();
-    assert_eq!(dump_bytes(&replayed(&recorded).tree), dump_bytes(&s.painting.tree));
+    assert_eq!(dump_bytes(&replayed(&recorded).tree), dump_bytes(&s.painting().tree));
 }
 
 #[test]
@@ -274,7 +274,7 @@ fn refused_events_change_nothing() {
         }
         s.apply(ev).unwrap();
     }
-    let before = dump_bytes(&s.painting.tree);
+    let before = dump_bytes(&s.painting().tree);
     let mut nan = sample.clone();
     if let EventKind::Sample(ref mut p) = nan.kind {
         p.p[0] = f64::NAN;
@@ -284,14 +284,15 @@ fn refused_events_change_nothing() {
     back.t = -1.0;
     assert!(s.apply(&back).is_err(), "time going back");
     assert!(s.save().is_err(), "no save inside a stroke");
-    assert_eq!(dump_bytes(&s.painting.tree), before);
+    assert_eq!(dump_bytes(&s.painting().tree), before);
     assert!(matches!(Session::create(&path, &t.canvas, &t.meta), Err(DocError::Exists(_))));
 }
 
 #[test]
 fn a_step_naming_a_cell_twice_is_refused() {
     let doc = format::read(&small_document()).unwrap().doc;
-    let mut history = doc.history.clone();
+    let format::Content::Tree { tree, history: kept } = &doc.content else { panic!("a one-tree document") };
+    let mut history = kept.clone();
     let last = history.done.pop().expect("the stamp is one undo step");
     // The same changes, the first one listed twice (a record before and
     // after as the stroke left them, so nothing else is wrong).
@@ -302,12 +303,131 @@ fn a_step_naming_a_cell_twice_is_refused() {
         step.push(c, b, a);
     }
     history.done.push(step);
-    let (data, _) = format::write(&doc.trace_text, &doc.tree, &history, &doc.meta).unwrap();
+    let (data, _) = format::write(&doc.trace_text, tree, &history, &doc.meta).unwrap();
     match format::read(&data) {
         Err(DocError::Corrupt(m)) => assert!(m.contains(&format!("names cell {} twice", first.0)), "{m}"),
         other => panic!("accepted or refused for another reason: {:?}", other.err()),
     }
     // Written back whole, the same history opens.
-    let (data, _) = format::write(&doc.trace_text, &doc.tree, &doc.history, &doc.meta).unwrap();
+    let (data, _) = format::write(&doc.trace_text, tree, kept, &doc.meta).unwrap();
     assert!(format::read(&data).is_ok());
+}
+
+/// A session of layers (spec 14), event by event, as `import` makes it.
+fn layered_session(dir: &Path, t: &Trace) -> (Session, PathBuf) {
+    let path = dir.join("layers.octo");
+    let mut s = Session::create_layered(&path, &t.canvas, &t.meta).unwrap();
+    for ev in &t.events {
+        s.apply(ev).unwrap();
+    }
+    (s, path)
+}
+
+#[test]
+fn a_document_of_layers_opens_as_its_replay_and_one_tree_ones_stay_version_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = trace("layers");
+    let (mut s, path) = layered_session(dir.path(), &t);
+    s.save().unwrap();
+    let data = std::fs::read(&path).unwrap();
+    assert_eq!(&data[16..24], &[2, 0, 0, 0, 2, 0, 0, 0], "written as version 2, read by 2 and later");
+    let (_, want) = octopaint_tree::replay::replay_document(&t, None, &mut Silent).unwrap();
+    let mut opened = Session::open(&path).unwrap();
+    assert_eq!((opened.version, opened.recovered), (2, 0));
+    assert_eq!(opened.doc.dump_bytes(), want.dump_bytes());
+    assert_eq!(opened.doc.steps(), want.steps());
+    // Its history goes on from the file: every step back, then forward.
+    let mut replayed = want;
+    let mut k = 0;
+    while opened.doc.undo() {
+        assert!(replayed.undo());
+        assert_eq!(opened.doc.dump_bytes(), replayed.dump_bytes(), "after {} undos", k + 1);
+        k += 1;
+    }
+    assert!(k > 10 && !replayed.undo());
+    while opened.doc.redo() {
+        assert!(replayed.redo());
+    }
+    assert_eq!(opened.doc.dump_bytes(), replayed.dump_bytes());
+    // A one-tree session is still written as version 1 (older readers open it).
+    let one = small_document();
+    assert_eq!(&one[16..24], &[1, 0, 0, 0, 1, 0, 0, 0]);
+}
+
+#[test]
+fn layer_events_are_journalled_and_recovered_and_refused_when_bad() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = trace("layers");
+    // Saved after the first stroke; the rest lives only in the journal.
+    let cut = t.events.iter().position(|e| matches!(e.kind, EventKind::Layer(_))).unwrap();
+    let (mut s, path) = layered_session(dir.path(), &prefix(&t, cut));
+    s.save().unwrap();
+    for ev in &t.events[cut..] {
+        s.apply(ev).unwrap();
+    }
+    let want = s.doc.dump_bytes();
+    drop(s); // a crash: nothing saved after the cut
+    let opened = Session::open(&path).unwrap();
+    assert!(opened.recovered > 5, "{}", opened.recovered);
+    assert_eq!(opened.doc.dump_bytes(), want);
+    // Refused, and nothing changes: an unknown layer, a locked merge, a
+    // name taken; a layer event in a one-tree document.
+    let mut s = opened;
+    let last = s.last_time();
+    let layer = |op: LayerOpKind, layer: Option<&str>, name: Option<&str>| Event {
+        line: 0,
+        t: last,
+        kind: EventKind::Layer(LayerOp { layer: layer.map(String::from), name: name.map(String::from), ..LayerOp::new(op) }),
+    };
+    s.apply(&layer(LayerOpKind::Add, None, Some("sky"))).unwrap();
+    let mid = s.doc.dump_bytes();
+    for bad in [
+        layer(LayerOpKind::Rename, Some("x"), Some("y")),
+        layer(LayerOpKind::Rename, Some("sky"), Some("Layer 1")),
+        layer(LayerOpKind::MergeDown, Some("detail copy"), None),
+        layer(LayerOpKind::Delete, Some("nope"), None),
+    ] {
+        let e = s.apply(&bad).expect_err("refused");
+        assert!(matches!(e, DocError::BadEvent(_)), "{e}");
+        assert_eq!(s.doc.dump_bytes(), mid);
+    }
+    let one = dir.path().join("one.octo");
+    let mut plain = Session::create(&one, &t.canvas, &t.meta).unwrap();
+    assert!(matches!(plain.apply(&layer(LayerOpKind::Add, None, Some("sky"))), Err(DocError::BadEvent(_))));
+}
+
+#[test]
+fn damage_anywhere_in_a_document_of_layers_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = concat!(
+        r#"{"format": "ddo-trace", "version": 2, "canvas": {"roots": [1, 1, 1], "max_depth": 4, "root_size": 1.0, "capacity": 4096}}"#,
+        "\n",
+        r#"{"ev": "brush", "t": 0, "shape": "sphere", "mode": "paint", "radius": 0.2, "color": [1, 0, 0], "opacity": 1, "hardness": 0.5}"#,
+        "\n",
+        r#"{"ev": "stroke_begin", "t": 0}"#,
+        "\n",
+        r#"{"ev": "sample", "t": 0, "p": [0.5, 0.5, 0.5]}"#,
+        "\n",
+        r#"{"ev": "stroke_end", "t": 0}"#,
+        "\n",
+        r#"{"ev": "layer", "t": 0, "op": "add", "name": "top"}"#,
+        "\n",
+        r#"{"ev": "layer", "t": 0, "op": "duplicate", "layer": "Layer 1", "name": "copy"}"#,
+        "\n",
+        r#"{"ev": "layer", "t": 0, "op": "delete", "layer": "copy"}"#,
+    );
+    let t = parse_trace(text).unwrap();
+    let (mut s, path) = layered_session(dir.path(), &t);
+    s.save().unwrap();
+    let data = std::fs::read(&path).unwrap();
+    assert!(format::read(&data).is_ok());
+    // Every byte, its low bit flipped (the CRCs catch every one).
+    for i in 0..data.len() {
+        let mut d = data.clone();
+        d[i] ^= 1;
+        assert!(format::read(&d).is_err(), "flipping byte {i} went unnoticed");
+    }
+    for n in (0..data.len()).step_by(101) {
+        assert!(format::read(&data[..n]).is_err());
+    }
 }

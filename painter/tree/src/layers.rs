@@ -181,7 +181,7 @@ pub struct Layer {
 }
 
 impl Layer {
-    fn new(name: &str, painting: Painting) -> Layer {
+    pub fn new(name: &str, painting: Painting) -> Layer {
         Layer { name: name.to_string(), visible: true, opacity: 1.0, locked: false, painting }
     }
 
@@ -196,24 +196,40 @@ impl Layer {
 }
 
 /// A layer's settings as a layer operation's undo step restores them.
-#[derive(Clone)]
-struct Row {
-    id: u32,
-    name: String,
-    visible: bool,
-    opacity: f32,
-    locked: bool,
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    pub id: u32,
+    pub name: String,
+    pub visible: bool,
+    pub opacity: f32,
+    pub locked: bool,
 }
 
-#[derive(Clone)]
-struct Settings {
-    rows: Vec<Row>,
-    selected: usize,
+/// The list of layers (bottom first) and the selection, as a layer
+/// operation's undo step restores them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    pub rows: Vec<Row>,
+    pub selected: usize,
 }
 
-enum Step {
+/// One step of a document's history (spec 14.3).
+pub enum Step {
+    /// A stroke on the layer of this id (its own undo step is the newest
+    /// of that layer's history).
     Stroke(u32),
+    /// A layer operation: the settings before and after it.
     Layers(Box<(Settings, Settings)>),
+}
+
+impl Step {
+    /// The layer ids the step refers to.
+    pub fn ids(&self) -> Vec<u32> {
+        match self {
+            Step::Stroke(id) => vec![*id],
+            Step::Layers(b) => b.0.rows.iter().chain(b.1.rows.iter()).map(|r| r.id).collect(),
+        }
+    }
 }
 
 /// The layers of a version 2 trace and their one history (spec 14). Layers
@@ -248,6 +264,21 @@ impl Document {
         let id = d.insert(Layer::new(FIRST_NAME, Painting::new(canvas)));
         d.order.push(id);
         d
+    }
+
+    /// A document of one layer holding `painting` (a one-tree document,
+    /// or a version 1 trace), its strokes the document's history.
+    pub fn from_painting(canvas: &Canvas, painting: Painting) -> Document {
+        let done = (0..painting.history.done.len()).map(|_| Step::Stroke(0)).collect();
+        let undone = (0..painting.history.undone.len()).map(|_| Step::Stroke(0)).collect();
+        let mut arena = BTreeMap::new();
+        arena.insert(0, Layer::new(FIRST_NAME, painting));
+        Document { canvas: *canvas, arena, order: vec![0], selected: 0, next_id: 1, done, undone, painting_on: None, warnings: Vec::new() }
+    }
+
+    /// Steps that can be undone and redone.
+    pub fn steps(&self) -> (usize, usize) {
+        (self.done.len(), self.undone.len())
     }
 
     fn insert(&mut self, layer: Layer) -> u32 {
@@ -364,15 +395,145 @@ impl Document {
         for l in self.arena.values_mut() {
             l.painting.history.undone.clear();
         }
-        // Layers that no step and no list position refer to any more.
+        self.forget_unreferenced();
+    }
+
+    /// Drop the layers that no step and no list position refer to.
+    fn forget_unreferenced(&mut self) {
         let mut keep: Vec<u32> = self.order.clone();
-        for s in &self.done {
-            match s {
-                Step::Stroke(id) => keep.push(*id),
-                Step::Layers(b) => keep.extend(b.0.rows.iter().chain(b.1.rows.iter()).map(|r| r.id)),
-            }
+        for s in self.done.iter().chain(&self.undone) {
+            keep.extend(s.ids());
         }
         self.arena.retain(|id, _| keep.contains(id));
+    }
+
+    /// Bytes the history holds: every layer's undo steps (layer operations'
+    /// own steps are a few rows each).
+    pub fn history_bytes(&self) -> usize {
+        self.arena.values().map(|l| l.painting.history.bytes()).sum()
+    }
+
+    /// Forget the oldest steps until the history takes at most `max_bytes`
+    /// (the newest step and every redo step are kept). A forgotten stroke
+    /// takes its layer's oldest undo step with it; layers only a forgotten
+    /// step still held (deleted, merged) are dropped. Returns how many
+    /// steps were forgotten.
+    pub fn trim_to(&mut self, max_bytes: usize) -> usize {
+        let mut dropped = 0;
+        while self.history_bytes() > max_bytes && self.done.len() > 1 {
+            if let Step::Stroke(id) = self.done.remove(0)
+                && let Some(l) = self.arena.get_mut(&id)
+                && !l.painting.history.done.is_empty()
+            {
+                l.painting.history.done.remove(0);
+            }
+            dropped += 1;
+        }
+        if dropped > 0 {
+            self.forget_unreferenced();
+        }
+        dropped
+    }
+
+    // ------------------------------------------------------ saving, opening
+
+    /// The parts a saved document keeps: every layer by id (those undo
+    /// still needs included), the list, the selection, the next id and the
+    /// history.
+    pub fn parts(&self) -> (impl Iterator<Item = (u32, &Layer)> + '_, &[u32], usize, u32, &[Step], &[Step]) {
+        (self.arena.iter().map(|(id, l)| (*id, l)), &self.order, self.selected, self.next_id, &self.done, &self.undone)
+    }
+
+    /// A document from saved parts, refused with the first problem unless
+    /// they fit together: at most 16 listed layers, each id once, a
+    /// selection in the list, steps naming layers that exist with valid
+    /// names and opacities, each stroke step matching a step of its
+    /// layer's history, and all layers within the cell budget.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_parts(
+        canvas: &Canvas,
+        layers: Vec<(u32, Layer)>,
+        order: Vec<u32>,
+        selected: usize,
+        next_id: u32,
+        done: Vec<Step>,
+        undone: Vec<Step>,
+    ) -> Result<Document, String> {
+        let mut arena = BTreeMap::new();
+        for (id, l) in layers {
+            if id >= next_id {
+                return Err(format!("layer id {id} is not below the next id {next_id}"));
+            }
+            if let Some(why) = name_problem(&l.name) {
+                return Err(format!("layer {id}: {why}"));
+            }
+            if !(0.0..=1.0).contains(&l.opacity) {
+                return Err(format!("layer {id}: opacity {} is not in [0, 1]", l.opacity));
+            }
+            if arena.insert(id, l).is_some() {
+                return Err(format!("layer id {id} is there twice"));
+            }
+        }
+        if order.is_empty() || order.len() > MAX_LAYERS {
+            return Err(format!("{} layers in the list (1 to {MAX_LAYERS})", order.len()));
+        }
+        if selected >= order.len() {
+            return Err(format!("the selection {selected} is past the {} layers", order.len()));
+        }
+        let check_rows = |s: &Settings| -> Result<(), String> {
+            if s.rows.is_empty() || s.rows.len() > MAX_LAYERS || s.selected >= s.rows.len() {
+                return Err("a layer step has an impossible list".into());
+            }
+            for (k, r) in s.rows.iter().enumerate() {
+                if !arena.contains_key(&r.id) || s.rows[..k].iter().any(|o| o.id == r.id || o.name == r.name) {
+                    return Err(format!("a layer step names layer {} that is missing or twice", r.id));
+                }
+                if name_problem(&r.name).is_some() || !(0.0..=1.0).contains(&r.opacity) {
+                    return Err(format!("a layer step holds impossible settings for layer {}", r.id));
+                }
+            }
+            Ok(())
+        };
+        let mut strokes: BTreeMap<u32, (usize, usize)> = BTreeMap::new();
+        for (k, s) in done.iter().chain(&undone).enumerate() {
+            match s {
+                Step::Stroke(id) => {
+                    if !arena.contains_key(id) {
+                        return Err(format!("step {k} paints layer {id}, which is missing"));
+                    }
+                    let e = strokes.entry(*id).or_default();
+                    if k < done.len() { e.0 += 1 } else { e.1 += 1 }
+                }
+                Step::Layers(b) => {
+                    check_rows(&b.0)?;
+                    check_rows(&b.1)?;
+                }
+            }
+        }
+        for (id, l) in &arena {
+            let (d, u) = strokes.get(id).copied().unwrap_or_default();
+            let h = &l.painting.history;
+            if h.done.len() != d || h.undone.len() != u {
+                return Err(format!("layer {id}'s own history does not match the document's steps"));
+            }
+        }
+        let mut seen = Vec::new();
+        for id in &order {
+            if !arena.contains_key(id) || seen.contains(id) {
+                return Err(format!("the list names layer {id}, which is missing or twice"));
+            }
+            seen.push(*id);
+        }
+        let mut names: Vec<&str> = order.iter().map(|id| arena[id].name.as_str()).collect();
+        names.sort_unstable();
+        if names.windows(2).any(|w| w[0] == w[1]) {
+            return Err("two listed layers have one name".into());
+        }
+        let used: u64 = order.iter().map(|id| u64::from(arena[id].tree().n_used())).sum();
+        if used > u64::from(canvas.capacity) {
+            return Err(format!("the layers use {used} cells, over the budget of {}", canvas.capacity));
+        }
+        Ok(Document { canvas: *canvas, arena, order, selected, next_id, done, undone, painting_on: None, warnings: Vec::new() })
     }
 
     // --------------------------------------------------------------- undo

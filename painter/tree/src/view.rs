@@ -71,6 +71,23 @@ pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
 
+/// [`frame_painting`] for several trees (a document's layers): the box
+/// around every painted leaf of any of them (the first tree's whole canvas
+/// when none is painted).
+pub fn frame_trees(trees: &[&Tree]) -> OrbitCamera {
+    let painted: Vec<&&Tree> = trees.iter().filter(|t| t.sigma.iter().any(|&s| s > 0.0)).collect();
+    let Some(first) = painted.first() else { return frame_painting(trees[0]) };
+    let (mut lo, mut hi) = first.painted_bounds();
+    for t in &painted[1..] {
+        let (l, h) = t.painted_bounds();
+        lo = lo.min(l);
+        hi = hi.max(h);
+    }
+    let t = first;
+    let radius = ((hi - lo).length() / 2.0).max(t.lat.size_canvas[t.lat.max_depth as usize]);
+    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
+}
+
 /// The canvas axes x, y, z as a camera turned by `camera_to_canvas` sees
 /// them, for an axes gizmo: each one's direction on the screen (y down)
 /// and whether it points away from the viewer.

@@ -375,7 +375,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
         // The canvas is placed in front of the head where it first is.
         if placement.is_none() {
-            let (head, p) = in_front_of_head(&doc.painting.tree, &views);
+            let (head, p) = in_front_of_head(&doc.painting().tree, &views);
             head0 = head;
             placement = Some(p);
         }
@@ -397,12 +397,12 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
         if std::mem::take(&mut painter.reframe) {
             // Frame the painting: in front of the head where it is now.
-            *place = in_front_of_head(&doc.painting.tree, &views).1;
+            *place = in_front_of_head(&doc.painting().tree, &views).1;
         }
         let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
         let in_stroke = doc.in_stroke();
-        let tree = &mut doc.painting.tree;
+        let tree = &mut doc.painting_mut().tree;
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
         let t0 = Instant::now();
