@@ -365,9 +365,6 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, fr
     if let Err(e) = create_default(doc) {
         return fail(e);
     }
-    if let Some(code) = refuse_layers(doc, "the window") {
-        return code;
-    }
     let opts = octopaint_desktop::Options {
         doc: doc.to_path_buf(),
         size,
@@ -418,15 +415,15 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
     Ok(())
 }
 
-/// Documents of layers (spec 14) are painted in traces and drawn by
-/// `render` and `export`; the window and the headset paint one tree until
-/// they have a layer panel (issue 17): they refuse such a document rather
-/// than show and paint one of its layers as if it were the painting.
+/// Documents of layers (spec 14) open in the window (its layer panel) but
+/// not yet in the headset, which paints one tree until its palette has a
+/// layer page (issue 17): it refuses such a document rather than show and
+/// paint one of its layers as if it were the painting.
 fn refuse_layers(doc: &Path, what: &str) -> Option<ExitCode> {
     let s = Session::open(doc).ok()?;
     (s.version == 2).then(|| {
         eprintln!(
-            "octopaint: {}: a document of {} layers; {what} paints one-tree documents for now (octopaint render and export draw it, octopaint record gives its session)",
+            "octopaint: {}: a document of {} layers; {what} paints one-tree documents for now (the window paints layers: octopaint window; octopaint render and export draw it)",
             doc.display(),
             s.doc.len()
         );
@@ -491,7 +488,8 @@ pub fn dump(doc: &Path, out: &Path) -> ExitCode {
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    let bytes = octopaint_tree::dump::dump_bytes(&s.painting().tree);
+    // A document of layers dumps every layer (spec 14.5).
+    let bytes = if s.version == 2 { s.doc.dump_bytes() } else { octopaint_tree::dump::dump_bytes(&s.painting().tree) };
     match octopaint_platform::durable::write(out, &bytes) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -450,3 +450,66 @@ fn mirror_painting_paints_both_sides_and_records_its_planes() {
     }
     assert!(left > 100 && right > 100 && (left as f64 / right as f64 - 1.0).abs() < 0.2, "painted leaves: {left} left of the plane, {right} right");
 }
+
+#[test]
+fn a_document_of_layers_shows_every_layer_and_paints_the_selected_one() {
+    let (_x, display) = start_xvfb();
+    let scratch = tempfile::tempdir().unwrap();
+    let s = scratch.path();
+    let runtime = s.join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    // Red on the first layer, left; blue on a second one, right.
+    let trace = s.join("two.jsonl");
+    let stamp = |p: &str, c: &str| {
+        format!(
+            "{{\"ev\": \"brush\", \"t\": 0, \"shape\": \"sphere\", \"mode\": \"paint\", \"radius\": 0.12, \"color\": {c}, \"opacity\": 1, \"hardness\": 0.8}}\n{{\"ev\": \"stroke_begin\", \"t\": 0}}\n{{\"ev\": \"sample\", \"t\": 0, \"p\": {p}}}\n{{\"ev\": \"stroke_end\", \"t\": 0}}\n"
+        )
+    };
+    let text = format!(
+        "{}\n{}{{\"ev\": \"layer\", \"t\": 0, \"op\": \"add\", \"name\": \"blue\"}}\n{}",
+        r#"{"format": "ddo-trace", "version": 2, "canvas": {"roots": [1, 1, 1], "max_depth": 8, "root_size": 1.0, "capacity": 4194304}}"#,
+        stamp("[0.3, 0.5, 0.5]", "[0.9, 0.1, 0.1]"),
+        stamp("[0.7, 0.5, 0.5]", "[0.1, 0.2, 0.95]")
+    );
+    std::fs::write(&trace, text).unwrap();
+    let doc = s.join("two.octo");
+    let res = octopaint().arg("import").arg(&trace).arg(&doc).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    let cells = |doc: &std::path::Path| -> Vec<u64> {
+        let out = octopaint().arg("info").arg(doc).output().unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).to_string();
+        text.lines().filter(|l| l.contains(" cells, opacity")).map(|l| l.split(": ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap()).collect()
+    };
+    let before = cells(&doc);
+    assert_eq!(before.len(), 2);
+    let shot = s.join("shot.png");
+    let mut window = on_display(&display, &runtime).arg("window").arg(&doc).args(["--size", "800x600", "--screenshot"]).arg(&shot).spawn().unwrap();
+    let id = window_of(&mut window, &display, "the window");
+    std::thread::sleep(Duration::from_secs(2));
+    xdotool(&display, &["windowfocus", &id]);
+    xdotool(&display, &["mousemove", "--window", &id, "700", "80"]);
+    xdotool(&display, &["key", "F12"]);
+    wait_for("the screenshot", Duration::from_secs(60), || shot.exists());
+    let rgb = read_rgb(&shot);
+    let red = rgb.chunks(3).filter(|p| p[0] > 120 && p[2] < 60).count();
+    let blue = rgb.chunks(3).filter(|p| p[2] > 120 && p[0] < 60).count();
+    assert!(red > 500 && blue > 500, "both layers drawn: {red} red pixels, {blue} blue");
+    // A stroke across the middle: it goes to the selected layer, "blue".
+    xdotool(&display, &["mousemove", "--window", &id, "480", "300", "mousedown", "1"]);
+    for i in 1..=12 {
+        xdotool(&display, &["mousemove", "--window", &id, &(480 + i * 8).to_string(), &(300 + i * 3).to_string()]);
+        std::thread::sleep(Duration::from_millis(40));
+    }
+    xdotool(&display, &["mouseup", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    xdotool(&display, &["key", "ctrl+q"]);
+    let t0 = Instant::now();
+    while window.try_wait().unwrap().is_none() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close on Ctrl+Q");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let after = cells(&doc);
+    assert_eq!(after[0], before[0], "the first layer is untouched");
+    assert!(after[1] > before[1], "the selected layer took the stroke: {before:?} -> {after:?}");
+}

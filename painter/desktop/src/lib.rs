@@ -16,11 +16,13 @@ use std::time::{Duration, Instant};
 
 use glam::{DQuat, DVec3};
 use octopaint_doc::Session;
+use octopaint_gpu::raycast::LayerTableGpu;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
+use octopaint_tree::layers::MAX_LAYERS;
 use octopaint_tree::raycast::RayParams;
-use octopaint_tree::trace::{Brush, Camera, Event, EventKind, Light, MODES, Mirror, Mode, SHAPES, Sample, Shape};
+use octopaint_tree::trace::{Brush, Camera, Event, EventKind, LayerOp, LayerOpKind, Light, MODES, Mirror, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from, follow_frame_time, frame_painting, length};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from, follow_frame_time, frame_painting, frame_trees, length};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -395,6 +397,27 @@ struct Running {
     orbiting: bool,
     want_screenshot: bool,
     resolution: Resolution,
+    layers: LayersUi,
+}
+
+/// The layer panel's state (docs/desktop.md "Layers"), and what the GPU
+/// holds of a document of layers: the table of the layers uploaded and the
+/// settings they were uploaded with.
+#[derive(Default)]
+struct LayersUi {
+    rename: String,
+    /// The selected layer's opacity while its slider is dragged (applied,
+    /// as one undo step, when the drag ends).
+    opacity: Option<f32>,
+    uploaded: Option<(Vec<(u32, u32, bool)>, LayerTableGpu)>,
+}
+
+/// One row of the layer panel.
+struct LayerInfo {
+    name: String,
+    visible: bool,
+    opacity: f32,
+    locked: bool,
 }
 
 struct App {
@@ -462,7 +485,7 @@ impl App {
     /// button).
     fn frame_view(&mut self) {
         if let Some(r) = self.running.as_mut() {
-            r.camera = OrbitCamera { covered: r.camera.covered, ..frame_painting(&self.session.painting().tree) };
+            r.camera = OrbitCamera { covered: r.camera.covered, ..frame_document(&self.session) };
             r.stats.message = "framed the painting".into();
         }
     }
@@ -517,7 +540,7 @@ impl App {
         let egui_ctx = egui::Context::default();
         let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, None);
         let egui_renderer = egui_wgpu::Renderer::new(device, format, egui_wgpu::RendererOptions::default());
-        let camera = frame_painting(&self.session.painting().tree);
+        let camera = frame_document(&self.session);
         let brush = BrushUi {
             shape: Shape::Sphere,
             mode: Mode::Paint,
@@ -560,6 +583,7 @@ impl App {
             painting: false,
             orbiting: false,
             want_screenshot: false,
+            layers: LayersUi::default(),
             resolution: Resolution {
                 scale: 1.0,
                 last_view: None,
@@ -582,12 +606,39 @@ impl App {
         let precision = self.opts.precision;
         let screenshot_path = self.opts.screenshot.clone();
         let Some(r) = self.running.as_mut() else { return Ok(()) };
-        let tree = &mut self.session.painting_mut().tree;
-        let synced = r.renderer.sync(tree).map_err(|e| e.to_string())?;
+        // A document of layers: every contributing layer in the pages,
+        // uploaded again when one of them or the list changed (spec 6.2);
+        // a one-tree document: its tree, block by block.
+        let layered = self.session.version == 2;
+        let mut table = None;
+        let tree_changed = if layered {
+            let (_, order, ..) = self.session.doc.parts();
+            let order = order.to_vec();
+            let mut key = Vec::new();
+            let mut changed = false;
+            for (k, id) in order.iter().enumerate() {
+                let l = self.session.doc.layer_mut(k);
+                changed |= !l.painting.tree.take_publication().blocks.is_empty();
+                if l.contributes() {
+                    key.push((*id, l.opacity.to_bits(), l.visible));
+                }
+            }
+            let stale = r.layers.uploaded.as_ref().is_none_or(|(k, _)| *k != key);
+            if changed || stale {
+                let trees: Vec<(&Tree, f32)> = self.session.doc.layers().filter(|l| l.contributes()).map(|l| (l.tree(), l.opacity)).collect();
+                let t = if trees.is_empty() { LayerTableGpu::new(&[], &[]) } else { r.renderer.upload_layers(&trees).map_err(|e| e.to_string())? };
+                r.layers.uploaded = Some((key, t));
+            }
+            table = r.layers.uploaded.as_ref().map(|(_, t)| *t);
+            changed || stale
+        } else {
+            r.renderer.sync(&mut self.session.painting_mut().tree).map_err(|e| e.to_string())?.blocks > 0
+        };
+        let tree = &self.session.painting().tree;
         let size = [r.config.width, r.config.height];
         let light = r.brush.light.light(r.camera.rotation());
         // A screenshot is always of the full resolution, moving or not.
-        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), synced.blocks > 0, r.want_screenshot);
+        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), tree_changed, r.want_screenshot);
         let camera = r.camera.camera(cast, BACKGROUND);
         let mut params = RayParams::new(&tree.lat, &camera).with_light(light.as_ref());
         if r.brush.grid {
@@ -597,21 +648,26 @@ impl App {
         // The panel.
         let raw = r.egui_state.take_egui_input(&r.window);
         let mut actions = Vec::new();
+        let doc = &self.session.doc;
+        let (undo, redo) = doc.steps();
         let info = StatusInfo {
             fps: r.stats.fps,
             resolution: f64::from(cast[0]) / f64::from(size[0].max(1)),
             latency_ms: r.stats.latency_ms,
             busy_ms: r.stats.busy_ms,
-            cells: tree.n_used(),
-            capacity: tree.capacity,
-            bytes: tree.pool_bytes_allocated() + self.session.painting().history.bytes(),
-            undo: self.session.painting().history.done.len(),
-            redo: self.session.painting().history.undone.len(),
+            cells: doc.used().min(u64::from(u32::MAX)) as u32,
+            capacity: doc.canvas().capacity,
+            bytes: doc.layers().map(|l| l.tree().pool_bytes_allocated()).sum::<usize>() + doc.history_bytes(),
+            undo,
+            redo,
             message: r.stats.message.clone(),
             in_stroke: self.session.in_stroke(),
+            layered,
+            layers: doc.layers().map(|l| LayerInfo { name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }).collect(),
+            selected: doc.selected(),
         };
         let mut view = None;
-        let out = r.egui_ctx.run_ui(raw, |ui| view = Some(panel(ui, &mut r.brush, &info, &overlay, &mut actions)));
+        let out = r.egui_ctx.run_ui(raw, |ui| view = Some(panel(ui, &mut r.brush, &mut r.layers, &info, &overlay, &mut actions)));
         // The next frames centre the view on the part the panel leaves.
         if let Some(v) = view {
             r.camera.covered = (f64::from(v.left() * out.pixels_per_point) / f64::from(size[0].max(1))).clamp(0.0, 0.9);
@@ -637,7 +693,12 @@ impl App {
             }
         };
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
-        r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?;
+        match &table {
+            Some(t) if !(t.count[0] == 1 && f32::from_bits(t.at[0][1]) == 1.0) => {
+                r.renderer.ray.encode_layers(gpu, &r.renderer.pools, &mut enc, &params, precision, t).map_err(|e| e.to_string())?;
+            }
+            _ => r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?,
+        }
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
         let group = r.blit.bind_scaled(gpu, pixels, cast, size);
         r.egui_renderer.update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);
@@ -731,6 +792,16 @@ impl App {
                         r.want_screenshot = true;
                     }
                 }
+                Action::MakeLayers => {
+                    let msg = match self.session.upgrade_to_layers() {
+                        Ok(()) => "this document now has layers (saved)".to_string(),
+                        Err(e) => format!("cannot make layers: {e}"),
+                    };
+                    if let Some(r) = self.running.as_mut() {
+                        r.stats.message = msg;
+                    }
+                }
+                Action::Layer(op) => self.apply(EventKind::Layer(op)),
             }
         }
         Ok(())
@@ -756,6 +827,10 @@ struct StatusInfo {
     redo: usize,
     message: String,
     in_stroke: bool,
+    /// A document of layers (a version 2 session); else one tree.
+    layered: bool,
+    layers: Vec<LayerInfo>,
+    selected: usize,
 }
 
 enum Action {
@@ -765,13 +840,102 @@ enum Action {
     Screenshot,
     Frame,
     MirrorHere,
+    /// Make this one-tree document a document of layers.
+    MakeLayers,
+    Layer(LayerOp),
+}
+
+/// The smallest `Layer N` not taken.
+fn free_name(layers: &[LayerInfo], stem: &str) -> String {
+    (1..).map(|n| format!("{stem} {n}")).find(|n| !layers.iter().any(|l| l.name == *n)).expect("some name is free")
+}
+
+fn layer_op(kind: LayerOpKind, layer: Option<&str>, name: Option<String>) -> LayerOp {
+    LayerOp { layer: layer.map(String::from), name, ..LayerOp::new(kind) }
+}
+
+/// The layer panel (docs/desktop.md "Layers"): the layers top first, each
+/// selectable, with its eye and its lock; the selected one's opacity and
+/// name; add, duplicate, delete, merge down, move up and down. Every change
+/// is a `layer` event of the document, an undo step.
+fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, actions: &mut Vec<Action>) {
+    ui.heading("Layers");
+    if !s.layered {
+        ui.label("one tree");
+        if ui.button("Use layers").on_hover_text("make this document a document of layers (it is saved at once)").clicked() {
+            actions.push(Action::MakeLayers);
+        }
+        return;
+    }
+    let n = s.layers.len();
+    for k in (0..n).rev() {
+        let layer = &s.layers[k];
+        ui.horizontal(|ui| {
+            let mut visible = layer.visible;
+            if ui.checkbox(&mut visible, "").on_hover_text("visible (drawn, exported)").changed() {
+                actions.push(Action::Layer(LayerOp { visible: Some(visible), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
+            }
+            let mut locked = layer.locked;
+            if ui.checkbox(&mut locked, "lock").on_hover_text("locked: strokes are refused").changed() {
+                actions.push(Action::Layer(LayerOp { locked: Some(locked), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
+            }
+            let label = if layer.opacity < 1.0 { format!("{} ({:.0}%)", layer.name, layer.opacity * 100.0) } else { layer.name.clone() };
+            if ui.selectable_label(k == s.selected, label).clicked() && k != s.selected {
+                actions.push(Action::Layer(layer_op(LayerOpKind::Select, Some(&layer.name), None)));
+                l.rename.clear();
+                l.opacity = None;
+            }
+        });
+    }
+    let Some(current) = s.layers.get(s.selected) else { return };
+    let name = current.name.as_str();
+    let mut opacity = l.opacity.unwrap_or(current.opacity);
+    let slider = ui.add(egui::Slider::new(&mut opacity, 0.0..=1.0).text("layer opacity"));
+    if slider.dragged() {
+        l.opacity = Some(opacity);
+    } else if slider.drag_stopped() || (slider.changed() && !slider.dragged()) {
+        l.opacity = None;
+        if opacity != current.opacity {
+            actions.push(Action::Layer(LayerOp { opacity: Some(opacity), ..layer_op(LayerOpKind::Set, Some(name), None) }));
+        }
+    }
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut l.rename).hint_text(name).desired_width(110.0));
+        if ui.button("Rename").clicked() && !l.rename.trim().is_empty() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Rename, Some(name), Some(l.rename.trim().to_string()))));
+            l.rename.clear();
+        }
+    });
+    ui.horizontal(|ui| {
+        if ui.add_enabled(n < MAX_LAYERS, egui::Button::new("Add")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Add, None, Some(free_name(&s.layers, "Layer")))));
+        }
+        if ui.add_enabled(n < MAX_LAYERS, egui::Button::new("Duplicate")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Duplicate, Some(name), Some(free_name(&s.layers, &format!("{name} copy"))))));
+        }
+        if ui.add_enabled(n > 1, egui::Button::new("Delete")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Delete, Some(name), None)));
+        }
+    });
+    ui.horizontal(|ui| {
+        let below_locked = s.selected > 0 && s.layers[s.selected - 1].locked;
+        if ui.add_enabled(s.selected > 0 && !current.locked && !below_locked, egui::Button::new("Merge down")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::MergeDown, Some(name), None)));
+        }
+        if ui.add_enabled(s.selected + 1 < n, egui::Button::new("Up")).clicked() {
+            actions.push(Action::Layer(LayerOp { to: Some(s.selected + 1), ..layer_op(LayerOpKind::Move, Some(name), None) }));
+        }
+        if ui.add_enabled(s.selected > 0, egui::Button::new("Down")).clicked() {
+            actions.push(Action::Layer(LayerOp { to: Some(s.selected - 1), ..layer_op(LayerOpKind::Move, Some(name), None) }));
+        }
+    });
 }
 
 /// The panel, the status line and the overlay; returns the part of the
 /// window they leave for the view (points).
-fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) -> egui::Rect {
+fn panel(root: &mut egui::Ui, b: &mut BrushUi, l: &mut LayersUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) -> egui::Rect {
     status_line(root, s);
-    egui::Panel::left("brush").resizable(false).show(root, |ui| {
+    egui::Panel::left("brush").resizable(false).show(root, |ui| egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("Brush");
         egui::ComboBox::from_label("shape").selected_text(SHAPES[b.shape as usize]).show_ui(ui, |ui| {
             for (v, name) in [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise].into_iter().zip(SHAPES) {
@@ -838,8 +1002,10 @@ fn panel(root: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, overlay: &Overlay
             }
         });
         ui.separator();
+        layers_panel(ui, l, s, actions);
+        ui.separator();
         ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\nL: light · Shift+L: shadows\nM: mirror on x\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
-    });
+    }));
     let view = root.available_rect_before_wrap();
     overlay.draw(root.ctx(), view);
     view
@@ -863,6 +1029,12 @@ fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
             ui.label(format!("memory {:.1} MiB", s.bytes as f64 / f64::from(1 << 20)));
             ui.separator();
             ui.label(format!("undo {} / redo {}", s.undo, s.redo));
+            if s.layered
+                && let Some(l) = s.layers.get(s.selected)
+            {
+                ui.separator();
+                ui.label(format!("layer {}{}", l.name, if l.locked { " (locked)" } else { "" }));
+            }
             if s.busy_ms > 50.0 || s.in_stroke {
                 ui.separator();
                 ui.colored_label(egui::Color32::YELLOW, format!("painting… {:.0} ms", s.busy_ms));
@@ -980,4 +1152,11 @@ impl ApplicationHandler for App {
             r.window.request_redraw();
         }
     }
+}
+
+/// The view that frames everything painted: the visible layers of a
+/// document of layers, the tree of a one-tree one.
+fn frame_document(session: &Session) -> OrbitCamera {
+    let shown: Vec<&Tree> = session.doc.layers().filter(|l| l.contributes()).map(|l| l.tree()).collect();
+    if shown.is_empty() { frame_painting(&session.painting().tree) } else { frame_trees(&shown) }
 }

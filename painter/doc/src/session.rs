@@ -97,6 +97,36 @@ impl Session {
         Ok(s)
     }
 
+    /// Make a one-tree document a document of layers (spec 14): its session
+    /// becomes a version 2 trace (every version 1 event reads the same in
+    /// version 2, and replays to the same one layer, `Layer 1`), and it is
+    /// saved at once in format version 2, so that its journal only ever
+    /// extends a document that takes layer events. Nothing happens to a
+    /// document of layers; refused inside a stroke.
+    pub fn upgrade_to_layers(&mut self) -> Result<(), DocError> {
+        if self.version == 2 {
+            return Ok(());
+        }
+        if self.in_stroke {
+            return Err(DocError::BadEvent("cannot make layers inside a stroke: end it first".into()));
+        }
+        let (head, rest) = self.trace_text.split_once('\n').map_or((self.trace_text.as_str(), ""), |(h, r)| (h, r));
+        let trace = parse_trace(head).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let mut text = octopaint_tree::trace_write::header_line_version(&trace.canvas, &trace.meta, 2);
+        if !rest.is_empty() {
+            text.push('\n');
+            text.push_str(rest);
+        }
+        let old = std::mem::replace(&mut self.trace_text, text);
+        self.version = 2;
+        if let Err(e) = self.save() {
+            self.trace_text = old;
+            self.version = 1;
+            return Err(e);
+        }
+        Ok(())
+    }
+
     /// The selected layer's painting (the only one of a one-tree document).
     pub fn painting(&self) -> &Painting {
         &self.doc.current().painting

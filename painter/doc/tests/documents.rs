@@ -431,3 +431,28 @@ fn damage_anywhere_in_a_document_of_layers_is_refused() {
         assert!(format::read(&data[..n]).is_err());
     }
 }
+
+#[test]
+fn a_one_tree_document_takes_layers_once_upgraded() {
+    let dir = tempfile::tempdir().unwrap();
+    let t = trace("single_stamp");
+    let (mut s, path) = session_from(dir.path(), &t);
+    let before = dump_bytes(&s.painting().tree);
+    s.upgrade_to_layers().unwrap();
+    assert_eq!(s.version, 2);
+    // Saved at once as a document of layers; the one tree is `Layer 1`.
+    assert_eq!(&std::fs::read(&path).unwrap()[16..20], &[2, 0, 0, 0]);
+    let last = s.last_time();
+    let add = Event { line: 0, t: last, kind: EventKind::Layer(LayerOp { name: Some("top".into()), ..LayerOp::new(LayerOpKind::Add) }) };
+    s.apply(&add).unwrap();
+    drop(s);
+    let opened = Session::open(&path).unwrap();
+    assert_eq!((opened.version, opened.doc.len(), opened.recovered), (2, 2, 1));
+    assert_eq!(dump_bytes(opened.doc.layer(0).tree()), before);
+    assert_eq!(opened.doc.layer(1).name, "top");
+    // Its session reads back as a version 2 trace that replays to it.
+    let again = parse_trace(&opened.trace_text()).unwrap();
+    assert_eq!(again.version, 2);
+    let (_, replayed) = octopaint_tree::replay::replay_document(&again, None, &mut Silent).unwrap();
+    assert_eq!(replayed.dump_bytes(), opened.doc.dump_bytes());
+}

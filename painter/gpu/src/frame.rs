@@ -151,6 +151,23 @@ impl Renderer {
     /// The pages then hold the document, not the tree this renderer
     /// follows: its next sync uploads that tree whole again.
     pub fn render_layers(&mut self, layers: &[(&Tree, f32)], params: &RayParams, precision: Precision) -> Result<Vec<u8>, GpuError> {
+        let table = self.upload_layers(layers)?;
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast layers") });
+        if layers.len() == 1 && layers[0].1 == 1.0 {
+            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
+        } else {
+            self.ray.encode_layers(&self.gpu, &self.pools, &mut enc, params, precision, &table)?;
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        self.ray.read_image(&self.gpu, params.width, params.height)
+    }
+
+    /// Write `layers` (each tree with its opacity) into the pages one after
+    /// the other, with the CPU port's g3 tables, and return the table the
+    /// ray caster's `main_layers` reads (spec 6.2). The pages then no
+    /// longer hold the tree this renderer follows: its next sync uploads
+    /// that tree whole again.
+    pub fn upload_layers(&mut self, layers: &[(&Tree, f32)]) -> Result<LayerTableGpu, GpuError> {
         let mut cells = Vec::new();
         let mut g3 = Vec::new();
         let mut bases = Vec::with_capacity(layers.len());
@@ -168,14 +185,7 @@ impl Renderer {
         self.pending_blocks.clear();
         self.pending_mask = NeighbourMask::default();
         let opacity: Vec<f32> = layers.iter().map(|(_, o)| *o).collect();
-        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast layers") });
-        if layers.len() == 1 && opacity[0] == 1.0 {
-            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
-        } else {
-            self.ray.encode_layers(&self.gpu, &self.pools, &mut enc, params, precision, &LayerTableGpu::new(&bases, &opacity))?;
-        }
-        self.gpu.queue.submit([enc.finish()]);
-        self.ray.read_image(&self.gpu, params.width, params.height)
+        Ok(LayerTableGpu::new(&bases, &opacity))
     }
 
     /// g3 of every used cell, as the GPU holds it (after a sync).
