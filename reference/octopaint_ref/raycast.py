@@ -599,10 +599,19 @@ def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="lo
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = shading(tree, canvas, light) if lit else None
     setup = Setup(canvas, FORMATS[precision], frame, int(max_steps), int(record), lit)
-    n = len(rays.dir_canvas)
-    tile = min(tile, _bucket(n)) if n else 1
     bg = jnp.asarray(np.asarray(background, np.float64))
     parts = []
+    for chunk, k in _tiles(rays, tile):
+        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting)
+        parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))
+    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+
+
+def _tiles(rays: Ray, tile: int):
+    """The rays in tiles of `tile` (at most the rays' size class), the last
+    one padded with rays that miss: (tile of rays, how many are real)."""
+    n = len(rays.dir_canvas)
+    tile = min(tile, _bucket(n)) if n else 1
     for r0 in range(0, n, tile):
         sl = slice(r0, r0 + tile)
         k = len(rays.dir_canvas[sl])
@@ -618,9 +627,7 @@ def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="lo
             padded(rays.frac, np.zeros(3)),
             padded(rays.dir_canvas, np.array([-1.0, 0.0, 0.0])),
         )
-        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting)
-        parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))
-    return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
+        yield chunk, k
 
 
 def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None) -> Rendered:
@@ -806,24 +813,9 @@ def render_layers(layers: list, camera, precision="f64", max_steps=MAX_STEPS, ti
         lighting = lighting._replace(to_light=lighting.to_light[0])
     setup = Setup(canvas, FORMATS[precision], "local", int(max_steps), 0, lit)
     rays = camera_rays(camera, canvas)
-    n = len(rays.dir_canvas)
-    tile = min(tile, _bucket(n))
     bg = jnp.asarray(np.asarray(camera.background, np.float64))
     parts = []
-    for r0 in range(0, n, tile):
-        sl = slice(r0, r0 + tile)
-        k = len(rays.dir_canvas[sl])
-        pad = tile - k
-
-        def padded(a, fill):
-            a = np.asarray(a)[sl]
-            return np.concatenate([a, np.broadcast_to(fill, (pad,) + a.shape[1:])]) if pad else a
-
-        chunk = Ray(
-            padded(rays.eye_lattice, np.array([-1, -1, -1], np.int64)),
-            padded(rays.frac, np.zeros(3)),
-            padded(rays.dir_canvas, np.array([-1.0, 0.0, 0.0])),
-        )
+    for chunk, k in _tiles(rays, tile):
         s = trace_layers_rays(trees, setup, opacity, chunk, bg, np.uint64(0), lighting)
         parts.append((np.asarray(s.colour)[:k], np.asarray(s.steps)[:k], np.asarray(s.status)[:k]))
     colour = np.concatenate([p[0] for p in parts]).reshape(h, w, 3)

@@ -419,8 +419,7 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
 /// not yet in the headset, which paints one tree until its palette has a
 /// layer page (issue 17): it refuses such a document rather than show and
 /// paint one of its layers as if it were the painting.
-fn refuse_layers(doc: &Path, what: &str) -> Option<ExitCode> {
-    let s = Session::open(doc).ok()?;
+fn refuse_layers(s: &Session, doc: &Path, what: &str) -> Option<ExitCode> {
     (s.version == 2).then(|| {
         eprintln!(
             "octopaint: {}: a document of {} layers; {what} paints one-tree documents for now (the window paints layers: octopaint window; octopaint render and export draw it)",
@@ -437,7 +436,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    if let Some(code) = refuse_layers(doc, "the headset") {
+    if let Some(code) = refuse_layers(&s, doc, "the headset") {
         return code;
     }
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };

@@ -319,11 +319,7 @@ impl ReplayObserver for Reporter<'_> {
                 let g3: Vec<Vec<[u32; 3]>> = contributing.iter().map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
                 let layers: Vec<LayerInput> =
                     contributing.iter().zip(&g3).map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity }).collect();
-                if layers.len() == 1 && layers[0].opacity == 1.0 {
-                    octopaint_tree::raycast::render(&layers[0].inp, &params)
-                } else {
-                    octopaint_tree::raycast::render_layers(&layers, &params)
-                }
+                octopaint_tree::raycast::render_layers(&layers, &params)
             };
             let rgb = match &mut self.draw {
                 Draw::Nobody => return Ok(None),

@@ -189,6 +189,8 @@ impl Draw {
         if grid {
             params = params.with_grid(camera.eye);
         }
+        // One layer at opacity 1 (a one-tree document) stays in the pages
+        // between frames: the renderer follows it (synced by `drawer`).
         let one = layers.len() == 1 && layers[0].1 == 1.0;
         match self {
             Draw::Gpu(r, precision) => match if one { r.cast_params(&params, *precision) } else { r.render_layers(layers, &params, *precision) } {
@@ -204,11 +206,7 @@ impl Draw {
             },
             Draw::Cpu(g3) => {
                 let inputs: Vec<LayerInput> = layers.iter().zip(g3.iter()).map(|((t, o), g)| LayerInput { inp: RayInput::of(t, g), opacity: *o }).collect();
-                if one {
-                    Ok(octopaint_tree::raycast::render(&inputs[0].inp, &params))
-                } else {
-                    Ok(octopaint_tree::raycast::render_layers(&inputs, &params))
-                }
+                Ok(octopaint_tree::raycast::render_layers(&inputs, &params))
             }
         }
     }

@@ -131,13 +131,30 @@ fn window_of(child: &mut Child, display: &str, what: &str) -> String {
 /// gives the painter) and a new document of one root, depth 10, `name`.
 fn scratch_with_document(name: &str) -> (tempfile::TempDir, std::path::PathBuf, std::path::PathBuf) {
     let scratch = tempfile::tempdir().unwrap();
-    let runtime = scratch.path().join("runtime");
-    std::fs::create_dir(&runtime).unwrap();
-    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let runtime = runtime_folder(scratch.path());
     let doc = scratch.path().join(name);
     let res = octopaint().arg("new").arg(&doc).args(["--roots", "1,1,1", "--max-depth", "10", "--root-size", "1", "--capacity", "1048576"]).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
     (scratch, runtime, doc)
+}
+
+/// Ctrl+Q, then wait (up to a minute) for the window's process to exit.
+fn close_with_ctrl_q(display: &str, window: &mut Child) {
+    xdotool(display, &["key", "ctrl+q"]);
+    let t0 = Instant::now();
+    while window.try_wait().unwrap().is_none() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close on Ctrl+Q");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// A 0700 runtime folder in `scratch`, what a desktop session gives the
+/// painter.
+fn runtime_folder(scratch: &std::path::Path) -> std::path::PathBuf {
+    let runtime = scratch.join("runtime");
+    std::fs::create_dir(&runtime).unwrap();
+    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    runtime
 }
 
 /// `octopaint` on X display `display` with that runtime folder, its
@@ -423,12 +440,7 @@ fn mirror_painting_paints_both_sides_and_records_its_planes() {
     }
     xdotool(&display, &["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
-    xdotool(&display, &["key", "ctrl+q"]);
-    let t0 = Instant::now();
-    while window.try_wait().unwrap().is_none() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close on Ctrl+Q");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    close_with_ctrl_q(&display, &mut window);
     // The session holds the planes as a mirror event before the stroke.
     let trace = s.join("m.jsonl");
     let res = octopaint().arg("record").arg(&doc).arg("--out").arg(&trace).output().unwrap();
@@ -456,9 +468,7 @@ fn a_document_of_layers_shows_every_layer_and_paints_the_selected_one() {
     let (_x, display) = start_xvfb();
     let scratch = tempfile::tempdir().unwrap();
     let s = scratch.path();
-    let runtime = s.join("runtime");
-    std::fs::create_dir(&runtime).unwrap();
-    std::fs::set_permissions(&runtime, std::os::unix::fs::PermissionsExt::from_mode(0o700)).unwrap();
+    let runtime = runtime_folder(s);
     // Red on the first layer, left; blue on a second one, right.
     let trace = s.join("two.jsonl");
     let stamp = |p: &str, c: &str| {
@@ -503,12 +513,7 @@ fn a_document_of_layers_shows_every_layer_and_paints_the_selected_one() {
     }
     xdotool(&display, &["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
-    xdotool(&display, &["key", "ctrl+q"]);
-    let t0 = Instant::now();
-    while window.try_wait().unwrap().is_none() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "the window did not close on Ctrl+Q");
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    close_with_ctrl_q(&display, &mut window);
     let after = cells(&doc);
     assert_eq!(after[0], before[0], "the first layer is untouched");
     assert!(after[1] > before[1], "the selected layer took the stroke: {before:?} -> {after:?}");

@@ -694,11 +694,10 @@ impl App {
         };
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         match &table {
-            Some(t) if !(t.count[0] == 1 && f32::from_bits(t.at[0][1]) == 1.0) => {
-                r.renderer.ray.encode_layers(gpu, &r.renderer.pools, &mut enc, &params, precision, t).map_err(|e| e.to_string())?;
-            }
-            _ => r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision).map_err(|e| e.to_string())?,
+            Some(t) => r.renderer.ray.encode_layers(gpu, &r.renderer.pools, &mut enc, &params, precision, t),
+            None => r.renderer.ray.encode(gpu, &r.renderer.pools, &mut enc, &params, precision),
         }
+        .map_err(|e| e.to_string())?;
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
         let group = r.blit.bind_scaled(gpu, pixels, cast, size);
         r.egui_renderer.update_buffers(&gpu.device, &gpu.queue, &mut enc, &jobs, &screen);

@@ -144,18 +144,25 @@ fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io:
 /// A document's parts as bytes, and the file's CRC (the identity a
 /// journal refers to).
 pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
+    // One tree: version 1, which every reader opens.
+    let (pools, hist) = (pools_bytes(tree), history_bytes(history));
+    file_bytes(1, &[(b"TRCE", trace_text.as_bytes(), 0), (b"POOL", &pools, 0), (b"HIST", &hist, 0), (b"META", meta.as_bytes(), OPTIONAL)])
+}
+
+/// A file of `version` (also the oldest version that reads it): header,
+/// the sections (tag, raw bytes, flags) in order, trailer; and the CRC of
+/// everything but the trailer (the identity a journal refers to).
+fn file_bytes(version: u32, sections: &[(&[u8; 4], &[u8], u32)]) -> std::io::Result<(Vec<u8>, u32)> {
     let mut out = Vec::new();
     out.extend_from_slice(MAGIC);
-    // One tree: version 1, which every reader opens.
-    put_u32(&mut out, 1);
-    put_u32(&mut out, 1);
-    put_u32(&mut out, 4);
+    put_u32(&mut out, version);
+    put_u32(&mut out, version);
+    put_u32(&mut out, sections.len() as u32);
     let crc = crc32fast::hash(&out);
     put_u32(&mut out, crc);
-    section(&mut out, b"TRCE", trace_text.as_bytes(), 0)?;
-    section(&mut out, b"POOL", &pools_bytes(tree), 0)?;
-    section(&mut out, b"HIST", &history_bytes(history), 0)?;
-    section(&mut out, b"META", meta.as_bytes(), OPTIONAL)?;
+    for (tag, raw, flags) in sections {
+        section(&mut out, tag, raw, *flags)?;
+    }
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(b"END!");
     put_u32(&mut out, crc);
@@ -232,26 +239,12 @@ fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
 /// file's CRC.
 pub fn write_layers(trace_text: &str, doc: &layers::Document, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
     let (layers, ..) = doc.parts();
-    let layers: Vec<(u32, &Layer)> = layers.collect();
-    let mut out = Vec::new();
-    out.extend_from_slice(MAGIC);
-    put_u32(&mut out, 2);
-    put_u32(&mut out, 2);
-    put_u32(&mut out, 3 + layers.len() as u32);
-    let crc = crc32fast::hash(&out);
-    put_u32(&mut out, crc);
-    section(&mut out, b"TRCE", trace_text.as_bytes(), 0)?;
-    section(&mut out, b"DOCU", &document_bytes(doc), 0)?;
-    for (id, l) in layers {
-        section(&mut out, b"LAYR", &layer_bytes(id, l), 0)?;
-    }
-    section(&mut out, b"META", meta.as_bytes(), OPTIONAL)?;
-    let crc = crc32fast::hash(&out);
-    out.extend_from_slice(b"END!");
-    put_u32(&mut out, crc);
-    let len = out.len() as u64 + 8;
-    out.extend_from_slice(&len.to_le_bytes());
-    Ok((out, crc))
+    let docu = document_bytes(doc);
+    let layrs: Vec<Vec<u8>> = layers.map(|(id, l)| layer_bytes(id, l)).collect();
+    let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"DOCU", docu.as_slice(), 0)];
+    sections.extend(layrs.iter().map(|raw| (b"LAYR", raw.as_slice(), 0)));
+    sections.push((b"META", meta.as_bytes(), OPTIONAL));
+    file_bytes(2, &sections)
 }
 
 /// A little-endian cursor that refuses to read past its end.

@@ -153,11 +153,7 @@ impl Renderer {
     pub fn render_layers(&mut self, layers: &[(&Tree, f32)], params: &RayParams, precision: Precision) -> Result<Vec<u8>, GpuError> {
         let table = self.upload_layers(layers)?;
         let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast layers") });
-        if layers.len() == 1 && layers[0].1 == 1.0 {
-            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
-        } else {
-            self.ray.encode_layers(&self.gpu, &self.pools, &mut enc, params, precision, &table)?;
-        }
+        self.ray.encode_layers(&self.gpu, &self.pools, &mut enc, params, precision, &table)?;
         self.gpu.queue.submit([enc.finish()]);
         self.ray.read_image(&self.gpu, params.width, params.height)
     }

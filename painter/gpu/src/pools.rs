@@ -233,31 +233,31 @@ impl GpuPools {
     /// Write `cells` from cell `first` on, split at page boundaries (the
     /// pages must hold them: [`GpuPools::ensure`]).
     pub fn upload_cells(&self, gpu: &Gpu, first: u64, cells: &[GpuCell]) {
+        self.per_page(first, cells.len(), |page, offset, range| {
+            gpu.queue.write_buffer(&self.cells[page], offset * 16, bytemuck::cast_slice(&cells[range]));
+        });
+    }
+
+    /// `n` items from cell `first` on, split at page boundaries: `f(page,
+    /// index in the page, range of the items)` per piece.
+    fn per_page(&self, first: u64, n: usize, mut f: impl FnMut(usize, u64, std::ops::Range<usize>)) {
         let page_cells = self.page_cells();
         let mut at = 0usize;
-        while at < cells.len() {
+        while at < n {
             let c = first + at as u64;
-            let page = (c >> self.page_shift) as usize;
             let offset = c & (page_cells - 1);
-            let n = ((page_cells - offset) as usize).min(cells.len() - at);
-            gpu.queue.write_buffer(&self.cells[page], offset * 16, bytemuck::cast_slice(&cells[at..at + n]));
-            at += n;
+            let k = ((page_cells - offset) as usize).min(n - at);
+            f((c >> self.page_shift) as usize, offset, at..at + k);
+            at += k;
         }
     }
 
     /// Write g3 rows from cell `first` on, split at page boundaries (a
     /// document's layers, whose g3 the CPU port computes: spec 6.2).
     pub fn upload_g3(&self, gpu: &Gpu, first: u64, rows: &[[u32; 3]]) {
-        let page_cells = self.page_cells();
-        let mut at = 0usize;
-        while at < rows.len() {
-            let c = first + at as u64;
-            let page = (c >> self.page_shift) as usize;
-            let offset = c & (page_cells - 1);
-            let n = ((page_cells - offset) as usize).min(rows.len() - at);
-            gpu.queue.write_buffer(&self.g3[page], offset * 12, bytemuck::cast_slice(&rows[at..at + n]));
-            at += n;
-        }
+        self.per_page(first, rows.len(), |page, offset, range| {
+            gpu.queue.write_buffer(&self.g3[page], offset * 12, bytemuck::cast_slice(&rows[range]));
+        });
     }
 
     /// Cells `0..n` as the GPU holds them (tests).

@@ -251,9 +251,12 @@ impl RayCaster {
     }
 
     /// [`RayCaster::encode`] for the layers of a document whose pools lie
-    /// in the pages as `table` says (spec 6.2).
+    /// in the pages as `table` says (spec 6.2): one layer at opacity 1 (at
+    /// cell 0) through the one-tree `main` (its image, spec 14.6), any other
+    /// set through `main_layers`.
     pub fn encode_layers(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, table: &LayerTableGpu) -> Result<(), GpuError> {
-        self.encode_words(gpu, pools, enc, params, precision, false, Some(table))
+        let one_tree = table.count[0] == 1 && table.at[0][0] == 0 && f32::from_bits(table.at[0][1]) == 1.0;
+        self.encode_words(gpu, pools, enc, params, precision, false, (!one_tree).then_some(table))
     }
 
     #[allow(clippy::too_many_arguments)]

@@ -748,9 +748,15 @@ pub fn trace_pixel_layers(layers: &[LayerInput], params: &RayParams, x: u32, y: 
     colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
 }
 
-/// A whole image of several layers (spec 6.2), row 0 at the top. No layer:
-/// the background (and the grid) alone.
+/// A whole image of several layers (spec 6.2), row 0 at the top: one layer
+/// at opacity 1 is the one-tree image ([`render`], spec 14.6), any other
+/// set the march. No layer: the background (and the grid) alone.
 pub fn render_layers(layers: &[LayerInput], params: &RayParams) -> Vec<u8> {
+    if let [one] = layers
+        && one.opacity == 1.0
+    {
+        return render(&one.inp, params);
+    }
     let mut out = Vec::with_capacity((params.width * params.height * 3) as usize);
     for y in 0..params.height {
         for x in 0..params.width {

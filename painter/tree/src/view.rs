@@ -67,6 +67,12 @@ impl OrbitCamera {
 /// nothing is), from a little above, with a 60° vertical field of view.
 pub fn frame_painting(tree: &Tree) -> OrbitCamera {
     let (lo, hi) = tree.painted_bounds();
+    frame_box(tree, lo, hi)
+}
+
+/// The view of the box `lo`..`hi` (canvas units) over `tree`'s canvas: at
+/// least one finest cell wide.
+fn frame_box(tree: &Tree, lo: DVec3, hi: DVec3) -> OrbitCamera {
     let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
     OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
 }
@@ -83,9 +89,7 @@ pub fn frame_trees(trees: &[&Tree]) -> OrbitCamera {
         lo = lo.min(l);
         hi = hi.max(h);
     }
-    let t = first;
-    let radius = ((hi - lo).length() / 2.0).max(t.lat.size_canvas[t.lat.max_depth as usize]);
-    OrbitCamera { target: (lo + hi) / 2.0, distance: radius * 2.2, yaw: 0.5, pitch: -0.35, fov_y: 60f64.to_radians(), covered: 0.0 }
+    frame_box(first, lo, hi)
 }
 
 /// The canvas axes x, y, z as a camera turned by `camera_to_canvas` sees
