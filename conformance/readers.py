@@ -147,6 +147,8 @@ def canonical(path: str) -> list:
             row.append(v)
         elif ev.kind == "layer":
             row += [v.op, v.layer, v.name, v.to, v.visible, v.opacity, v.locked]
+        elif ev.kind == "import":
+            row += [v.file, v.sha256, v.name, v.voxels.depth, len(v.voxels)]
         out.append(row)
     return out
 

@@ -13,9 +13,13 @@ library is used.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import io
 import json
 import math
 import os
+import struct
+import zipfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -432,6 +436,121 @@ def layers_budget() -> str:
     return w.text()
 
 
+# ------------------------------------------------------------ voxel sets
+def npy(descr: str, shape: tuple, fmt: str, values) -> bytes:
+    """One .npy (format 1.0) without numpy: the header dict padded so the data
+    starts at a multiple of 64 bytes, then the values little-endian."""
+    shp = "(" + "".join(f"{n}, " for n in shape)[:-2] + ("," if len(shape) == 1 else "") + ")" if shape else "()"
+    head = "{'descr': '%s', 'fortran_order': False, 'shape': %s, }" % (descr, shp)
+    pad = 64 - (10 + len(head) + 1) % 64
+    head = head + " " * (pad % 64) + "\n"
+    return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(head)) + head.encode() + struct.pack("<" + fmt * len(values), *values)
+
+
+def voxel_set(depth: int, voxels, compress=False, ijk_descr="<u4") -> bytes:
+    """A voxel set file (spec 15.1): voxels are (i, j, k, r, g, b, sigma)."""
+    ijk = [c for v in voxels for c in v[:3]]
+    entries = [
+        ("depth", npy("<u4", (), "I", [depth])),
+        ("ijk", npy(ijk_descr, (len(voxels), 3), "I" if ijk_descr == "<u4" else "q", ijk)),
+        ("rgb", npy("|u1", (len(voxels), 3), "B", [c for v in voxels for c in v[3:6]])),
+        ("sigma", npy("<f4", (len(voxels),), "f", [v[6] for v in voxels])),
+    ]
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name, data in entries:
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
+            info.external_attr = 0o644 << 16
+            z.writestr(info, data)
+    return buf.getvalue()
+
+
+def ball_voxels(depth: int, centre, radius: float, root_size: float, colour):
+    """The voxels at `depth` whose centres lie in a ball, coloured by
+    colour(i, j, k); sigma per voxel from colour too."""
+    h = root_size / (1 << depth)
+    lo = [max(0, int((c - radius) / h) - 1) for c in centre]
+    hi = [int((c + radius) / h) + 1 for c in centre]
+    out = []
+    for k in range(lo[2], hi[2] + 1):
+        for j in range(lo[1], hi[1] + 1):
+            for i in range(lo[0], hi[0] + 1):
+                x = [(q + 0.5) * h for q in (i, j, k)]
+                if sum((a - b) ** 2 for a, b in zip(x, centre)) <= radius * radius:
+                    out.append((i, j, k) + colour(i, j, k))
+    return out
+
+
+IMPORT_FILES: dict[str, bytes] = {}
+
+
+def import_event(w: "Writer", folder_file: str, data: bytes, dt=0.1, **kw) -> None:
+    IMPORT_FILES[folder_file] = data
+    w.ev("import", dt, file=folder_file, sha256=hashlib.sha256(data).hexdigest(), **kw)
+
+
+def imports() -> str:
+    """Imports (spec 15): a ball of voxels imported into its own layer, half
+    one colour (settled blocks stay coarse) and half a gradient (refined to
+    the set's depth); an erasing slot of sigma-0 voxels cut through a slab
+    painted finer than the set; a coarse import over fine paint (every finer
+    leaf takes its voxel's value); undo and redo of an import; the result
+    rendered and lit."""
+    w = Writer({"roots": [2, 2, 2], "max_depth": 7, "root_size": 0.5, "capacity": 4194304}, "Imports", version=2)
+    w.brush("box", "paint", 0.3, [0.2, 0.45, 0.9], opacity=0.9, hardness=0.8, aspect=[1.0, 0.15, 1.0])
+    w.stroke([[0.5, 0.3, 0.5]])
+    w.brush("sphere", "paint", 0.03, [0.95, 0.9, 0.2], opacity=0.9, hardness=0.7, spacing=0.3)
+    w.stroke(line([0.3, 0.33, 0.6], [0.7, 0.33, 0.6], 9))
+    w.ev("layer", 0.1, op="add", name="ball")
+
+    def ball_colour(i, j, k):
+        if i < 16:
+            return (230, 120, 40, 40.0)
+        return (40 + 8 * (k % 16), 60 + 12 * (j % 16), 200, 30.0 + (i % 5))
+
+    import_event(w, "imports/ball.npz", voxel_set(5, ball_voxels(5, [0.5, 0.55, 0.5], 0.18, 0.5, ball_colour)), name="ball")
+    w.ev("snapshot", 0.1, name="imports_ball")
+    w.camera([0.5, 0.85, 1.7], [0.5, 0.45, 0.5], size=(192, 144))
+    w.ev("render", 0.1, name="imports_ball")
+    w.ev("layer", 0.1, op="select", layer="Layer 1")
+    slot = [(i, j, 38, 0, 0, 0, 0.0) for j in range(34, 44) for i in range(36, 92)]
+    import_event(w, "imports/slot.npz", voxel_set(7, slot), name="slot")
+    w.ev("snapshot", 0.1, name="imports_slot")
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="imports_undone")  # must equal imports_ball
+    w.ev("redo", 0.1)
+    coarse = [(i, j, k, 90, 200, 120, 12.5) for k in range(2, 4) for j in range(2, 3) for i in range(1, 4)]
+    import_event(w, "imports/coarse.npz", voxel_set(3, coarse), name="coarse")
+    w.ev("layer", 0.1, op="set", layer="ball", opacity=0.7)
+    w.ev("render", 0.1, name="imports_layers")
+    w.ev("light", 0.1, dir=[-0.4, 1.0, 0.3], intensity=1.0, ambient=0.25, shadows=True)
+    w.ev("render", 0.1, name="imports_lit")
+    w.ev("snapshot", 0.0, name="imports")
+    return w.text()
+
+
+def imports_budget() -> str:
+    """An import the cell budget cannot hold (spec 15.3, 2.4): the refusal
+    warns once and the import is painted at the resolution reached; then an
+    empty import (a step that changes nothing) and one on a version 1 tree."""
+    w = Writer({"roots": [1, 1, 1], "max_depth": 6, "root_size": 1.0, "capacity": 1200}, "Import budget")
+
+    def colour(i, j, k):
+        return ((i * 37) % 256, (j * 53) % 256, (k * 71) % 256, 5.0 + (i + j + k) % 3)
+
+    import_event(w, "imports/budget.npz", voxel_set(5, ball_voxels(5, [0.5, 0.5, 0.5], 0.3, 1.0, colour)))
+    w.ev("snapshot", 0.1, name="imports_budget")
+    import_event(w, "imports/empty.npz", voxel_set(4, []))
+    w.ev("undo", 0.1)
+    w.ev("undo", 0.1)
+    w.ev("snapshot", 0.1, name="imports_budget_undone")
+    w.camera([0.5, 0.5, 2.0], [0.5, 0.5, 0.5], size=(64, 48))
+    w.ev("redo", 0.1)
+    w.ev("render", 0.1, name="imports_budget")
+    return w.text()
+
+
 TRACES = {
     "single_stamp.jsonl": single_stamp,
     "shapes_modes.jsonl": shapes_modes,
@@ -443,6 +562,8 @@ TRACES = {
     "mirror.jsonl": mirror,
     "layers.jsonl": layers,
     "layers_budget.jsonl": layers_budget,
+    "imports.jsonl": imports,
+    "imports_budget.jsonl": imports_budget,
 }
 
 # --------------------------------------------------------------- malformed
@@ -587,6 +708,62 @@ MALFORMED = {
     "layer_undo_select": ([H2, _layer(op="select", layer="Layer 1"), '{"ev": "undo", "t": 0}'], 3, "event-order"),
 }
 
+# Malformed imports: the voxel files live in traces/malformed/imports/.
+_GOOD = voxel_set(2, [(1, 1, 1, 200, 10, 10, 3.0), (2, 1, 1, 10, 200, 10, 3.0)])
+MALFORMED_FILES = {
+    "imports/good.npz": _GOOD,
+    "imports/deep.npz": voxel_set(7, [(1, 1, 1, 200, 10, 10, 3.0)]),
+    "imports/outside.npz": voxel_set(2, [(4, 0, 0, 200, 10, 10, 3.0)]),
+    "imports/twice.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, 3.0), (0, 0, 0, 1, 2, 3, 1.0), (1, 1, 1, 1, 2, 3, 1.0)]),
+    "imports/nan.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, float("nan"))]),
+    "imports/minus_zero.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, -0.0)]),
+    "imports/negative.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, -1.0)]),
+    "imports/compressed.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, 3.0)], compress=True),
+    "imports/wide.npz": voxel_set(2, [(1, 1, 1, 200, 10, 10, 3.0)], ijk_descr="<i8"),
+    "imports/not_zip.npz": b"ijk rgb sigma\n",
+}
+
+
+def _import(file="imports/good.npz", sha=None, **kw):
+    data = MALFORMED_FILES.get(file, b"")
+    return json.dumps({"ev": "import", "t": 0, "file": file, "sha256": sha or hashlib.sha256(data).hexdigest(), **kw})
+
+
+MALFORMED.update({
+    "import_missing_file": ([H, _import("imports/absent.npz", sha="0" * 64)], 2, "import"),
+    "import_wrong_sha": ([H, _import(sha="a" * 64)], 2, "import"),
+    "import_in_stroke": ([H, BR, SB, SA, _import()], 5, "event-order"),
+    "import_path_up": ([H, _import("../imports/good.npz")], 2, "name"),
+    "import_path_absolute": ([H, _import("/etc/passwd")], 2, "name"),
+    "import_sha_short": ([H, _import(sha="abc")], 2, "range"),
+    "import_sha_upper": ([H, _import(sha=hashlib.sha256(_GOOD).hexdigest().upper())], 2, "range"),
+    "import_file_number": ([H, '{"ev": "import", "t": 0, "file": 3, "sha256": "%s"}' % ("0" * 64)], 2, "type"),
+    "import_missing_sha": ([H, '{"ev": "import", "t": 0, "file": "imports/good.npz"}'], 2, "missing"),
+    "import_name_empty": ([H, _import(name="")], 2, "range"),
+    "import_locked": ([H2, _layer(op="set", layer="Layer 1", locked=True), _import()], 3, "layer"),
+    "import_too_deep": ([H, _import("imports/deep.npz")], 2, "import"),
+    "import_outside": ([H, _import("imports/outside.npz")], 2, "import"),
+    "import_twice": ([H, _import("imports/twice.npz")], 2, "import"),
+    "import_nan": ([H, _import("imports/nan.npz")], 2, "import"),
+    "import_minus_zero": ([H, _import("imports/minus_zero.npz")], 2, "import"),
+    "import_negative": ([H, _import("imports/negative.npz")], 2, "import"),
+    "import_compressed": ([H, _import("imports/compressed.npz")], 2, "import"),
+    "import_wide": ([H, _import("imports/wide.npz")], 2, "import"),
+    "import_not_zip": ([H, _import("imports/not_zip.npz")], 2, "import"),
+    "import_undo": ([H, _import(), '{"ev": "undo", "t": 0}', '{"ev": "undo", "t": 0}'], 4, "event-order"),
+})
+
+
+def _write_files(root: str, files: dict) -> list[str]:
+    out = []
+    for rel, data in sorted(files.items()):
+        path = os.path.join(root, *rel.split("/"))
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, "wb") as f:
+            f.write(data)
+        out.append(path)
+    return out
+
 
 def write_all(out: str) -> list[str]:
     os.makedirs(os.path.join(out, "malformed"), exist_ok=True)
@@ -596,6 +773,8 @@ def write_all(out: str) -> list[str]:
         with open(path, "w", encoding="utf-8") as f:
             f.write(fn())
         written.append(path)
+    written += _write_files(out, IMPORT_FILES)
+    written += _write_files(os.path.join(out, "malformed"), MALFORMED_FILES)
     expected = {}
     for name, (lines, at, kind) in MALFORMED.items():
         path = os.path.join(out, "malformed", name + ".jsonl")

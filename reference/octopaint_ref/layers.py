@@ -83,6 +83,20 @@ class Document:
         la.painting.end_stroke()
         self.done.append(("stroke", la))
 
+    def import_voxels(self, imp, line: int) -> bool:
+        """An `import` event (spec 15.3) on the selected layer, one step of
+        the history; skipped with a warning when the layer is locked (the
+        reader's model was put out of step by a skipped layer operation)."""
+        la = self.current
+        if la.locked:
+            self.warn(f'line {line}: layer "{la.name}" is locked; this import is skipped')
+            return False
+        self._drop_redo()
+        la.tree.capacity = self.share(la)
+        la.painting.import_voxels(imp.voxels, line)
+        self.done.append(("stroke", la))
+        return True
+
     def _drop_redo(self) -> None:
         self.undone.clear()
         for la in self.layers:

@@ -43,6 +43,9 @@ class Stroke:
         # the same along the stroke (every mode but pickup).
         self.settles = brush.shape == "sphere" and brush.mode != "pickup"
         self.capacity_warned = False
+        self._init_slots()
+
+    def _init_slots(self) -> None:
         # Per touched cell (a slot): the value before the stroke, the stroke
         # maximum a, and the colour of the primitive that gave it.
         self.n = 0
@@ -103,6 +106,16 @@ class Stroke:
         return self.prims.view()
 
 
+class ImportStroke(Stroke):
+    """An import in progress (spec 15.3): the touched cells and their
+    before-values, as a stroke keeps them; no primitives."""
+
+    def __init__(self, line: int):
+        self.line = line
+        self.capacity_warned = False
+        self._init_slots()
+
+
 class Painting:
     """A tree plus the strokes painted on it."""
 
@@ -146,6 +159,81 @@ class Painting:
 
         clean(self.tree, touched)
         self.history.commit()
+
+    # ------------------------------------------------------------ imports
+    def import_voxels(self, vs, line: int = 0) -> None:
+        """Paint the voxel set `vs` as one undo step (spec 15.3)."""
+        from .clean import clean
+        from .voxelset import VoxelIndex
+
+        assert self.stroke is None, "import inside a stroke"
+        tree = self.tree
+        self.history.begin()
+        st = ImportStroke(line)
+        index = VoxelIndex(vs, tree.max_depth)
+        d = vs.depth
+        if len(vs):
+            # 1. Traverse from the roots that hold a voxel.
+            r = vs.ijk.astype(np.int64) >> d
+            R = tree.roots
+            frontier = np.unique(r[:, 0] + R[0] * (r[:, 1] + R[1] * r[:, 2]))
+            paint = []
+            while len(frontier):
+                fc = tree.first_child[frontier]
+                reached = index.reached(tree, frontier)
+                leaf = fc == NONE
+                paint.append(frontier[reached & leaf])
+                inner = fc[reached & ~leaf].astype(np.int64)
+                frontier = (inner[:, None] + np.arange(UNIT)[None, :]).ravel()
+            leaves = np.concatenate(paint)
+            # 2. Paint pass: touched, written their import value.
+            st.record(leaves, tree.rgb[leaves].copy(), tree.sigma[leaves].copy())
+            self._write_import(st, index, leaves)
+            # 3-4. Refine what is not settled, round by round.
+            candidates = self._import_candidates(st, index, leaves)
+            while len(candidates):
+                units, refused = tree.refine_round(candidates)
+                if refused:
+                    self.capacity_refusals += 1
+                    if not st.capacity_warned:
+                        st.capacity_warned = True
+                        self.warn(
+                            f"line {line}: the cell budget of {tree.capacity} cells is exhausted: "
+                            "refinement refused, painting goes on at the resolution reached"
+                        )
+                if not len(units):
+                    break
+                new = (units[:, None] + np.arange(UNIT)[None, :]).ravel()
+                before_rgb, before_sigma = st.before_values(tree, tree.parent[new].astype(np.int64))
+                st.record(new, before_rgb, before_sigma)
+                self._write_import(st, index, new)
+                if refused:
+                    break
+                new = new[index.reached(tree, new)]
+                candidates = self._import_candidates(st, index, new)
+        # 5. Cleaning; one undo step.
+        clean(tree, st.cell[: st.n].copy())
+        self.history.commit()
+
+    def _write_import(self, st, index, cells: np.ndarray) -> None:
+        """Write each touched cell's import value: its centre voxel's value,
+        or its before-value where the set has no voxel there."""
+        tree = self.tree
+        found, rgb, sigma = index.centre_values(tree, cells)
+        slots = st.slots(cells)
+        rgb[~found] = st.before_rgb[slots[~found]]
+        sigma[~found] = st.before_sigma[slots[~found]]
+        tree.rgb[cells] = rgb
+        tree.sigma[cells] = sigma
+
+    def _import_candidates(self, st, index, cells: np.ndarray) -> np.ndarray:
+        """The reached leaves among `cells` above the set's depth that are
+        not settled (15.3)."""
+        tree = self.tree
+        cells = cells[(tree.first_child[cells] == NONE) & (tree.depth[cells] < index.d)]
+        slots = st.slots(cells)
+        settled = index.settled(tree, cells, st.before_rgb[slots], st.before_sigma[slots])
+        return cells[~settled]
 
     def undo(self) -> None:
         self.history.undo()

@@ -75,6 +75,8 @@ def replay(
             stats.samples += 1
         elif k == "stroke_end":
             doc.end_stroke()
+        elif k == "import":
+            doc.import_voxels(ev.value, ev.line)
         elif k == "undo":
             doc.undo()
         elif k == "redo":

@@ -41,7 +41,7 @@ LIGHT_INTENSITY_MAX = 16.0
 
 # What went wrong, as a short stable code (spec 12.2): both readers must give
 # the same line and kind for a refused trace; the message text is their own.
-KINDS = ("io", "utf8", "json", "header", "type", "missing", "range", "budget", "event", "event-order", "name", "layer")
+KINDS = ("io", "utf8", "json", "header", "type", "missing", "range", "budget", "event", "event-order", "name", "layer", "import")
 
 
 class TraceError(ValueError):
@@ -395,6 +395,65 @@ def parse_layer(line: int, obj: dict) -> LayerOp:
     return LayerOp(op, layer=layer)
 
 
+SHA256_RE = re.compile(r"[0-9a-f]{64}")
+
+
+def parse_import(line: int, obj: dict):
+    """The fields of an `import` event (spec 15.2): `file`, `sha256`,
+    optional `name`. read_import then reads the file."""
+    file = _require(line, obj, "file")
+    if not isinstance(file, str):
+        raise _fail(line, "file", f"expected a string, got {json.dumps(file)}", "type")
+    parts = file.split("/")
+    if not 1 <= len(parts) <= 8 or not all(NAME_RE.fullmatch(p) and p not in (".", "..") for p in parts):
+        raise _fail(line, "file", f"{json.dumps(file)} is not a relative path of 1 to 8 plain names", "name")
+    digest = _require(line, obj, "sha256")
+    if not isinstance(digest, str):
+        raise _fail(line, "sha256", f"expected a string, got {json.dumps(digest)}", "type")
+    if not SHA256_RE.fullmatch(digest):
+        raise _fail(line, "sha256", f"{json.dumps(digest)} is not 64 lowercase hexadecimal digits")
+    name = None
+    if "name" in obj:
+        name = obj["name"]
+        if not isinstance(name, str):
+            raise _fail(line, "name", f"expected a string, got {json.dumps(name)}", "type")
+        why = name_problem(name)
+        if why:
+            raise _fail(line, "name", why)
+    return file, digest, name
+
+
+def read_import(line: int, file: str, digest: str, name, canvas, resolve):
+    """The voxel set of an `import` event, through `resolve(file) -> bytes`."""
+    from .voxelset import Import, parse, sha256
+
+    if resolve is None:
+        raise _fail(line, "file", "this trace was not read from a folder, so its imports cannot be found", "import")
+    try:
+        data = resolve(file)
+    except OSError as e:
+        raise _fail(line, "file", f"cannot read {file}: {e.strerror or e}", "import") from None
+    got = sha256(data)
+    if got != digest:
+        raise _fail(line, "sha256", f"{file} has SHA-256 {got}, not the {digest} the trace names (the file changed)", "import")
+    try:
+        voxels = parse(data, canvas)
+    except ValueError as e:
+        raise _fail(line, "file", f"{file} is not a voxel set for this canvas: {e}", "import") from None
+    return Import(file, digest, name, voxels)
+
+
+def folder_resolver(folder: str):
+    """Imports resolved against `folder` (the trace's own)."""
+    import os
+
+    def resolve(file: str) -> bytes:
+        with open(os.path.join(folder, *file.split("/")), "rb") as f:
+            return f.read()
+
+    return resolve
+
+
 def stamp_count_bound(brush: Brush, a: Sample, b: Sample) -> float:
     """An upper bound on the stamps one segment places (spec 8.4), used to
     refuse absurd traces before anything runs: floor(L / (spacing * r_min))
@@ -506,8 +565,10 @@ def _nesting_depth(line: str) -> int:
     return deepest
 
 
-def parse_trace(text: str) -> Trace:
-    """Parse and validate a whole trace. Raises TraceError naming the line."""
+def parse_trace(text: str, resolve=None) -> Trace:
+    """Parse and validate a whole trace. Raises TraceError naming the line.
+    `resolve(file) -> bytes` reads the files of `import` events (spec 15.2;
+    read_trace resolves them in the trace's folder)."""
     lines = text.split("\n")
     header = None
     events: list[Event] = []
@@ -625,6 +686,15 @@ def parse_trace(text: str) -> Trace:
                 if step is not None:
                     layers = step[1]
                 done.append(step)
+        elif ev == "import":
+            if in_stroke:
+                raise _fail(lineno, "ev", "import inside a stroke (imports come between strokes)", "event-order")
+            file, digest, label = parse_import(lineno, obj)
+            if layers[1][layers[2]]:
+                raise _fail(lineno, "ev", f"the selected layer {layers[0][layers[2]]!r} is locked", "layer")
+            value = read_import(lineno, file, digest, label, header[0], resolve)
+            done.append(None)
+            undone.clear()
         elif ev == "layer" and version == 2:
             if in_stroke:
                 raise _fail(lineno, "ev", "layer inside a stroke (layers change between strokes)", "event-order")
@@ -659,4 +729,6 @@ def read_trace(path) -> Trace:
     except UnicodeDecodeError as e:
         line = data[: e.start].count(b"\n") + 1
         raise TraceError(line, "utf8", "not valid UTF-8") from None
-    return parse_trace(text)
+    import os
+
+    return parse_trace(text, folder_resolver(os.path.dirname(os.path.abspath(path))))

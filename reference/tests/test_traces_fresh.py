@@ -11,7 +11,7 @@ def _files(root):
     out = {}
     for d, _, names in os.walk(root):
         for n in names:
-            if n.endswith((".jsonl", ".json")):
+            if n.endswith((".jsonl", ".json", ".npz")):
                 p = os.path.join(d, n)
                 out[os.path.relpath(p, root)] = open(p, "rb").read()
     return out
