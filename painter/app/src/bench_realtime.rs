@@ -383,6 +383,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     }
     let trace = read_trace(&a.trace).map_err(|e| anyhow::anyhow!("{}: {e}", a.trace.display()))?;
     anyhow::ensure!(trace.version == 1, "{}: a trace of layers (version 2): the real-time pipeline paints one tree", a.trace.display());
+    anyhow::ensure!(
+        !trace.events.iter().any(|e| matches!(e.kind, EventKind::Import(_))),
+        "{}: a trace with imports: the real-time pipeline paints brush strokes only",
+        a.trace.display()
+    );
     let mut camera = *trace
         .events
         .iter()

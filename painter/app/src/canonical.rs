@@ -51,6 +51,7 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
                 json!(op.opacity.map(f64::from)),
                 json!(op.locked),
             ],
+            EventKind::Import(imp) => vec![json!(imp.file), json!(imp.sha256), json!(imp.name), json!(imp.voxels.depth), json!(imp.voxels.len())],
         };
         row.extend(fields);
         out.push(Value::Array(row).to_string());

@@ -32,7 +32,7 @@ use octopaint_tree::history::{History, UndoStep};
 use octopaint_tree::layers::{self, Layer, Row, Settings, Step};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::{CellRecord, FREE, NONE, Tree};
-use octopaint_tree::trace::{Trace, parse_trace};
+use octopaint_tree::trace::{Trace, parse_trace_with};
 
 use crate::DocError;
 
@@ -40,7 +40,26 @@ pub const MAGIC: &[u8; 16] = b"OCTOPAINTDOC\r\n\x1a\n";
 /// The newest version this reader reads and the version a document of
 /// layers is written in; a one-tree document is still written as version 1,
 /// which every reader opens.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
+
+/// The voxel sets a session's `import` events name (spec 15), by the
+/// `file` the events give; saved as one `VOXL` section each.
+pub type Imports = std::collections::BTreeMap<String, Vec<u8>>;
+
+/// The format version a document with imports is written in (one tree or
+/// layers alike): older readers refuse it as too new instead of failing
+/// on an `import` event they cannot resolve.
+pub const IMPORTS_VERSION: u32 = 3;
+
+/// One `VOXL` section: u32 length and the UTF-8 `file` name, then the
+/// voxel set's bytes.
+fn voxl_bytes(file: &str, data: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(file.len() + 4 + data.len());
+    put_u32(&mut out, file.len() as u32);
+    out.extend_from_slice(file.as_bytes());
+    out.extend_from_slice(data);
+    out
+}
 const HEADER: usize = 32;
 const SECTION_HEAD: usize = 32;
 const TRAILER: usize = 16;
@@ -55,6 +74,14 @@ pub struct Document {
     pub content: Content,
     /// Free-form JSON written at save (application, time, counts).
     pub meta: String,
+    /// The voxel sets its session imported.
+    pub imports: Imports,
+}
+
+/// A resolver for a session's `import` events: the document's own voxel
+/// sets, by file name (spec 15.2).
+pub fn resolver(imports: &Imports) -> impl Fn(&str) -> std::io::Result<Vec<u8>> + '_ {
+    move |file: &str| imports.get(file).cloned().ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "not in the document"))
 }
 
 /// What a document paints: one tree (version 1, a version 1 session) or
@@ -144,9 +171,19 @@ fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io:
 /// A document's parts as bytes, and the file's CRC (the identity a
 /// journal refers to).
 pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
-    // One tree: version 1, which every reader opens.
+    write_with(trace_text, tree, history, meta, &Imports::new())
+}
+
+/// [`write`] with the voxel sets the session imported (format version 3
+/// when there are any).
+pub fn write_with(trace_text: &str, tree: &Tree, history: &History, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
+    // One tree: version 1, which every reader opens, unless it imported.
     let (pools, hist) = (pools_bytes(tree), history_bytes(history));
-    file_bytes(1, &[(b"TRCE", trace_text.as_bytes(), 0), (b"POOL", &pools, 0), (b"HIST", &hist, 0), (b"META", meta.as_bytes(), OPTIONAL)])
+    let voxl: Vec<Vec<u8>> = imports.iter().map(|(f, d)| voxl_bytes(f, d)).collect();
+    let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"POOL", pools.as_slice(), 0), (b"HIST", hist.as_slice(), 0)];
+    sections.extend(voxl.iter().map(|raw| (b"VOXL", raw.as_slice(), 0)));
+    sections.push((b"META", meta.as_bytes(), OPTIONAL));
+    file_bytes(if imports.is_empty() { 1 } else { IMPORTS_VERSION }, &sections)
 }
 
 /// A file of `version` (also the oldest version that reads it): header,
@@ -237,14 +274,16 @@ fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
 /// A document of layers as bytes (format version 2: `TRCE`, `DOCU`, one
 /// `LAYR` per layer the document or its history holds, `META`), and the
 /// file's CRC.
-pub fn write_layers(trace_text: &str, doc: &layers::Document, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
+pub fn write_layers(trace_text: &str, doc: &layers::Document, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
     let (layers, ..) = doc.parts();
     let docu = document_bytes(doc);
     let layrs: Vec<Vec<u8>> = layers.map(|(id, l)| layer_bytes(id, l)).collect();
+    let voxl: Vec<Vec<u8>> = imports.iter().map(|(f, d)| voxl_bytes(f, d)).collect();
     let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"DOCU", docu.as_slice(), 0)];
     sections.extend(layrs.iter().map(|raw| (b"LAYR", raw.as_slice(), 0)));
+    sections.extend(voxl.iter().map(|raw| (b"VOXL", raw.as_slice(), 0)));
     sections.push((b"META", meta.as_bytes(), OPTIONAL));
-    file_bytes(2, &sections)
+    file_bytes(if imports.is_empty() { 2 } else { IMPORTS_VERSION }, &sections)
 }
 
 /// A little-endian cursor that refuses to read past its end.
@@ -360,6 +399,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
     let mut at = HEADER;
     let (mut trace_text, mut pools, mut hist, mut meta) = (None, None, None, String::new());
     let (mut docu, mut layrs) = (None, Vec::new());
+    let mut imports = Imports::new();
     for _ in 0..sections {
         if body.len() - at < SECTION_HEAD {
             return Err(DocError::Corrupt("a section header runs past the end".into()));
@@ -376,7 +416,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
         }
         let stored = &body[at..at + stored_len as usize];
         at += stored_len as usize;
-        let known = matches!(&h[..4], b"TRCE" | b"POOL" | b"HIST" | b"META" | b"DOCU" | b"LAYR");
+        let known = matches!(&h[..4], b"TRCE" | b"POOL" | b"HIST" | b"META" | b"DOCU" | b"LAYR" | b"VOXL");
         if !known {
             if flags & OPTIONAL != 0 {
                 continue;
@@ -393,6 +433,14 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
             b"HIST" => hist = Some(raw),
             b"DOCU" => docu = Some(raw),
             b"LAYR" => layrs.push(raw),
+            b"VOXL" => {
+                let mut c = Cursor { data: &raw, at: 0, what: "VOXL" };
+                let file = c.name()?;
+                let data = raw[c.at..].to_vec();
+                if imports.insert(file.clone(), data).is_some() {
+                    return Err(DocError::Corrupt(format!("the voxel set {file} is in the file twice")));
+                }
+            }
             _ => meta = String::from_utf8_lossy(&raw).into_owned(),
         }
     }
@@ -401,7 +449,10 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
     }
     let missing = |what: &str| DocError::Corrupt(format!("the {what} section is missing"));
     let trace_text = trace_text.ok_or_else(|| missing("TRCE"))?;
-    let trace = parse_trace(&trace_text).map_err(|e| DocError::Corrupt(format!("its session does not read as a trace: {e}")))?;
+    let trace = {
+        let resolve = resolver(&imports);
+        parse_trace_with(&trace_text, Some(&resolve)).map_err(|e| DocError::Corrupt(format!("its session does not read as a trace: {e}")))?
+    };
     let content = match docu {
         None => {
             if trace.version != 1 {
@@ -418,7 +469,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
             Content::Layers(decode_document(&trace, &docu, &layrs)?)
         }
     };
-    Ok(Loaded { doc: Document { trace_text, content, meta }, trace, crc })
+    Ok(Loaded { doc: Document { trace_text, content, meta, imports }, trace, crc })
 }
 
 fn decode_settings(c: &mut Cursor) -> Result<Settings, DocError> {

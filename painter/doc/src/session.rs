@@ -19,12 +19,14 @@ use octopaint_platform::durable;
 use octopaint_tree::layers::Document as Layers;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
-    Brush, Canvas, Event, EventKind, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace, segment_too_long,
+    Brush, Canvas, Event, EventKind, Import, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace,
+    parse_trace_with, segment_too_long,
 };
+use octopaint_tree::voxels::{VoxelSet, sha256_hex, voxel_set_bytes};
 use octopaint_tree::trace_write::{event_line, header_line};
 
 use crate::DocError;
-use crate::format::{self, Content, Document};
+use crate::format::{self, Content, Document, Imports};
 
 /// Undo history kept by default (the history beyond it is forgotten,
 /// oldest strokes first).
@@ -39,6 +41,8 @@ pub struct Session {
     pub version: u32,
     /// The session's trace: header and the events committed so far.
     trace_text: String,
+    /// The voxel sets its `import` events name (spec 15), by file.
+    imports: Imports,
     events: usize,
     /// Lines of events since the last journal flush.
     pending: Vec<String>,
@@ -142,6 +146,7 @@ impl Session {
             doc,
             version,
             trace_text,
+            imports: Imports::new(),
             events,
             pending: Vec::new(),
             journal: None,
@@ -164,13 +169,14 @@ impl Session {
     pub fn open(path: &Path) -> Result<Session, DocError> {
         let data = std::fs::read(path).map_err(io(path))?;
         let loaded = format::read(&data)?;
-        let Document { trace_text, content, .. } = loaded.doc;
+        let Document { trace_text, content, imports, .. } = loaded.doc;
         let trace = loaded.trace;
         let doc = match content {
             Content::Tree { tree, history } => Layers::from_painting(&trace.canvas, Painting::from_parts(tree, history)),
             Content::Layers(doc) => doc,
         };
         let mut s = Session::from_parts(path, doc, trace.version, trace_text, trace.events.len(), loaded.crc);
+        s.imports = imports;
         s.resume_state(&trace);
         let jp = journal_path(path);
         match std::fs::read(&jp) {
@@ -237,7 +243,10 @@ impl Session {
             all.push('\n');
             all.push_str(l);
         }
-        let trace = parse_trace(&all).map_err(|e| DocError::Journal { path: jp.to_path_buf(), why: format!("its events do not read: {e}") })?;
+        let trace = {
+            let resolve = format::resolver(&self.imports);
+            parse_trace_with(&all, Some(&resolve)).map_err(|e| DocError::Journal { path: jp.to_path_buf(), why: format!("its events do not read: {e}") })?
+        };
         for ev in &trace.events[self.events..] {
             self.apply_parsed(ev);
             if matches!(ev.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo | EventKind::Layer(_)) {
@@ -283,6 +292,11 @@ impl Session {
             // (spec 14.2), as in a replay.
             EventKind::Layer(op) => {
                 self.doc.apply(op, ev.line);
+            }
+            // Imports are saved as they happen, never journalled (see
+            // Session::import); one in a journal is a damaged journal.
+            EventKind::Import(imp) => {
+                self.doc.import_voxels(&imp.voxels, ev.line);
             }
         }
         self.last_t = ev.t;
@@ -351,6 +365,13 @@ impl Session {
             }
             EventKind::Layer(_) if self.in_stroke => return bad("layer inside a stroke (layers change between strokes)".into()),
             EventKind::Layer(_) => check(octopaint_tree::trace::parse_layer(0, &obj).map(drop))?,
+            EventKind::Import(_) if self.in_stroke => return bad("import inside a stroke (imports come between strokes)".into()),
+            EventKind::Import(_) if self.doc.current().locked => {
+                return bad(format!("the selected layer \"{}\" is locked", self.doc.current().name));
+            }
+            // As a replay paints it (spec 15.3: a budget refusal paints at the
+            // resolution reached, with a warning), and saved at once.
+            EventKind::Import(imp) => return self.commit_import(&imp.voxels, imp.name.as_deref(), ev.t, false),
             EventKind::StrokeBegin if self.doc.current().locked => {
                 return bad(format!("the selected layer \"{}\" is locked", self.doc.current().name));
             }
@@ -381,6 +402,60 @@ impl Session {
             self.flush()?;
         }
         Ok(())
+    }
+
+    /// Paint a voxel set into the selected layer (an `import` event, spec
+    /// 15) as one undoable step, and save at once: the document then holds
+    /// the voxel set with the event, so the journal never names a voxel set
+    /// it does not hold. All or nothing: refused, changing nothing, inside
+    /// a stroke, on a locked layer, or when the cell budget cannot hold the
+    /// whole import (the layer is tried on a copy first). `name` labels the
+    /// event (where the voxels came from).
+    pub fn import(&mut self, vs: &VoxelSet, name: Option<&str>) -> Result<(), DocError> {
+        self.commit_import(vs, name, self.last_t, true)
+    }
+
+    /// An import, all or nothing ([`Session::import`]) or as a replay
+    /// paints it (an `import` event applied from a trace), then saved.
+    fn commit_import(&mut self, vs: &VoxelSet, name: Option<&str>, t: f64, whole: bool) -> Result<(), DocError> {
+        let bad = |m: String| Err(DocError::BadEvent(m));
+        if self.in_stroke {
+            return bad("cannot import inside a stroke: end it first".into());
+        }
+        let canvas = *self.doc.canvas();
+        if vs.depth > canvas.max_depth {
+            return bad(format!("depth {} is deeper than the canvas's max depth {}", vs.depth, canvas.max_depth));
+        }
+        let bytes = voxel_set_bytes(vs);
+        // The voxel set as the reader will see it: its checks, once.
+        let checked = octopaint_tree::voxels::parse_voxel_set(&bytes, &canvas).map_err(DocError::BadEvent)?;
+        if let Some(n) = name
+            && let Some(why) = octopaint_tree::layers::name_problem(n)
+        {
+            return bad(format!("import name: {why}"));
+        }
+        let sha256 = sha256_hex(&bytes);
+        let file = format!("imports/{sha256}.npz");
+        let ev = Event {
+            line: 0,
+            t,
+            kind: EventKind::Import(Box::new(Import { file: file.clone(), sha256, name: name.map(str::to_string), voxels: std::sync::Arc::new(checked) })),
+        };
+        let line = event_line(&ev);
+        if whole {
+            self.doc.try_import(vs).map_err(DocError::BadEvent)?;
+        } else if !self.doc.import_voxels(vs, 0) {
+            return bad(self.doc.take_warnings().join("; "));
+        }
+        self.last_t = t;
+        self.imports.insert(file, bytes);
+        self.pending.push(line);
+        self.save()
+    }
+
+    /// The voxel sets the session's imports name, by file.
+    pub fn imports(&self) -> &Imports {
+        &self.imports
     }
 
     /// Append the pending events to the journal and sync it.
@@ -437,10 +512,10 @@ impl Session {
             self.doc.steps().0
         );
         let written = if self.version == 2 {
-            format::write_layers(&self.trace_text, &self.doc, &meta)
+            format::write_layers(&self.trace_text, &self.doc, &meta, &self.imports)
         } else {
             let p = self.painting();
-            format::write(&self.trace_text, &p.tree, &p.history, &meta)
+            format::write_with(&self.trace_text, &p.tree, &p.history, &meta, &self.imports)
         };
         let (bytes, crc) = written.map_err(io(&self.path))?;
         durable::write(&self.path, &bytes).map_err(io(&self.path))?;

@@ -134,9 +134,9 @@ impl JobQueue {
 
 /// The jobs of a trace's events, with their recorded times (seconds):
 /// brushes become the next stroke's `BeginStroke`; cameras, renders and
-/// snapshots are not jobs. The pipeline paints one tree: a version 2
-/// trace's layer events (spec 14) are not jobs either, so callers refuse
-/// such traces first.
+/// snapshots are not jobs. The pipeline paints one tree from brushes: a
+/// version 2 trace's layer events (spec 14) and imports (spec 15) are not
+/// jobs either, so callers refuse such traces first.
 pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
     use octopaint_tree::trace::EventKind;
     let mut brush = None;
@@ -154,7 +154,7 @@ pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
             EventKind::StrokeEnd => out.push((ev.t, Job::EndStroke)),
             EventKind::Undo => out.push((ev.t, Job::Undo)),
             EventKind::Redo => out.push((ev.t, Job::Redo)),
-            EventKind::Camera(_) | EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) | EventKind::Layer(_) => {}
+            EventKind::Camera(_) | EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) | EventKind::Layer(_) | EventKind::Import(_) => {}
         }
     }
     out

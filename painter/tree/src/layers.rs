@@ -390,6 +390,56 @@ impl Document {
         }
     }
 
+    /// An `import` event (spec 15.3) on the selected layer: one step of
+    /// the history. Skipped with a warning when the layer is locked (the
+    /// reader's model was put out of step by a skipped layer operation).
+    pub fn import_voxels(&mut self, vs: &crate::voxels::VoxelSet, line: usize) -> bool {
+        if self.current().locked {
+            let msg = format!("line {line}: layer \"{}\" is locked; this import is skipped", self.current().name);
+            self.warnings.push(msg);
+            return false;
+        }
+        self.drop_redo();
+        let id = self.order[self.selected];
+        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
+        let layer = self.arena.get_mut(&id).expect("listed");
+        layer.painting.tree.capacity = share as u32;
+        layer.painting.import_voxels(vs, line);
+        self.done.push(Step::Stroke(id));
+        true
+    }
+
+    /// An import the document must take whole or not at all (the painter's
+    /// import commands, spec 15): tried on a copy of the selected layer
+    /// first, and refused, changing nothing (redo history included), when
+    /// the layer is locked or the cell budget refuses a refinement. On
+    /// success it is one step of the history, as [`Document::import_voxels`].
+    pub fn try_import(&mut self, vs: &crate::voxels::VoxelSet) -> Result<(), String> {
+        if self.current().locked {
+            return Err(format!("layer \"{}\" is locked", self.current().name));
+        }
+        let id = self.order[self.selected];
+        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
+        let mut trial = self.arena.get(&id).expect("listed").painting.clone();
+        trial.tree.capacity = share as u32;
+        let (refusals, warned) = (trial.counters.refusals, trial.warnings.len());
+        trial.import_voxels(vs, 0);
+        if trial.counters.refusals > refusals {
+            return Err(format!(
+                "the cell budget ({} cells, {} in use by the other layers) cannot hold this import at depth {}: \
+                 import at a coarser depth, a smaller part, or into a document with a larger --capacity",
+                self.canvas.capacity,
+                self.used_but(&[id]),
+                vs.depth
+            ));
+        }
+        trial.warnings.truncate(warned);
+        self.drop_redo();
+        self.arena.get_mut(&id).expect("listed").painting = trial;
+        self.done.push(Step::Stroke(id));
+        Ok(())
+    }
+
     fn drop_redo(&mut self) {
         self.undone.clear();
         for l in self.arena.values_mut() {

@@ -46,6 +46,7 @@ pub mod stroke;
 pub mod trace;
 pub mod trace_write;
 pub mod view;
+pub mod voxels;
 
 pub use paint::Painting;
 pub use pool::{FREE, NONE, Tree, UNIT};

@@ -303,6 +303,25 @@ impl Painting {
         self.counters.stroke_end_ns += t0.elapsed().as_nanos() as u64;
     }
 
+    /// Paint a voxel set (an `import` event, spec 15.3) as one undo step:
+    /// the traversal, paint pass and rounds of [`crate::voxels`], then
+    /// cleaning and the undo step, as at the end of a stroke.
+    pub fn import_voxels(&mut self, vs: &crate::voxels::VoxelSet, line: usize) {
+        assert!(self.stroke.is_none(), "an import inside a stroke");
+        let t0 = std::time::Instant::now();
+        self.tree.begin_journal();
+        let work = crate::voxels::paint_voxels(&mut self.tree, vs, line, &mut self.warnings);
+        self.counters.cells_created += work.created;
+        self.counters.refusals += work.refusals;
+        self.counters.cells_written += work.touched.len() as u64;
+        let collapses = clean(&mut self.tree, work.touched);
+        self.counters.collapses += collapses as u64;
+        let step = self.tree.commit_journal();
+        self.history.done.push(step);
+        self.history.undone.clear();
+        self.counters.refine_ns += t0.elapsed().as_nanos() as u64;
+    }
+
     /// Undo the last stroke; false if there is none.
     pub fn undo(&mut self) -> bool {
         assert!(self.stroke.is_none(), "undo inside a stroke");

@@ -100,6 +100,9 @@ pub fn replay_document(
             EventKind::Layer(op) => {
                 doc.apply(op, ev.line);
             }
+            EventKind::Import(imp) => {
+                doc.import_voxels(&imp.voxels, ev.line);
+            }
             EventKind::Snapshot(name) => {
                 if let Some(d) = out_dir {
                     let bytes = if trace.version == 2 {

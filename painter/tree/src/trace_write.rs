@@ -85,6 +85,10 @@ pub fn event_line(ev: &Event) -> String {
             }
             Value::Object(m)
         }
+        EventKind::Import(imp) => match &imp.name {
+            Some(n) => json!({"file": imp.file, "sha256": imp.sha256, "name": n}),
+            None => json!({"file": imp.file, "sha256": imp.sha256}),
+        },
     };
     let (Value::Object(head), Value::Object(rest)) = (&mut obj, fields) else { unreachable!("objects") };
     head.extend(rest);
@@ -111,7 +115,8 @@ mod tests {
                 text.push('\n');
                 text.push_str(&event_line(ev));
             }
-            let again = parse_trace(&text).unwrap_or_else(|e| panic!("{}: {e}\n", path.display()));
+            let resolve = crate::trace::folder_resolver(&dir);
+            let again = crate::trace::parse_trace_with(&text, Some(&resolve)).unwrap_or_else(|e| panic!("{}: {e}\n", path.display()));
             assert_eq!(again.canvas, trace.canvas);
             assert_eq!(again.version, trace.version);
             assert_eq!(again.meta, trace.meta);

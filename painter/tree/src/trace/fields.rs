@@ -414,3 +414,34 @@ pub fn parse_layer(line: usize, obj: &Value) -> R<LayerOp> {
     }
     Ok(out)
 }
+
+/// The fields of an `import` event (spec 15.2): `file`, `sha256`, optional
+/// `name`. The reader then reads the file.
+pub(super) fn parse_import_fields(line: usize, obj: &Value) -> R<(String, String, Option<String>)> {
+    let file = match require(line, obj, "file", "")? {
+        Value::String(s) => s.clone(),
+        other => return Err(fail(line, "file", ErrorKind::Type, format!("expected a string, got {}", shown(other)))),
+    };
+    let parts: Vec<&str> = file.split('/').collect();
+    if parts.len() > 8 || !parts.iter().all(|p| is_valid_name(p)) {
+        return Err(fail(line, "file", ErrorKind::Name, format!("{} is not a relative path of 1 to 8 plain names", shown(&Value::String(file.clone())))));
+    }
+    let sha = match require(line, obj, "sha256", "")? {
+        Value::String(s) => s.clone(),
+        other => return Err(fail(line, "sha256", ErrorKind::Type, format!("expected a string, got {}", shown(other)))),
+    };
+    if sha.len() != 64 || !sha.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
+        return Err(range(line, "sha256", format!("{} is not 64 lowercase hexadecimal digits", shown(&Value::String(sha.clone())))));
+    }
+    let name = match obj.get("name") {
+        None => None,
+        Some(Value::String(s)) => {
+            if let Some(why) = crate::layers::name_problem(s) {
+                return Err(range(line, "name", why));
+            }
+            Some(s.clone())
+        }
+        Some(other) => return Err(fail(line, "name", ErrorKind::Type, format!("expected a string, got {}", shown(other)))),
+    };
+    Ok((file, sha, name))
+}

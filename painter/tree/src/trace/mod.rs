@@ -10,7 +10,7 @@ mod fields;
 mod read;
 
 pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, segment_too_long};
-pub use read::{MAX_NESTING, io_reason, nesting_depth, parse_trace, parse_trace_bytes, read_trace};
+pub use read::{MAX_NESTING, Resolve, folder_resolver, io_reason, nesting_depth, parse_trace, parse_trace_bytes, parse_trace_with, read_trace};
 
 pub const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
 pub const MODES: [&str; 5] = ["paint", "erase", "recolor", "mix", "pickup"];
@@ -55,10 +55,13 @@ pub enum ErrorKind {
     Name,
     /// A `layer` event or a stroke the document cannot take (spec 14.2).
     Layer,
+    /// An `import` event's file: unreadable, another digest, or not a voxel
+    /// set for this canvas (spec 15.2).
+    Import,
 }
 
 impl ErrorKind {
-    pub const ALL: [ErrorKind; 12] = [
+    pub const ALL: [ErrorKind; 13] = [
         ErrorKind::Io,
         ErrorKind::Utf8,
         ErrorKind::Json,
@@ -71,6 +74,7 @@ impl ErrorKind {
         ErrorKind::EventOrder,
         ErrorKind::Name,
         ErrorKind::Layer,
+        ErrorKind::Import,
     ];
 
     /// The code as the spec writes it.
@@ -88,6 +92,7 @@ impl ErrorKind {
             ErrorKind::EventOrder => "event-order",
             ErrorKind::Name => "name",
             ErrorKind::Layer => "layer",
+            ErrorKind::Import => "import",
         }
     }
 
@@ -278,6 +283,18 @@ pub enum EventKind {
     Undo,
     Redo,
     Layer(LayerOp),
+    Import(Box<Import>),
+}
+
+/// One `import` event (spec 15.2): the file as the trace names it, its
+/// digest, the optional label, and the voxel set read from it (shared: a
+/// document keeps it once).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Import {
+    pub file: String,
+    pub sha256: String,
+    pub name: Option<String>,
+    pub voxels: std::sync::Arc<crate::voxels::VoxelSet>,
 }
 
 /// One `layer` event (spec 14.2), as read: the fields its `op` uses.
@@ -354,6 +371,7 @@ impl EventKind {
             EventKind::Undo => "undo",
             EventKind::Redo => "redo",
             EventKind::Layer(_) => "layer",
+            EventKind::Import(_) => "import",
         }
     }
 }

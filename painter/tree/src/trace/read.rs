@@ -6,7 +6,7 @@ use std::collections::HashSet;
 
 use serde_json::Value;
 
-use super::fields::{fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
+use super::fields::{fail, finite, name, parse_brush, parse_import_fields, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
 use crate::layers::Model;
 use super::{Brush, ErrorKind, Event, EventKind, Meta, Sample, Trace, TraceError};
 
@@ -15,6 +15,16 @@ use super::{Brush, ErrorKind, Event, EventKind, Meta, Sample, Trace, TraceError}
 pub const MAX_NESTING: usize = 64;
 
 type R<T> = Result<T, TraceError>;
+
+/// How a reader finds the files of `import` events (spec 15.2): given the
+/// trace's `file`, its bytes.
+pub type Resolve<'a> = &'a dyn Fn(&str) -> std::io::Result<Vec<u8>>;
+
+/// Imports resolved against a folder (the trace's own).
+pub fn folder_resolver(folder: &std::path::Path) -> impl Fn(&str) -> std::io::Result<Vec<u8>> + use<> {
+    let folder = folder.to_path_buf();
+    move |file: &str| std::fs::read(file.split('/').fold(folder.clone(), |p, part| p.join(part)))
+}
 
 /// The deepest `[`/`{` nesting of a line, counted outside strings (a `"`
 /// opens or closes a string unless an odd run of backslashes precedes it
@@ -95,7 +105,9 @@ fn header(lineno: usize, obj: &Value) -> R<(super::Canvas, Meta, u32)> {
 
 /// What the order rules need to know of the events so far.
 #[derive(Default)]
-struct Order {
+struct Order<'a> {
+    canvas: Option<super::Canvas>,
+    resolve: Option<Resolve<'a>>,
     brush: Option<Brush>,
     in_stroke: bool,
     stroke_begin_line: usize,
@@ -112,7 +124,7 @@ struct Order {
     snapshot_names: HashSet<String>,
 }
 
-impl Order {
+impl Order<'_> {
     /// One event line (after the header): `ev`, `t`, then the kind's fields
     /// and its place among the events.
     fn event(&mut self, lineno: usize, obj: &Value) -> R<Event> {
@@ -233,6 +245,20 @@ impl Order {
                     EventKind::Redo
                 }
             }
+            "import" => {
+                if self.in_stroke {
+                    return Err(order("import inside a stroke (imports come between strokes)"));
+                }
+                let (file, sha256, label) = parse_import_fields(lineno, obj)?;
+                if self.layers.selected_locked() {
+                    let msg = format!("the selected layer {:?} is locked", self.layers.names[self.layers.selected]);
+                    return Err(fail(lineno, "ev", ErrorKind::Layer, msg));
+                }
+                let voxels = self.read_import(lineno, &file, &sha256)?;
+                self.done.push(None);
+                self.undone.clear();
+                EventKind::Import(Box::new(super::Import { file, sha256, name: label, voxels: std::sync::Arc::new(voxels) }))
+            }
             "layer" if self.version == 2 => {
                 if self.in_stroke {
                     return Err(order("layer inside a stroke (layers change between strokes)"));
@@ -255,11 +281,36 @@ impl Order {
     }
 }
 
-/// Parse and validate a whole trace (already decoded text).
+impl Order<'_> {
+    /// The voxel set of an `import` event (spec 15.2): read through the
+    /// resolver, its digest checked, then its content for this canvas.
+    fn read_import(&self, lineno: usize, file: &str, sha256: &str) -> R<crate::voxels::VoxelSet> {
+        let import = |field: &str, msg: String| fail(lineno, field, ErrorKind::Import, msg);
+        let Some(resolve) = self.resolve else {
+            return Err(import("file", "this trace was not read from a folder, so its imports cannot be found".into()));
+        };
+        let data = resolve(file).map_err(|e| import("file", format!("cannot read {file}: {}", io_reason(&e))))?;
+        let got = crate::voxels::sha256_hex(&data);
+        if got != sha256 {
+            return Err(import("sha256", format!("{file} has SHA-256 {got}, not the {sha256} the trace names (the file changed)")));
+        }
+        let canvas = self.canvas.as_ref().expect("events come after the header");
+        crate::voxels::parse_voxel_set(&data, canvas).map_err(|e| import("file", format!("{file} is not a voxel set for this canvas: {e}")))
+    }
+}
+
+/// Parse and validate a whole trace (already decoded text). A trace with
+/// `import` events needs [`parse_trace_with`] and a resolver.
 pub fn parse_trace(text: &str) -> R<Trace> {
+    parse_trace_with(text, None)
+}
+
+/// Parse and validate a whole trace, reading the files of its `import`
+/// events through `resolve` (spec 15.2).
+pub fn parse_trace_with(text: &str, resolve: Option<Resolve<'_>>) -> R<Trace> {
     let mut head = None;
     let mut events = Vec::new();
-    let mut order = Order::default();
+    let mut order = Order { resolve, ..Order::default() };
     let mut n_lines = 0;
     for (i, raw) in text.split('\n').enumerate() {
         let lineno = i + 1;
@@ -274,6 +325,7 @@ pub fn parse_trace(text: &str) -> R<Trace> {
         if head.is_none() {
             let h = header(lineno, &obj)?;
             order.version = h.2;
+            order.canvas = Some(h.0);
             head = Some(h);
         } else {
             events.push(order.event(lineno, &obj)?);
@@ -292,8 +344,12 @@ pub fn parse_trace(text: &str) -> R<Trace> {
 
 /// Decode bytes as UTF-8 (naming the line of the first bad byte) and parse.
 pub fn parse_trace_bytes(data: &[u8]) -> R<Trace> {
+    parse_bytes_with(data, None)
+}
+
+fn parse_bytes_with(data: &[u8], resolve: Option<Resolve<'_>>) -> R<Trace> {
     match std::str::from_utf8(data) {
-        Ok(text) => parse_trace(text),
+        Ok(text) => parse_trace_with(text, resolve),
         Err(e) => {
             let line = data[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
             Err(TraceError::new(line, ErrorKind::Utf8, "not valid UTF-8"))
@@ -305,7 +361,9 @@ pub fn parse_trace_bytes(data: &[u8]) -> R<Trace> {
 pub fn read_trace(path: &std::path::Path) -> R<Trace> {
     let data = std::fs::read(path)
         .map_err(|e| TraceError::new(0, ErrorKind::Io, format!("cannot read {}: {}", path.display(), io_reason(&e))))?;
-    parse_trace_bytes(&data)
+    let folder = path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
+    let resolve = folder_resolver(if folder.as_os_str().is_empty() { std::path::Path::new(".") } else { &folder });
+    parse_bytes_with(&data, Some(&resolve))
 }
 
 /// An I/O error's reason without Rust's "(os error N)" suffix.

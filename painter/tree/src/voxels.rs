@@ -1,0 +1,361 @@
+//! Voxel sets and imports (spec 15). A voxel set is an `.npz` of `depth`,
+//! `ijk`, `rgb` and `sigma`; an `import` event paints one into the tree as
+//! one undo step, with the stroke machinery: a top-down traversal of the
+//! cells that hold a voxel, a paint pass, refinement rounds on the leaves
+//! that are not settled, cleaning. Reference twin:
+//! reference/octopaint_ref/voxelset.py and `Painting.import_voxels` in
+//! paint.py.
+
+use std::io::Cursor;
+
+use sha2::{Digest, Sha256};
+
+use crate::dump::{NpyArray, Values, write_npz};
+use crate::pool::{NONE, Refusal, Tree, UNIT};
+use crate::trace::Canvas;
+
+/// The most voxels one set may hold (spec 15.1).
+pub const MAX_VOXELS: u64 = 1 << 26;
+
+/// A voxel set (spec 15.1): voxels at depth `depth`, in any order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VoxelSet {
+    pub depth: u32,
+    pub ijk: Vec<[u32; 3]>,
+    pub rgb: Vec<[u8; 3]>,
+    pub sigma: Vec<f32>,
+}
+
+impl VoxelSet {
+    pub fn len(&self) -> usize {
+        self.ijk.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.ijk.is_empty()
+    }
+}
+
+/// The SHA-256 of some bytes, as 64 lowercase hexadecimal digits.
+pub fn sha256_hex(data: &[u8]) -> String {
+    let digest = Sha256::digest(data);
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// A voxel set's file: stored entries in the order of spec 15.1, every
+/// timestamp 1980-01-01 (the same bytes for the same set).
+pub fn voxel_set_bytes(vs: &VoxelSet) -> Vec<u8> {
+    let depth = [vs.depth];
+    let ijk: Vec<u32> = vs.ijk.iter().flatten().copied().collect();
+    let rgb: Vec<u8> = vs.rgb.iter().flatten().copied().collect();
+    let n = vs.len();
+    let arrays = [
+        NpyArray { name: "depth", shape: vec![], values: Values::U32(&depth) },
+        NpyArray { name: "ijk", shape: vec![n, 3], values: Values::U32(&ijk) },
+        NpyArray { name: "rgb", shape: vec![n, 3], values: Values::U8(&rgb) },
+        NpyArray { name: "sigma", shape: vec![n], values: Values::F32(&vs.sigma) },
+    ];
+    write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory").into_inner()
+}
+
+/// One entry of a voxel set: checked to be stored (not compressed), with
+/// its dtype, rank (and a last dimension of 3 for rank 2), C order, and at
+/// most MAX_VOXELS rows; its shape and values.
+fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str, dtype: &str, rank: usize) -> Result<(Vec<u64>, Vec<T>), String> {
+    let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| match e {
+        zip::result::ZipError::FileNotFound => format!("the entry {name}.npy is missing"),
+        e => format!("{name}.npy: {e}"),
+    })?;
+    if f.compression() != zip::CompressionMethod::Stored {
+        return Err(format!("{name}.npy is compressed (write voxel sets with numpy's savez, not savez_compressed)"));
+    }
+    let mut data = Vec::new();
+    std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
+    let npy = npyz::NpyFile::new(&data[..]).map_err(|e| format!("{name}.npy: not an .npy array: {e}"))?;
+    let got = npy.dtype().descr();
+    let got = got.trim();
+    if got != format!("'{dtype}'") && !(dtype == "|u1" && got == "'<u1'") {
+        return Err(format!("{name}.npy has dtype {got}, expected {dtype}"));
+    }
+    let shape = npy.shape().to_vec();
+    if shape.len() != rank || (rank == 2 && shape[1] != 3) {
+        let want = ["[]", "[n]", "[n, 3]"][rank];
+        return Err(format!("{name}.npy has shape {shape:?}, expected {want}"));
+    }
+    if rank == 2 && npy.order() != npyz::Order::C {
+        return Err(format!("{name}.npy is Fortran-ordered (C order is required)"));
+    }
+    if rank > 0 && shape[0] > MAX_VOXELS {
+        return Err(format!("{name}.npy holds {} voxels, more than {MAX_VOXELS}", shape[0]));
+    }
+    let values = npy.into_vec::<T>().map_err(|e| format!("{name}.npy: {e}"))?;
+    Ok((shape, values))
+}
+
+/// Check `data` as a voxel set for `canvas` (spec 15.1); the error says
+/// what is wrong.
+pub fn parse_voxel_set(data: &[u8], canvas: &Canvas) -> Result<VoxelSet, String> {
+    let mut zip = zip::ZipArchive::new(Cursor::new(data)).map_err(|e| format!("not an .npz (zip) file: {e}"))?;
+    let (_, depth) = entry::<u32>(&mut zip, "depth", "<u4", 0)?;
+    let (sh, ijk) = entry::<u32>(&mut zip, "ijk", "<u4", 2)?;
+    let (sr, rgb) = entry::<u8>(&mut zip, "rgb", "|u1", 2)?;
+    let (ss, sigma) = entry::<f32>(&mut zip, "sigma", "<f4", 1)?;
+    let n = sh[0];
+    if sr[0] != n || ss[0] != n {
+        return Err(format!("ijk, rgb and sigma hold {n}, {} and {} voxels", sr[0], ss[0]));
+    }
+    let depth = depth[0];
+    if depth > canvas.max_depth {
+        return Err(format!("depth {depth} is deeper than the canvas's max_depth {}", canvas.max_depth));
+    }
+    let extent = canvas.roots.map(|r| u64::from(r) << depth);
+    let ijk: Vec<[u32; 3]> = ijk.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    if let Some(i) = ijk.iter().position(|q| (0..3).any(|a| u64::from(q[a]) >= extent[a])) {
+        return Err(format!("voxel {i} at {:?} is outside the canvas ({extent:?} voxels at depth {depth})", ijk[i]));
+    }
+    if let Some(i) = sigma.iter().position(|s| !s.is_finite() || s.is_sign_negative()) {
+        return Err(format!("voxel {i} has sigma {:?} (finite, >= 0 and not -0 required)", sigma[i]));
+    }
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    order.sort_by_key(|&i| key(ijk[i as usize]));
+    if let Some(w) = order.windows(2).find(|w| ijk[w[0] as usize] == ijk[w[1] as usize]) {
+        let (i, j) = (w[0].min(w[1]), w[0].max(w[1]));
+        return Err(format!("voxels {i} and {j} are both at {:?}", ijk[i as usize]));
+    }
+    let rgb = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    Ok(VoxelSet { depth, ijk, rgb, sigma })
+}
+
+/// Sort key of a coordinate: (z, y, x).
+#[inline]
+fn key(q: [u32; 3]) -> [u32; 3] {
+    [q[2], q[1], q[0]]
+}
+
+/// A stored value as one integer: rgb bytes and the f32 bits of sigma.
+#[inline]
+fn packed(rgb: [u8; 3], sigma: f32) -> u64 {
+    u64::from(rgb[0]) | u64::from(rgb[1]) << 8 | u64::from(rgb[2]) << 16 | u64::from(sigma.to_bits()) << 24
+}
+
+#[inline]
+fn unpacked(v: u64) -> ([u8; 3], f32) {
+    ([v as u8, (v >> 8) as u8, (v >> 16) as u8], f32::from_bits((v >> 24) as u32))
+}
+
+/// One cell position at some depth that holds voxels: how many, and the
+/// smallest and largest packed value among them.
+#[derive(Clone, Copy)]
+struct Block {
+    key: [u32; 3],
+    count: u64,
+    lo: u64,
+    hi: u64,
+}
+
+/// Per depth `e <= d`, the blocks of the set, sorted by key (spec 15.3).
+struct VoxelIndex {
+    d: u32,
+    max_depth: u32,
+    levels: Vec<Vec<Block>>,
+}
+
+impl VoxelIndex {
+    fn new(vs: &VoxelSet, max_depth: u32) -> Self {
+        let d = vs.depth;
+        let mut level: Vec<Block> = (0..vs.len())
+            .map(|i| {
+                let v = packed(vs.rgb[i], vs.sigma[i]);
+                Block { key: key(vs.ijk[i]), count: 1, lo: v, hi: v }
+            })
+            .collect();
+        level.sort_unstable_by_key(|b| b.key);
+        let mut levels = vec![Vec::new(); d as usize + 1];
+        for e in (0..d).rev() {
+            let mut up: Vec<Block> = level.iter().map(|b| Block { key: b.key.map(|k| k >> 1), ..*b }).collect();
+            up.sort_by_key(|b| b.key);
+            let mut merged: Vec<Block> = Vec::with_capacity(up.len() / 4 + 1);
+            for b in up {
+                match merged.last_mut() {
+                    Some(m) if m.key == b.key => {
+                        m.count += b.count;
+                        m.lo = m.lo.min(b.lo);
+                        m.hi = m.hi.max(b.hi);
+                    }
+                    _ => merged.push(b),
+                }
+            }
+            levels[e as usize + 1] = std::mem::replace(&mut level, merged);
+        }
+        levels[0] = level; // (the set itself when d = 0)
+        VoxelIndex { d, max_depth, levels }
+    }
+
+    /// The block at depth `e` holding coordinate `q` (at that depth).
+    #[inline]
+    fn find(&self, e: u32, q: [u32; 3]) -> Option<&Block> {
+        let lv = &self.levels[e as usize];
+        lv.binary_search_by_key(&key(q), |b| b.key).ok().map(|i| &lv[i])
+    }
+
+    /// Does the cell of depth `e` and origin `o` hold a voxel?
+    fn reached(&self, o: [u32; 3], e: u32) -> bool {
+        let lv = e.min(self.d);
+        self.find(lv, o.map(|v| v >> (self.max_depth - lv))).is_some()
+    }
+
+    /// The value of the voxel at the centre of the cell (spec 15.3), if the
+    /// set has one there.
+    fn centre_value(&self, o: [u32; 3], e: u32) -> Option<([u8; 3], f32)> {
+        let half = if e < self.d { 1u32 << (self.max_depth - e - 1) } else { 0 };
+        let q = o.map(|v| (v + half) >> (self.max_depth - self.d));
+        self.find(self.d, q).map(|b| unpacked(b.lo))
+    }
+
+    /// A leaf of depth `e < d` whose block and before-value hold one stored
+    /// value (spec 15.3).
+    fn settled(&self, o: [u32; 3], e: u32, before: ([u8; 3], f32)) -> bool {
+        let Some(b) = self.find(e, o.map(|v| v >> (self.max_depth - e))) else { return true };
+        let span = 3 * (self.d - e);
+        // 8^(d-e) voxels: more than a set can hold once 3(d-e) > 26.
+        let whole = span <= 26 && b.count == 1u64 << span;
+        b.lo == b.hi && (whole || b.lo == packed(before.0, before.1))
+    }
+}
+
+/// What [`paint_voxels`] leaves for the caller: the touched cells (for
+/// cleaning) and counts.
+pub(crate) struct ImportWork {
+    pub touched: Vec<u32>,
+    pub created: u64,
+    pub refusals: u64,
+}
+
+/// Spec 15.3 steps 1-4 on `tree`: traverse, paint, refine round by round.
+/// Warnings (a refused round, once) go to `warnings`. The caller cleans
+/// and commits the undo step.
+pub(crate) fn paint_voxels(tree: &mut Tree, vs: &VoxelSet, line: usize, warnings: &mut Vec<String>) -> ImportWork {
+    let mut work = ImportWork { touched: Vec::new(), created: 0, refusals: 0 };
+    if vs.is_empty() {
+        return work;
+    }
+    let max_depth = tree.lat.max_depth;
+    let d = vs.depth;
+    let index = VoxelIndex::new(vs, max_depth);
+    // Before-values of the touched cells (spec 8.8).
+    let mut before: std::collections::HashMap<u32, ([u8; 3], f32)> = std::collections::HashMap::new();
+    // 1. Traverse from the roots that hold a voxel, ascending.
+    let mut roots: Vec<u32> = index.levels[0].iter().map(|b| tree.lat.root_index([b.key[2], b.key[1], b.key[0]])).collect();
+    roots.sort_unstable();
+    roots.dedup();
+    let mut frontier: Vec<(u32, [u32; 3])> = roots.iter().map(|&r| (r, tree.lat.root_origin(r))).collect();
+    let mut paint: Vec<(u32, [u32; 3], u32)> = Vec::new();
+    while !frontier.is_empty() {
+        let mut next = Vec::new();
+        for (c, o) in frontier {
+            let e = u32::from(tree.depth[c as usize]);
+            if !index.reached(o, e) {
+                continue;
+            }
+            let fc = tree.first_child[c as usize];
+            if fc == NONE {
+                paint.push((c, o, e));
+            } else {
+                next.extend((0..UNIT).map(|k| (fc + k, tree.child_origin(o, e, k))));
+            }
+        }
+        frontier = next;
+    }
+    // 2. Paint pass: touched, written their import value.
+    let write = |tree: &mut Tree, c: u32, o: [u32; 3], e: u32, b: ([u8; 3], f32)| {
+        let (rgb, sigma) = index.centre_value(o, e).unwrap_or(b);
+        tree.set_value(c, rgb, sigma);
+    };
+    for &(c, o, e) in &paint {
+        let b = (tree.rgb[c as usize], tree.sigma[c as usize]);
+        before.insert(c, b);
+        work.touched.push(c);
+        write(tree, c, o, e, b);
+    }
+    // 3. Candidates: leaves above the set's depth that are not settled.
+    let mut candidates: Vec<u32> = paint.iter().filter(|&&(c, o, e)| e < d && !index.settled(o, e, before[&c])).map(|&(c, _, _)| c).collect();
+    let mut warned = false;
+    // 4. Rounds.
+    while !candidates.is_empty() {
+        let (units, refusal) = tree.refine_round(&mut candidates);
+        if let Some(r) = refusal {
+            work.refusals += 1;
+            if !warned {
+                warned = true;
+                warnings.push(match r {
+                    Refusal::Capacity => format!(
+                        "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
+                        tree.capacity
+                    ),
+                    Refusal::Memory => format!(
+                        "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
+                        tree.n_used()
+                    ),
+                });
+            }
+        }
+        if units.is_empty() {
+            break;
+        }
+        work.created += units.len() as u64 * u64::from(UNIT);
+        let mut next = Vec::new();
+        for &(parent, unit) in &units {
+            let po = tree.origin(parent);
+            let pe = u32::from(tree.depth[parent as usize]);
+            let b = before.get(&parent).copied().unwrap_or((tree.rgb[parent as usize], tree.sigma[parent as usize]));
+            for k in 0..UNIT {
+                let (c, o, e) = (unit + k, tree.child_origin(po, pe, k), pe + 1);
+                before.insert(c, b);
+                work.touched.push(c);
+                write(tree, c, o, e, b);
+                if e < d && index.reached(o, e) && !index.settled(o, e, b) {
+                    next.push(c);
+                }
+            }
+        }
+        if refusal.is_some() {
+            break;
+        }
+        candidates = next;
+    }
+    work
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn canvas() -> Canvas {
+        Canvas { roots: [2, 1, 1], max_depth: 6, root_size: 1.0, capacity: 1 << 20 }
+    }
+
+    #[test]
+    fn a_voxel_set_round_trips_through_its_file_and_bad_ones_are_refused() {
+        let vs = VoxelSet { depth: 2, ijk: vec![[1, 1, 1], [7, 3, 0]], rgb: vec![[1, 2, 3], [4, 5, 6]], sigma: vec![1.5, 0.0] };
+        let bytes = voxel_set_bytes(&vs);
+        assert_eq!(parse_voxel_set(&bytes, &canvas()).unwrap(), vs);
+        let bad = |f: &dyn Fn(&mut VoxelSet)| {
+            let mut v = vs.clone();
+            f(&mut v);
+            parse_voxel_set(&voxel_set_bytes(&v), &canvas()).unwrap_err()
+        };
+        assert!(bad(&|v| v.depth = 7).contains("deeper"));
+        assert!(bad(&|v| v.ijk[1] = [8, 0, 0]).contains("outside"));
+        assert!(bad(&|v| v.ijk[1] = [1, 1, 1]).contains("both at"));
+        assert!(bad(&|v| v.sigma[0] = f32::NAN).contains("sigma"));
+        assert!(bad(&|v| v.sigma[0] = -0.0).contains("sigma"));
+        for cut in [0, 10, bytes.len() / 2, bytes.len() - 1] {
+            assert!(parse_voxel_set(&bytes[..cut], &canvas()).is_err(), "a file cut at {cut} was read");
+        }
+    }
+
+    #[test]
+    fn the_digest_is_sha256() {
+        assert_eq!(sha256_hex(b"abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+    }
+}
