@@ -53,3 +53,32 @@ def test_recorded_sessions_replay_identically_in_both(painter, tmp_path):
     once.write_text(base + '\n{"ev": "undo", "t": 1e9}\n{"ev": "snapshot", "t": 1e9, "name": "end"}\n')
     run(REF + ["replay", str(once), "--out", str(tmp_path / "u"), "--quiet"])
     assert dumps.compare(dumps.load(str(tmp_path / "u" / "end.npz")), p) == []
+
+
+def test_imports_recorded_from_a_document_replay_identically_in_both(painter, tmp_path):
+    """`import-vdb` and `import-mesh` on a document (spec 15): its recorded
+    session names voxel sets written beside the trace, and the reference
+    replays it to the document's own layers."""
+    trace = os.path.join(REPO, "traces", "shapes_modes.jsonl")
+    vdb = tmp_path / "s.vdb"
+    doc = tmp_path / "d.octo"
+    run([painter, "export", trace, "--vdb", str(vdb), "--depth", "6", "--quiet"])
+    run([painter, "new", str(doc), "--like", trace])
+    run([painter, "import-vdb", str(vdb), str(doc), "--layer", "volume", "--scale", "1"])
+    obj = tmp_path / "tet.obj"
+    # A closed tetrahedron with vertex colours, its faces oriented outward.
+    obj.write_text(
+        "v 0.1 0.1 0.1 1 0 0\nv 0.6 0.1 0.1 0 1 0\nv 0.1 0.6 0.1 0 0 1\nv 0.1 0.1 0.6 1 1 0\n"
+        "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+    )
+    run([painter, "import-mesh", str(obj), str(doc), "--layer", "solid", "--depth", "6"])
+    rec = tmp_path / "rec" / "rec.jsonl"
+    rec.parent.mkdir()
+    run([painter, "record", str(doc), "--out", str(rec)])
+    rec.write_text(rec.read_text().rstrip("\n") + '\n{"ev": "snapshot", "t": 1e9, "name": "end"}\n')
+    run(REF + ["replay", str(rec), "--out", str(tmp_path / "r"), "--quiet"])
+    run([painter, "dump", str(doc), str(tmp_path / "doc.npz")])
+    r = dumps.load(str(tmp_path / "r" / "end.npz"))
+    p = dumps.load(str(tmp_path / "doc.npz"))
+    assert dumps.compare_document(r, p) == [], "the reference replays the imports differently"
+    assert int(p["layer_count"]) == 3

@@ -302,9 +302,20 @@ pub fn record(doc: &Path, out: &Path) -> ExitCode {
         Err(e) => return fail(e),
     };
     say_recovered(&s);
+    // The voxel sets of its imports go beside the trace, where its
+    // `import` events name them (spec 15.2), before the trace itself.
+    let folder = out.parent().map(Path::to_path_buf).unwrap_or_default();
+    for (file, data) in s.imports() {
+        let path = file.split('/').fold(folder.clone(), |p, part| p.join(part));
+        let written = path.parent().map_or(Ok(()), std::fs::create_dir_all).and_then(|()| octopaint_platform::durable::write(&path, data));
+        if let Err(e) = written {
+            eprintln!("octopaint: cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e));
+            return ExitCode::from(1);
+        }
+    }
     match octopaint_platform::durable::write(out, s.trace_text().as_bytes()) {
         Ok(()) => {
-            eprintln!("{}: {} events", out.display(), s.event_count());
+            eprintln!("{}: {} events ({} imported voxel sets beside it)", out.display(), s.event_count(), s.imports().len());
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -195,7 +195,7 @@ pub fn run(args: &Args) -> ExitCode {
     }
 }
 
-fn parse_point(s: &str) -> Result<[f64; 3], String> {
+pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
@@ -333,7 +333,8 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         let mut trace = if is_doc {
             // --at in a document: its session, replayed to the snapshot.
             let s = octopaint_doc::Session::open(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
-            octopaint_tree::trace::parse_trace(&s.trace_text()).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
+            let resolve = octopaint_doc::format::resolver(s.imports());
+            octopaint_tree::trace::parse_trace_with(&s.trace_text(), Some(&resolve)).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
         } else {
             read_trace(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
         };

@@ -9,6 +9,7 @@ mod bench_tree;
 mod canonical;
 mod document;
 mod export;
+mod imports;
 mod probe;
 mod render;
 
@@ -151,6 +152,14 @@ enum Command {
         trace: PathBuf,
         doc: PathBuf,
     },
+    /// Paint an OpenVDB fog volume (density, optional colour) into a layer
+    /// of a document, resampled at a chosen depth, as one undoable step
+    /// (docs/documents.md, "Imports").
+    ImportVdb(imports::VdbArgs),
+    /// Paint a closed triangle mesh (glTF or OBJ) into a layer of a
+    /// document as solid voxels with its colours, as one undoable step; a
+    /// mesh with holes is refused, saying where (docs/documents.md).
+    ImportMesh(imports::MeshArgs),
     /// Paint on a document with the events of a trace, as a live session:
     /// each completed stroke is journalled (synced to disk) before the next
     /// one, and the document is saved at the end.
@@ -517,6 +526,8 @@ fn main() -> ExitCode {
             document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log })
         }
         Command::Import { trace, doc } => document::import(&trace, &doc),
+        Command::ImportVdb(args) => imports::vdb(&args),
+        Command::ImportMesh(args) => imports::mesh(&args),
         Command::Paint(args) => document::paint(&args),
         Command::Info { doc } => document::info(&doc),
         Command::Recover { doc } => document::recover(&doc),

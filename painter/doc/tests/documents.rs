@@ -134,13 +134,13 @@ fn damage_anywhere_is_refused() {
 #[test]
 fn a_newer_format_is_refused_with_a_message() {
     let mut d = small_document();
-    // Version 3 that version 2 cannot read: bump both fields, fix the CRC.
-    d[16..20].copy_from_slice(&3u32.to_le_bytes());
-    d[20..24].copy_from_slice(&3u32.to_le_bytes());
+    // Version 4 that version 3 cannot read: bump both fields, fix the CRC.
+    d[16..20].copy_from_slice(&4u32.to_le_bytes());
+    d[20..24].copy_from_slice(&4u32.to_le_bytes());
     let crc = crc32(&d[..28]);
     d[28..32].copy_from_slice(&crc.to_le_bytes());
     let e = format::read(&d).err().expect("refused");
-    assert!(matches!(e, DocError::TooNew { version: 3, reads: 2 }), "{e}");
+    assert!(matches!(e, DocError::TooNew { version: 4, reads: 3 }), "{e}");
     assert!(e.to_string().contains("newer octopaint"));
     assert!(format::read(b"not a document at all").is_err());
     assert_eq!(&MAGIC[..12], b"OCTOPAINTDOC");
@@ -455,4 +455,42 @@ fn a_one_tree_document_takes_layers_once_upgraded() {
     assert_eq!(again.version, 2);
     let (_, replayed) = octopaint_tree::replay::replay_document(&again, None, &mut Silent).unwrap();
     assert_eq!(replayed.dump_bytes(), opened.doc.dump_bytes());
+}
+
+#[test]
+fn a_document_keeps_its_imports_and_refuses_any_change_to_them() {
+    use octopaint_tree::voxels::VoxelSet;
+    let dir = tempfile::tempdir().unwrap();
+    let t = trace("single_stamp");
+    let (mut s, path) = session_from(dir.path(), &t);
+    let before = dump_bytes(&s.painting().tree);
+    let vs = VoxelSet {
+        depth: 4,
+        ijk: (0..40u32).map(|i| [i % 8 + 4, i / 8 + 2, 5]).collect(),
+        rgb: (0..40u8).map(|i| [i * 6, 200, 40]).collect(),
+        sigma: (0..40).map(|i| 2.0 + i as f32).collect(),
+    };
+    s.import(&vs, Some("strip")).unwrap();
+    let after = dump_bytes(&s.painting().tree);
+    assert_ne!(before, after);
+    let data = std::fs::read(&path).unwrap();
+    assert_eq!(u32::from_le_bytes(data[16..20].try_into().unwrap()), format::IMPORTS_VERSION);
+    // Opened again: the same tree, the import one undo step.
+    let mut again = Session::open(&path).unwrap();
+    assert_eq!(dump_bytes(&again.painting().tree), after);
+    assert_eq!(again.imports().len(), 1);
+    assert!(again.trace_text().contains("\"ev\":\"import\"") || again.trace_text().contains("\"ev\": \"import\""));
+    again.apply(&Event { line: 0, t: again.last_time(), kind: EventKind::Undo }).unwrap();
+    assert_eq!(dump_bytes(&again.painting().tree), before);
+    // A refused import (a voxel outside the canvas) changes nothing.
+    let bad = VoxelSet { depth: 4, ijk: vec![[16, 0, 0]], rgb: vec![[1, 2, 3]], sigma: vec![1.0] };
+    let saved = std::fs::read(&path).unwrap();
+    assert!(again.import(&bad, None).is_err());
+    assert_eq!(std::fs::read(&path).unwrap(), saved);
+    // Every byte of the file with imports: its low bit flipped, caught.
+    for i in (0..data.len()).step_by(3) {
+        let mut d = data.clone();
+        d[i] ^= 1;
+        assert!(format::read(&d).is_err(), "flipping byte {i} went unnoticed");
+    }
 }

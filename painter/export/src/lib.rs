@@ -10,16 +10,21 @@
 //! | [`dual`] | the iso-surface on the adaptive tree's dual grid |
 //! | [`mesh`] | glTF binary and OBJ writers for that surface |
 //! | [`usd`] | USD stages (`.usda`) over the VDB's grids and the surface |
+//! | [`vdb_read`], [`mesh_read`], [`voxelise`], [`import`] | imports: VDB files and closed meshes read and turned into voxel sets (spec 15) |
 //!
 //! Nothing here writes a file: the writers take a `Write`, and the
 //! command line (`octopaint export`) writes them atomically.
 
 pub mod dual;
+pub mod import;
 pub mod mesh;
+pub mod mesh_read;
 pub mod usd;
 pub mod values;
 pub mod vdb;
+pub mod vdb_read;
 pub mod voxels;
+pub mod voxelise;
 
 pub use dual::{Mesh, SurfaceOptions, default_iso, surface};
 pub use values::ColourSpace;
