@@ -139,6 +139,24 @@ fn scratch_with_document(name: &str) -> (tempfile::TempDir, std::path::PathBuf, 
 }
 
 /// Ctrl+Q, then wait (up to a minute) for the window's process to exit.
+/// Wait until the window has drawn a frame (its frame log has a line: the
+/// event loop runs and the renderer is up) and holds the keyboard focus, so
+/// that keys sent next are not lost on a loaded machine.
+fn ready_for_keys(display: &str, id: &str, frame_log: &std::path::Path) {
+    let t0 = Instant::now();
+    loop {
+        let frames = std::fs::read_to_string(frame_log).map(|l| l.lines().count()).unwrap_or(0);
+        if frames >= 1 {
+            xdotool(display, &["windowfocus", id]);
+            if xdotool(display, &["getwindowfocus"]) == id {
+                return;
+            }
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "the window drew no frame or took no focus in two minutes");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
 fn close_with_ctrl_q(display: &str, window: &mut Child) {
     xdotool(display, &["key", "ctrl+q"]);
     let t0 = Instant::now();
@@ -426,10 +444,10 @@ fn mirror_painting_paints_both_sides_and_records_its_planes() {
     let (_x, display) = start_xvfb();
     let (scratch, runtime, doc) = scratch_with_document("m.octo");
     let s = scratch.path();
-    let mut window = on_display(&display, &runtime).arg("window").arg(&doc).args(["--size", "800x600"]).spawn().unwrap();
+    let frame_log = s.join("frames.csv");
+    let mut window = on_display(&display, &runtime).arg("window").arg(&doc).args(["--size", "800x600"]).arg("--frame-log").arg(&frame_log).spawn().unwrap();
     let id = window_of(&mut window, &display, "the window");
-    std::thread::sleep(Duration::from_secs(2));
-    xdotool(&display, &["windowfocus", &id]);
+    ready_for_keys(&display, &id, &frame_log);
     // M: mirror on x through the canvas's middle (the first view's
     // centre); a stroke right of the middle of the view.
     xdotool(&display, &["key", "m"]);

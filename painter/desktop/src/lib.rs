@@ -88,6 +88,9 @@ impl Resolution {
         if let Some((log, t0)) = self.log.as_mut() {
             let ms = interval.map_or(0.0, |(ms, _)| ms);
             let _ = writeln!(log, "{:.1},{ms:.2},{scale:.4},{},{},{}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still));
+            // Line by line: a script (or a test) watching the log sees each
+            // frame as it is drawn. One small write a frame.
+            let _ = log.flush();
         }
         (size, still)
     }
