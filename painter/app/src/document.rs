@@ -426,20 +426,6 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
     Ok(())
 }
 
-/// Documents of layers (spec 14) open in the window (its layer panel) but
-/// not yet in the headset, which paints one tree until its palette has a
-/// layer page (issue 17): it refuses such a document rather than show and
-/// paint one of its layers as if it were the painting.
-fn refuse_layers(s: &Session, doc: &Path, what: &str) -> Option<ExitCode> {
-    (s.version == 2).then(|| {
-        eprintln!(
-            "octopaint: {}: a document of {} layers; {what} paints one-tree documents for now (the window paints layers: octopaint window; octopaint render and export draw it)",
-            doc.display(),
-            s.doc.len()
-        );
-        ExitCode::from(2)
-    })
-}
 
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
     let mut s = match Session::open(doc) {
@@ -447,9 +433,6 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
         Err(e) => return fail(e),
     };
     say_recovered(&s);
-    if let Some(code) = refuse_layers(&s, doc, "the headset") {
-        return code;
-    }
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
     let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution };
     let result = octopaint_xr::session::run(&mut s, &opts);

@@ -184,4 +184,56 @@ assert max(carried) < 20, "the grab did not carry the painting out of view"
 assert min(framed) > 200, "X with the grip held did not frame the painting"
 print("ok")
 EOF
+# A document of layers in the headset (docs/vr.md "Layers and mirror"):
+# every visible layer drawn; the palette's layer page (left trigger) adds a
+# layer (Y), a stroke paints it, the mirror page (trigger again) turns the
+# x plane on (X) and a second stroke paints with its copy; the session
+# records those events and replays to the document's layers.
+"$octopaint" import "$repo/traces/layers.jsonl" layers.octo 2>/dev/null
+"$py" - > layers.jsonl <<'EOF'
+print('{"frame": 0, "hand": "left", "pose": [-0.12, -0.08, -0.5, 0, 0, 0, 1]}')
+print('{"frame": 0, "hand": "right", "pose": [-0.1, 0.0, -0.9, 0, 0, 0, 1], "trigger": 0}')
+print('{"frame": 2, "hand": "left", "trigger": 0.9}')
+print('{"frame": 3, "hand": "left", "trigger": 0}')
+print('{"frame": 4, "hand": "left", "secondary": true}')
+print('{"frame": 5, "hand": "left", "secondary": false}')
+for i in range(6, 14):
+    print('{"frame": %d, "hand": "right", "pose": [%.4f, 0.02, -0.9, 0, 0, 0, 1], "trigger": 0.9}' % (i, -0.1 + 0.08 * (i - 6) / 7))
+print('{"frame": 14, "hand": "right", "trigger": 0}')
+print('{"frame": 15, "hand": "left", "trigger": 0.9}')
+print('{"frame": 16, "hand": "left", "trigger": 0}')
+print('{"frame": 17, "hand": "left", "primary": true}')
+print('{"frame": 18, "hand": "left", "primary": false}')
+for i in range(19, 26):
+    print('{"frame": %d, "hand": "right", "pose": [%.4f, -0.03, -0.9, 0, 0, 0, 1], "trigger": 0.9}' % (i, 0.05 + 0.04 * (i - 19) / 6))
+print('{"frame": 26, "hand": "right", "trigger": 0}')
+EOF
+"$here/run.sh" vr layers.octo --frames 30 --script layers.jsonl --capture layers.png --no-fallback 2> vr-layers.log || { grep -v '^LOG\|^	' vr-layers.log >&2; echo "FAIL: octopaint vr (layers)" >&2; exit 1; }
+grep '^octopaint:' vr-layers.log
+grep -q '2 stroke(s) painted, saved' vr-layers.log || { echo "FAIL: the two scripted strokes were not painted" >&2; exit 1; }
+"$octopaint" info layers.octo > layers-info.txt
+grep -q '"Layer 4"' layers-info.txt || { cat layers-info.txt >&2; echo "FAIL: Y on the layer page did not add a layer" >&2; exit 1; }
+"$octopaint" record layers.octo --out layers-session.jsonl 2>/dev/null
+grep '"op":"add"' layers-session.jsonl | grep -q '"name":"Layer 4"' || { echo "FAIL: no layer event recorded" >&2; exit 1; }
+grep -q '"axes":\[true,false,false\]' layers-session.jsonl || { echo "FAIL: no mirror event recorded" >&2; exit 1; }
+printf '{"ev": "snapshot", "t": 1e9, "name": "end"}\n' >> layers-session.jsonl
+"$octopaint" replay layers-session.jsonl --out layers-replayed --renderer none --quiet 2>/dev/null
+"$octopaint" dump layers.octo layers-document.npz
+cmp layers-replayed/end.npz layers-document.npz || { echo "FAIL: the recorded session does not replay to the document's layers" >&2; exit 1; }
+"$py" - layers.png <<'EOF'
+import sys
+from PIL import Image
+im = Image.open(sys.argv[1]).convert("RGB")
+w, h = im.size
+bg = im.getpixel((w // 2 - 1, h - 1))
+def painted(x0):
+    return sum(1 for y in range(h) for x in range(x0, x0 + w // 2)
+               if not (y < h // 3 and x - x0 < w // 4) and sum(abs(a - b) for a, b in zip(im.getpixel((x, y)), bg)) > 60)
+nl, nr = painted(0), painted(w // 2)
+print(f"painted pixels of the layers: left eye {nl}, right eye {nr}")
+assert nl > 200 and nr > 200, "the layers are not drawn in both eyes"
+print("ok")
+EOF
+echo "the headset painted a new layer and a mirrored stroke; the session replays to the document's layers"
+
 echo "VR test passed"

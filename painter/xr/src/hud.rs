@@ -4,7 +4,7 @@
 //! palette drawn where each eye sees the left controller (so it sits at
 //! the controller's depth).
 
-use crate::paint::{PALETTE, Painter};
+use crate::paint::{PALETTE, Page, Painter};
 
 pub struct Status<'a> {
     pub busy_ms: f64,
@@ -21,6 +21,9 @@ pub struct Status<'a> {
     /// The canvas axes x, y, z as the head sees them: direction on the
     /// panel (y down) and whether the axis points away.
     pub axes: [([f32; 2], bool); 3],
+    /// The document's layers bottom first (name, visible, opacity, locked)
+    /// and the selected one; None for a one-tree document.
+    pub layers: Option<(Vec<(String, bool, f32, bool)>, usize)>,
 }
 
 const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
@@ -64,17 +67,61 @@ pub fn prepare(
             // chosen one framed, and the mode and shape.
             egui::Area::new(egui::Id::unique("palette")).fixed_pos(egui::pos2(x / ppp + 8.0, y / ppp - 20.0)).show(ui.ctx(), |ui| {
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
+                    // The pages, the one shown strong (the left trigger turns them).
                     ui.horizontal(|ui| {
-                        for (k, c) in PALETTE.iter().enumerate() {
-                            let c = c.map(|v| (v * 255.0) as u8);
-                            let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
-                            ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
-                            if k == p.colour {
-                                ui.painter().rect_stroke(rect.expand(2.0), 2.0, egui::Stroke::new(2.0, egui::Color32::WHITE), egui::StrokeKind::Outside);
+                        for (page, name) in [(Page::Brush, "brush"), (Page::Layers, "layers"), (Page::Mirror, "mirror")] {
+                            if page == p.page {
+                                ui.strong(name);
+                            } else {
+                                ui.weak(name);
                             }
                         }
                     });
-                    ui.label(format!("{} · {}", MODES[p.mode], SHAPES[p.shape]));
+                    match p.page {
+                        Page::Brush => {
+                            ui.horizontal(|ui| {
+                                for (k, c) in PALETTE.iter().enumerate() {
+                                    let c = c.map(|v| (v * 255.0) as u8);
+                                    let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
+                                    ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
+                                    if k == p.colour {
+                                        ui.painter().rect_stroke(rect.expand(2.0), 2.0, egui::Stroke::new(2.0, egui::Color32::WHITE), egui::StrokeKind::Outside);
+                                    }
+                                }
+                            });
+                            ui.label(format!("{} · {}", MODES[p.mode], SHAPES[p.shape]));
+                        }
+                        Page::Layers => match &s.layers {
+                            // Top first, as the window lists them.
+                            Some((rows, selected)) => {
+                                for (k, (name, visible, opacity, locked)) in rows.iter().enumerate().rev() {
+                                    let mut text = format!("{} {name}", if *visible { "●" } else { "○" });
+                                    if *opacity < 1.0 {
+                                        text += &format!(" {:.0}%", opacity * 100.0);
+                                    }
+                                    if *locked {
+                                        text += " (locked)";
+                                    }
+                                    if k == *selected {
+                                        ui.label(egui::RichText::new(text).strong().background_color(egui::Color32::from_rgb(40, 70, 120)));
+                                    } else {
+                                        ui.label(text);
+                                    }
+                                }
+                                ui.weak("stick ↕ select · ↔ opacity · X show · Y new");
+                            }
+                            None => {
+                                ui.label("one layer");
+                                ui.weak("Y: new layer (makes layers)");
+                            }
+                        },
+                        Page::Mirror => {
+                            let a = p.mirror.axes;
+                            let on = |b: bool| if b { "on" } else { "off" };
+                            ui.label(format!("x {} · y {} · z {}", on(a[0]), on(a[1]), on(a[2])));
+                            ui.weak("X: x · Y: y · stick ↑: z · ↓: none");
+                        }
+                    }
                 });
             });
         }
@@ -93,6 +140,15 @@ pub fn prepare(
                     };
                     ui.label(format!("{} · {} · {:.1} cm{view}", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
                 });
+                if let Some((rows, selected)) = &s.layers {
+                    // The status line's layer, as in the window.
+                    ui.label(format!("layer {} of {}: {}", selected + 1, rows.len(), rows[*selected].0));
+                }
+                if p.mirror.axes.iter().any(|&a| a) {
+                    let a = p.mirror.axes;
+                    let names: Vec<&str> = ["x", "y", "z"].iter().zip(a).filter(|(_, on)| *on).map(|(n, _)| *n).collect();
+                    ui.label(format!("mirror {}", names.join(", ")));
+                }
                 ui.label(format!(
                     "1 m = {} of canvas · paints at depth {} (cells of {})",
                     octopaint_tree::view::length(s.canvas_per_metre),

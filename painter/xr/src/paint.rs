@@ -3,14 +3,18 @@
 //! pressure; a grip grabs the canvas and moves it with the hand, two grips
 //! scale and turn it about the vertical; the right thumbstick changes the
 //! brush size; the right primary and secondary buttons undo and redo; the
-//! left hand holds the palette (thumbstick left/right: colour, up/down:
-//! mode, primary button: shape). Every change of the painting is a document
-//! event (`octopaint_doc::Session::apply`), so each stroke is journalled
-//! as it ends and the session records as a trace.
+//! left hand holds the palette, whose pages the left trigger steps through:
+//! the brush (thumbstick left/right: colour, up/down: mode, primary
+//! button: shape), the layers (up/down: select, left/right: opacity, X:
+//! show or hide, Y: a new layer) and the mirror planes (X, Y, stick up:
+//! the x, y, z planes through the painting's centre; stick down: none).
+//! Every change of the painting is a document event
+//! (`octopaint_doc::Session::apply`), so each stroke and layer operation is
+//! journalled as it happens and the session records as a trace.
 
 use glam::{DQuat, DVec3};
 use octopaint_doc::Session;
-use octopaint_tree::trace::{Brush, Event, EventKind, Mode, Sample, Shape};
+use octopaint_tree::trace::{Brush, Event, EventKind, LayerOp, LayerOpKind, Mirror, Mode, Sample, Shape};
 
 use crate::input::{Hand, LEFT, RIGHT};
 use crate::session::Placement;
@@ -51,7 +55,22 @@ pub struct Painter {
     /// Set by X with the left grip held: put the painting back in front of
     /// the head (the session does it, knowing the head's pose).
     pub reframe: bool,
+    /// The palette's page (the left trigger steps through [`PAGES`]).
+    pub page: Page,
+    /// The mirror planes of the next strokes (spec 8.11), as the last
+    /// `mirror` event set them.
+    pub mirror: Mirror,
 }
+
+/// The palette's pages, in the order the left trigger steps through them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Page {
+    Brush,
+    Layers,
+    Mirror,
+}
+
+pub const PAGES: [Page; 3] = [Page::Brush, Page::Layers, Page::Mirror];
 
 /// The headset's views, in the order Y steps through them: (lit, grid).
 pub const VIEWS: [(bool, bool); 4] = [(true, false), (true, true), (false, true), (false, false)];
@@ -81,6 +100,8 @@ impl Default for Painter {
             strokes: 0,
             view: 0,
             reframe: false,
+            page: Page::Brush,
+            mirror: Mirror { axes: [false; 3], centre: [0.0; 3] },
         }
     }
 }
@@ -145,32 +166,73 @@ impl Painter {
         if r.stick[1].abs() > 0.2 && !doc.in_stroke() {
             self.room_radius = (self.room_radius * 2f64.powf(f64::from(r.stick[1]) * dt)).clamp(0.001, 0.5);
         }
-        // The palette on the left hand.
-        let (pl, now_x, now_y) = (&self.prev[LEFT], l.stick[0], l.stick[1]);
-        if now_x > 0.7 && pl.stick[0] <= 0.7 {
-            self.colour = (self.colour + 1) % PALETTE.len();
+        // The palette on the left hand: the trigger turns its page, the
+        // stick and buttons act on the page shown.
+        let pl = self.prev[LEFT];
+        let (right, left, up, down) = (
+            l.stick[0] > 0.7 && pl.stick[0] <= 0.7,
+            l.stick[0] < -0.7 && pl.stick[0] >= -0.7,
+            l.stick[1] > 0.7 && pl.stick[1] <= 0.7,
+            l.stick[1] < -0.7 && pl.stick[1] >= -0.7,
+        );
+        if l.trigger > 0.7 && pl.trigger <= 0.7 {
+            let k = PAGES.iter().position(|&p| p == self.page).unwrap_or(0);
+            self.page = PAGES[(k + 1) % PAGES.len()];
         }
-        if now_x < -0.7 && pl.stick[0] >= -0.7 {
-            self.colour = (self.colour + PALETTE.len() - 1) % PALETTE.len();
-        }
-        if now_y > 0.7 && pl.stick[1] <= 0.7 {
-            self.mode = (self.mode + 1) % MODES.len();
-        }
-        if now_y < -0.7 && pl.stick[1] >= -0.7 {
-            self.mode = (self.mode + MODES.len() - 1) % MODES.len();
-        }
-        if rose(l.primary, pl.primary) {
-            if l.grip > 0.5 {
-                // X while holding the canvas: frame the painting. The grab
-                // starts again from the new placement next frame.
-                self.reframe = true;
-                self.grab = Grab::None;
-            } else {
-                self.shape = (self.shape + 1) % SHAPES.len();
+        let (x, y) = (rose(l.primary, pl.primary), rose(l.secondary, pl.secondary));
+        if x && l.grip > 0.5 {
+            // X while holding the canvas, on any page: frame the painting.
+            // The grab starts again from the new placement next frame.
+            self.reframe = true;
+            self.grab = Grab::None;
+        } else {
+            match self.page {
+                Page::Brush => {
+                    if right {
+                        self.colour = (self.colour + 1) % PALETTE.len();
+                    }
+                    if left {
+                        self.colour = (self.colour + PALETTE.len() - 1) % PALETTE.len();
+                    }
+                    if up {
+                        self.mode = (self.mode + 1) % MODES.len();
+                    }
+                    if down {
+                        self.mode = (self.mode + MODES.len() - 1) % MODES.len();
+                    }
+                    if x {
+                        self.shape = (self.shape + 1) % SHAPES.len();
+                    }
+                    if y {
+                        self.view = (self.view + 1) % VIEWS.len();
+                    }
+                }
+                Page::Layers if !doc.in_stroke() => self.layers_page(doc, t, [right, left, up, down], x, y),
+                Page::Mirror if !doc.in_stroke() => {
+                    let mut axes = self.mirror.axes;
+                    if x {
+                        axes[0] = !axes[0];
+                    }
+                    if y {
+                        axes[1] = !axes[1];
+                    }
+                    if up {
+                        axes[2] = !axes[2];
+                    }
+                    if down {
+                        axes = [false; 3];
+                    }
+                    if axes != self.mirror.axes {
+                        // Planes through the painting's centre as placed; an
+                        // active set keeps its centre while axes are added.
+                        let centre = if self.mirror.axes.iter().any(|&a| a) { self.mirror.centre } else { placement.centre.to_array() };
+                        let m = Mirror { axes, centre };
+                        self.apply(doc, t, EventKind::Mirror(m));
+                        self.mirror = doc.mirror().unwrap_or(Mirror { axes: [false; 3], centre });
+                    }
+                }
+                Page::Layers | Page::Mirror => {}
             }
-        }
-        if rose(l.secondary, pl.secondary) {
-            self.view = (self.view + 1) % VIEWS.len();
         }
         // Undo and redo on the right hand, between strokes.
         if !doc.in_stroke() {
@@ -206,6 +268,62 @@ impl Painter {
             self.strokes += 1;
         }
         self.prev = *hands;
+    }
+
+    /// The layers page: stick up/down selects the layer above/below,
+    /// left/right changes its opacity by a tenth, X shows or hides it, Y
+    /// adds a layer above it (a one-tree document becomes a document of
+    /// layers first, as the window's "Use layers" does). Each is a `layer`
+    /// event; one the document refuses says why on the panel.
+    fn layers_page(&mut self, doc: &mut Session, t: f64, [right, left, up, down]: [bool; 4], x: bool, y: bool) {
+        if y {
+            if doc.version != 2
+                && let Err(e) = doc.upgrade_to_layers()
+            {
+                self.last_error = Some(e.to_string());
+                return;
+            }
+            let taken: Vec<String> = doc.doc.layers().map(|l| l.name.clone()).collect();
+            let name = (doc.doc.len() + 1..).map(|n| format!("Layer {n}")).find(|n| !taken.contains(n)).expect("a free name");
+            let mut op = LayerOp::new(LayerOpKind::Add);
+            op.name = Some(name);
+            self.apply(doc, t, EventKind::Layer(op));
+            return;
+        }
+        if doc.version != 2 {
+            return; // one tree: nothing to select or set until Y makes layers
+        }
+        let (k, n) = (doc.doc.selected(), doc.doc.len());
+        let current = doc.doc.current();
+        let name = current.name.clone();
+        let (visible, opacity) = (current.visible, current.opacity);
+        let target = if up && k + 1 < n {
+            Some(k + 1)
+        } else if down && k > 0 {
+            Some(k - 1)
+        } else {
+            None
+        };
+        if let Some(j) = target {
+            let mut op = LayerOp::new(LayerOpKind::Select);
+            op.layer = Some(doc.doc.layer(j).name.clone());
+            self.apply(doc, t, EventKind::Layer(op));
+        }
+        let step = if right { 0.1 } else if left { -0.1 } else { 0.0 };
+        if step != 0.0 {
+            // In tenths, so that steps land on 0.1, 0.2, ... exactly as read.
+            let tenths = ((f64::from(opacity) * 10.0).round() + step * 10.0).clamp(0.0, 10.0);
+            let mut op = LayerOp::new(LayerOpKind::Set);
+            op.layer = Some(name.clone());
+            op.opacity = Some((tenths / 10.0) as f32);
+            self.apply(doc, t, EventKind::Layer(op));
+        }
+        if x {
+            let mut op = LayerOp::new(LayerOpKind::Set);
+            op.layer = Some(name);
+            op.visible = Some(!visible);
+            self.apply(doc, t, EventKind::Layer(op));
+        }
     }
 
     /// End a stroke left open (the session is ending).

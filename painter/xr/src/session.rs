@@ -45,7 +45,19 @@ impl Placement {
     /// head at `head` looking along `forward` (room units), the canvas's up
     /// the room's.
     pub fn in_front(tree: &Tree, head: DVec3, forward: DVec3) -> Placement {
-        let (lo, hi) = tree.painted_bounds();
+        Placement::in_front_of(&[tree], head, forward)
+    }
+
+    /// [`Placement::in_front`] for what several trees (the visible layers
+    /// of a document) hold together.
+    pub fn in_front_of(trees: &[&Tree], head: DVec3, forward: DVec3) -> Placement {
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for t in trees {
+            let (a, b) = t.painted_bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        let tree = trees[0];
         let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
         let f = DVec3::new(forward.x, 0.0, forward.z).try_normalize().unwrap_or(DVec3::NEG_Z);
         Placement { centre: (lo + hi) / 2.0, scale: 0.25 / radius, rotation: DQuat::IDENTITY, origin: head + f }
@@ -240,6 +252,12 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     let stage = xr_call("creating the reference space", session.create_reference_space(xr::ReferenceSpaceType::LOCAL, xr::Posef::IDENTITY))?;
     let controls = crate::input::Controls::new(&xr_instance, &session)?;
     let mut painter = crate::paint::Painter::default();
+    if let Some(m) = doc.mirror() {
+        painter.mirror = m;
+    }
+    // A document of layers: the contributing layers in the pages, uploaded
+    // again when one of them or the list changes (as the window does).
+    let mut layers_uploaded: Option<(Vec<(u32, u32, bool)>, octopaint_gpu::raycast::LayerTableGpu)> = None;
     let started = Instant::now();
     let t_open = doc.last_time();
     let mut last_input = Instant::now();
@@ -375,7 +393,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
         // The canvas is placed in front of the head where it first is.
         if placement.is_none() {
-            let (head, p) = in_front_of_head(&doc.painting().tree, &views);
+            let (head, p) = in_front_of_head(doc, &views);
             head0 = head;
             placement = Some(p);
         }
@@ -397,25 +415,57 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
         if std::mem::take(&mut painter.reframe) {
             // Frame the painting: in front of the head where it is now.
-            *place = in_front_of_head(&doc.painting().tree, &views).1;
+            *place = in_front_of_head(doc, &views).1;
         }
         let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
         let placement = *place;
         let in_stroke = doc.in_stroke();
-        let tree = &mut doc.painting_mut().tree;
+        // What the frame uploads: the one tree's changed blocks, or every
+        // contributing layer when one of them or the list changed.
+        let (uploaded, table) = if doc.version == 2 {
+            let mut key = Vec::new();
+            let mut changed = false;
+            let ids: Vec<u32> = doc.doc.parts().1.to_vec();
+            for (k, id) in ids.iter().enumerate() {
+                let l = doc.doc.layer_mut(k);
+                changed |= !l.painting.tree.take_publication().blocks.is_empty();
+                if l.contributes() {
+                    key.push((*id, l.opacity.to_bits(), l.visible));
+                }
+            }
+            let stale = layers_uploaded.as_ref().is_none_or(|(k, _)| *k != key);
+            if changed || stale {
+                let trees: Vec<(&Tree, f32)> = doc.doc.layers().filter(|l| l.contributes()).map(|l| (l.tree(), l.opacity)).collect();
+                let t = if trees.is_empty() {
+                    octopaint_gpu::raycast::LayerTableGpu::new(&[], &[])
+                } else {
+                    renderer.upload_layers(&trees).map_err(|e| other("uploading the layers", e))?
+                };
+                layers_uploaded = Some((key, t));
+            }
+            (changed || stale, layers_uploaded.as_ref().map(|(_, t)| *t))
+        } else {
+            (renderer.sync(&mut doc.painting_mut().tree).map_err(|e| other("uploading", e))?.blocks > 0, None)
+        };
+        let (cells, capacity, bytes) = (
+            doc.doc.used().min(u64::from(u32::MAX)) as u32,
+            doc.doc.canvas().capacity,
+            doc.doc.layers().map(|l| l.tree().pool_bytes_allocated()).sum::<usize>(),
+        );
+        let layer_rows = (doc.version == 2).then(|| (doc.doc.layers().map(|l| (l.name.clone(), l.visible, l.opacity, l.locked)).collect::<Vec<_>>(), doc.doc.selected()));
+        let tree = &doc.painting().tree;
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
         let t0 = Instant::now();
         let mut captured = Vec::new();
         let still;
         {
-        let synced = renderer.sync(tree).map_err(|e| other("uploading", e))?;
         let look = (
             [views[0].pose, views[1].pose],
             [placement.centre.x, placement.centre.y, placement.centre.z, placement.scale, placement.rotation.x, placement.rotation.y, placement.rotation.z, placement.rotation.w],
             painter.lit_and_grid(),
         );
-        still = synced.blocks == 0 && last_look.as_ref().is_some_and(|l| same_look(l, &look));
+        still = !uploaded && last_look.as_ref().is_some_and(|l| same_look(l, &look));
         last_look = Some(look);
         let now_scale = if still || opts.fixed_resolution { 1.0 } else { scale };
         let cast = size.map(|v| ((f64::from(v) * now_scale).round() as u32).clamp(1, v));
@@ -431,14 +481,15 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let status = crate::hud::Status {
             busy_ms,
             in_stroke,
-            cells: tree.n_used(),
-            capacity: tree.capacity,
-            bytes: tree.pool_bytes_allocated(),
+            cells,
+            capacity,
+            bytes,
             painter: &painter,
             canvas_per_metre: 1.0 / placement.scale,
             depth,
             edge: tree.lat.size_canvas[depth as usize],
             axes,
+            layers: layer_rows,
         };
         let mut hud_free = Vec::new();
         let capture_now = opts.capture.is_some() && opts.frames.is_some_and(|n| report.frames + 1 == n);
@@ -450,7 +501,11 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
                 params = params.with_grid(camera.eye);
             }
             let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("eye") });
-            renderer.ray.encode(gpu, &renderer.pools, &mut enc, &params, opts.precision).map_err(|e| other("ray casting", e))?;
+            match &table {
+                Some(t) => renderer.ray.encode_layers(gpu, &renderer.pools, &mut enc, &params, opts.precision, t),
+                None => renderer.ray.encode(gpu, &renderer.pools, &mut enc, &params, opts.precision),
+            }
+            .map_err(|e| other("ray casting", e))?;
             let group = blit.bind_scaled(gpu, renderer.ray.pixel_buffer().expect("cast above"), cast, size);
             let target = textures[image].create_view(&wgpu::TextureViewDescriptor {
                 dimension: Some(wgpu::TextureViewDimension::D2),
@@ -553,12 +608,17 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     Ok(report)
 }
 
-/// The painting placed in front of the head (the middle of the two eyes,
-/// looking along the first eye's view), and that head position.
-fn in_front_of_head(tree: &Tree, views: &[xr::View]) -> (DVec3, Placement) {
+/// The painting (every visible layer of a document of layers) placed in
+/// front of the head (the middle of the two eyes, looking along the first
+/// eye's view), and that head position.
+fn in_front_of_head(doc: &octopaint_doc::Session, views: &[xr::View]) -> (DVec3, Placement) {
     let (a, q) = crate::pose_of(&views[0].pose);
     let head = (a + crate::pose_of(&views[1].pose).0) / 2.0;
-    (head, Placement::in_front(tree, head, q * DVec3::NEG_Z))
+    let mut trees: Vec<&Tree> = doc.doc.layers().filter(|l| l.contributes()).map(|l| l.tree()).collect();
+    if trees.is_empty() {
+        trees.push(&doc.painting().tree);
+    }
+    (head, Placement::in_front_of(&trees, head, q * DVec3::NEG_Z))
 }
 
 /// Where room point `p` appears in an eye's image (pixels), if in front.
