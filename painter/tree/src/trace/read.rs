@@ -289,7 +289,14 @@ impl Order<'_> {
         let Some(resolve) = self.resolve else {
             return Err(import("file", "this trace was not read from a folder, so its imports cannot be found".into()));
         };
-        let data = resolve(file).map_err(|e| import("file", format!("cannot read {file}: {}", io_reason(&e))))?;
+        // The reason in words of our own for the common cases, so that the
+        // message is the same on every system (Windows says "File not found.").
+        let reason = |e: &std::io::Error| match e.kind() {
+            std::io::ErrorKind::NotFound => "no such file".to_string(),
+            std::io::ErrorKind::PermissionDenied => "permission denied".to_string(),
+            _ => io_reason(e),
+        };
+        let data = resolve(file).map_err(|e| import("file", format!("cannot read {file}: {}", reason(&e))))?;
         let got = crate::voxels::sha256_hex(&data);
         if got != sha256 {
             return Err(import("sha256", format!("{file} has SHA-256 {got}, not the {sha256} the trace names (the file changed)")));
