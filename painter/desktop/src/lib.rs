@@ -413,6 +413,9 @@ struct LayersUi {
     /// as one undo step, when the drag ends).
     opacity: Option<f32>,
     uploaded: Option<(Vec<(u32, u32, bool)>, LayerTableGpu)>,
+    /// Where the last frame laid out each layer's row and drag handle
+    /// (by layer index): a test drives the panel with pointer events there.
+    rows: Vec<(usize, egui::Rect, egui::Rect)>,
 }
 
 /// One row of the layer panel.
@@ -870,9 +873,16 @@ fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, actions: &m
         return;
     }
     let n = s.layers.len();
+    l.rows.clear();
     for k in (0..n).rev() {
         let layer = &s.layers[k];
-        ui.horizontal(|ui| {
+        let row = ui.horizontal(|ui| {
+            // The handle: drag a layer onto another row to move it there
+            // (a `move` event to that row's index).
+            let handle = ui
+                .dnd_drag_source(egui::Id::unique(("layer row", k)), k, |ui| ui.label("↕"))
+                .response
+                .on_hover_text("drag onto another layer to move it there");
             let mut visible = layer.visible;
             if ui.checkbox(&mut visible, "").on_hover_text("visible (drawn, exported)").changed() {
                 actions.push(Action::Layer(LayerOp { visible: Some(visible), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
@@ -887,7 +897,23 @@ fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, actions: &m
                 l.rename.clear();
                 l.opacity = None;
             }
+            handle.rect
         });
+        let rect = row.response.rect;
+        l.rows.push((k, rect, row.inner));
+        if let Some(from) = row.response.dnd_hover_payload::<usize>()
+            && *from != k
+        {
+            // Where it would go: a line on the side it comes from.
+            let y = if *from < k { rect.top() } else { rect.bottom() };
+            ui.painter().hline(rect.x_range(), y, egui::Stroke::new(2.0, ui.visuals().selection.stroke.color));
+        }
+        if let Some(from) = row.response.dnd_release_payload::<usize>()
+            && *from != k
+            && let Some(moved) = s.layers.get(*from)
+        {
+            actions.push(Action::Layer(LayerOp { to: Some(k), ..layer_op(LayerOpKind::Move, Some(&moved.name), None) }));
+        }
     }
     let Some(current) = s.layers.get(s.selected) else { return };
     let name = current.name.as_str();
@@ -1161,4 +1187,83 @@ impl ApplicationHandler for App {
 fn frame_document(session: &Session) -> OrbitCamera {
     let shown: Vec<&Tree> = session.doc.layers().filter(|l| l.contributes()).map(|l| l.tree()).collect();
     if shown.is_empty() { frame_painting(&session.painting().tree) } else { frame_trees(&shown) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(names: &[&str]) -> StatusInfo {
+        StatusInfo {
+            fps: 0.0,
+            resolution: 1.0,
+            latency_ms: None,
+            busy_ms: 0.0,
+            cells: 8,
+            capacity: 1 << 20,
+            bytes: 0,
+            undo: 0,
+            redo: 0,
+            message: String::new(),
+            in_stroke: false,
+            layered: true,
+            layers: names.iter().map(|n| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false }).collect(),
+            selected: 0,
+        }
+    }
+
+    /// One frame of the panel with these pointer events; the actions it made.
+    fn frame(ctx: &egui::Context, l: &mut LayersUi, s: &StatusInfo, events: Vec<egui::Event>) -> Vec<Action> {
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 600.0))),
+            events,
+            ..Default::default()
+        };
+        let mut actions = Vec::new();
+        let _ = ctx.run_ui(raw, |ui| {
+            egui::CentralPanel::default().show(ui, |ui| layers_panel(ui, l, s, &mut actions));
+        });
+        actions
+    }
+
+    fn pointer(at: egui::Pos2, pressed: Option<bool>) -> Vec<egui::Event> {
+        let mut e = vec![egui::Event::PointerMoved(at)];
+        if let Some(p) = pressed {
+            e.push(egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed: p, modifiers: Default::default() });
+        }
+        e
+    }
+
+    #[test]
+    fn dragging_a_layer_onto_another_row_moves_it_there() {
+        let ctx = egui::Context::default();
+        let s = info(&["bottom", "middle", "top"]);
+        let mut l = LayersUi::default();
+        assert!(frame(&ctx, &mut l, &s, vec![]).is_empty());
+        let find = |l: &LayersUi, k: usize| *l.rows.iter().find(|r| r.0 == k).expect("a row per layer");
+        let (_, _, handle) = find(&l, 0);
+        let (_, target, _) = find(&l, 2);
+        // Press on the bottom layer's handle, drag in steps to the top row,
+        // release there.
+        let mut actions = frame(&ctx, &mut l, &s, pointer(handle.center(), Some(true)));
+        let (from, to) = (handle.center(), target.center());
+        for i in 1..=8 {
+            let t = i as f32 / 8.0;
+            actions.extend(frame(&ctx, &mut l, &s, pointer(from + (to - from) * t, None)));
+        }
+        actions.extend(frame(&ctx, &mut l, &s, pointer(to, Some(false))));
+        actions.extend(frame(&ctx, &mut l, &s, vec![]));
+        let moves: Vec<&LayerOp> = actions
+            .iter()
+            .filter_map(|a| if let Action::Layer(op) = a { Some(op) } else { None })
+            .filter(|op| op.op == LayerOpKind::Move)
+            .collect();
+        assert_eq!(moves.len(), 1, "one move");
+        assert_eq!((moves[0].layer.as_deref(), moves[0].to), (Some("bottom"), Some(2)));
+        // A click on a handle without moving is no move.
+        let (_, _, handle) = find(&l, 1);
+        let mut actions = frame(&ctx, &mut l, &s, pointer(handle.center(), Some(true)));
+        actions.extend(frame(&ctx, &mut l, &s, pointer(handle.center(), Some(false))));
+        assert!(!actions.iter().any(|a| matches!(a, Action::Layer(op) if op.op == LayerOpKind::Move)));
+    }
 }
