@@ -68,6 +68,9 @@ demo: setup painter
 	$(PY) conformance/driver.py traces/scene.jsonl --painter $(PAINTER) --report $(OUT)/conformance --generated 200 --require-images
 	mkdir -p $(OUT)/export
 	$(PAINTER) export traces/scene.jsonl --region $(DETAIL) --vdb $(OUT)/export/scene_detail.vdb --gltf $(OUT)/export/scene_detail.glb
+	rm -f $(OUT)/export/scene_detail.octo $(OUT)/export/scene_detail.octo.journal
+	$(PAINTER) new $(OUT)/export/scene_detail.octo --like traces/scene.jsonl
+	$(PAINTER) import-vdb $(OUT)/export/scene_detail.vdb $(OUT)/export/scene_detail.octo --layer detail --depth 21
 
 # The scene's finest strokes (radius 3 to 60 mm on a 40 km canvas), in
 # canvas units: the box `make demo` exports and docs/export.md renders.

@@ -143,7 +143,7 @@ pub fn vdb(a: &VdbArgs) -> ExitCode {
             return ExitCode::from(1);
         }
     };
-    let (grids, skipped) = match read_vdb(&bytes, &ReadLimits { max_voxels: MAX_VOXELS }) {
+    let (grids, skipped) = match read_vdb(&bytes, &ReadLimits { max_voxels: MAX_VOXELS, tile_cover: false }) {
         Ok(g) => g,
         Err(e) => return refuse(format!("{}: {e}", a.input.display())),
     };

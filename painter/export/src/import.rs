@@ -134,23 +134,40 @@ pub fn voxels_from_vdb(
     let h = edge(canvas, depth);
     // Colour lookup by index (both grids share the transform in files the
     // exports write; otherwise the colour grid is sampled at the centre).
-    let colour_at = build_colour_lookup(color, density)?;
     let mut report = VdbImportReport { depth, vdb_voxel, ..Default::default() };
     let world = |i: [f64; 3]| DVec3::new(i[0] * s[0] + t[0], i[1] * s[1] + t[1], i[2] * s[2] + t[2]);
     let coarse = vdb_voxel >= h * (1.0 - 1e-9);
     // Sources: (index of the lowest voxel, edge in voxels, density, colour).
-    let voxels = density.voxels.iter().zip(dv).map(|(c, &v)| (*c, 1u32, v));
-    let tiles = density.tiles.iter().zip(tv).map(|(&(c, e), &v)| (c, e, v));
+    // Sources: (the density grid's voxel or tile, its place in the grid's
+    // lists: a colour grid of the same topology is read by that place).
+    let n_vox = density.voxels.len();
+    let voxels = density.voxels.iter().zip(dv).enumerate().map(|(i, (c, &v))| (i, *c, 1u32, v));
+    let tiles = density.tiles.iter().zip(tv).enumerate().map(move |(i, (&(c, e), &v))| (n_vox + i, c, e, v));
+    // How many voxels the set could get, counted before any is made, so
+    // that a depth too fine is refused at once, with one that fits.
+    let estimate_at = |d: u32| estimate_voxels(density, canvas, d, placement);
+    let estimate = estimate_at(depth);
+    if estimate > MAX_VOXELS as f64 {
+        let fits = (0..depth).rev().find(|&d| estimate_at(d) <= MAX_VOXELS as f64);
+        return Err(match fits {
+            Some(fits) => format!(
+                "the import would make up to {estimate:.0} voxels at depth {depth}, more than {MAX_VOXELS}: --depth {fits} or coarser fits (cells of {:.4} canvas units)",
+                edge(canvas, fits)
+            ),
+            None => format!("the import would make up to {estimate:.0} voxels even at depth 0: import a part of the file"),
+        });
+    }
+    let colour_at = build_colour_lookup(color, density)?;
     let mut acc: HashMap<[u32; 3], Acc> = HashMap::new();
     let mut budget = MAX_VOXELS;
-    for (c, e, dens) in voxels.chain(tiles) {
+    for (place, c, e, dens) in voxels.chain(tiles) {
         report.active += u64::from(e).pow(3);
         if !(dens.is_finite() && dens > 0.0) {
             continue; // empty (or absurd): nothing to paint
         }
         let sigma = f64::from(dens) * placement.scale;
         // The colour as the stored sRGB byte would hold it (0..1).
-        let rgb = match colour_at(c, e) {
+        let rgb = match colour_at(place, c) {
             Some(v) => v.map(|x| f64::from(srgb_byte(x, colour)) / 255.0),
             None => tint.map(|x| (x * 255.0 + 0.5).floor().clamp(0.0, 255.0) / 255.0),
         };
@@ -236,11 +253,42 @@ fn add_fine(acc: &mut HashMap<[u32; 3], Acc>, canvas: &Canvas, depth: u32, p: DV
     }
 }
 
-type ColourAt<'a> = Box<dyn Fn([i32; 3], u32) -> Option<[f32; 3]> + 'a>;
+/// An upper bound on the voxels [`voxels_from_vdb`] makes of `density` at
+/// `depth` (counted, not made: each source's box in cells, at least one).
+pub fn estimate_voxels(density: &Grid, canvas: &Canvas, depth: u32, placement: &Placement) -> f64 {
+    let (Values::Float(dv), Values::Float(tv)) = (&density.voxel_values, &density.tile_values) else { return 0.0 };
+    let (s, t) = (density.transform.scale, density.transform.translate);
+    let world = |i: [f64; 3]| DVec3::new(i[0] * s[0] + t[0], i[1] * s[1] + t[1], i[2] * s[2] + t[2]);
+    let vdb_voxel = (unturn(placement, DVec3::from_array(s), true).abs() / placement.scale).max_element();
+    let h = edge(canvas, depth);
+    let coarse = vdb_voxel >= h * (1.0 - 1e-9);
+    let mut estimate = 0.0f64;
+    let sources = density.voxels.iter().zip(dv).map(|(c, &v)| (*c, 1u32, v)).chain(density.tiles.iter().zip(tv).map(|(&(c, e), &v)| (c, e, v)));
+    for (c, e, dens) in sources {
+        if !(dens.is_finite() && dens > 0.0) {
+            continue;
+        }
+        if coarse || e > 1 {
+            let lo_i = c.map(|v| f64::from(v) - 0.5);
+            let hi_i = c.map(|v| f64::from(v) + f64::from(e) - 0.5);
+            let (a, b) = (to_canvas(placement, world(lo_i), true), to_canvas(placement, world(hi_i), true));
+            let (lo, hi) = (a.min(b), a.max(b));
+            let n = (((hi / h - 0.5).ceil() - (lo / h - 0.5).ceil()).max(DVec3::ZERO)).max(DVec3::ONE);
+            estimate += n.x * n.y * n.z;
+        } else {
+            estimate += 1.0;
+        }
+    }
+    estimate
+}
 
-/// The colour grid's value for a density voxel or tile (by index when the
-/// two grids share a transform, which is what the exports write; else
-/// refused: resampling one grid onto another is not done here).
+type ColourAt<'a> = Box<dyn Fn(usize, [i32; 3]) -> Option<[f32; 3]> + 'a>;
+
+/// The colour grid's value for a density voxel or tile: by its place in
+/// the lists when the two grids have the same topology (what the exports
+/// write: one topology for both), else by its index (a tile's value for
+/// the voxels it covers, the background elsewhere). The grids must share
+/// their transform: resampling one grid onto another is not done here.
 fn build_colour_lookup<'a>(color: Option<&'a Grid>, density: &Grid) -> Result<ColourAt<'a>, String> {
     let Some(g) = color else { return Ok(Box::new(|_, _| None)) };
     if g.transform != density.transform {
@@ -249,18 +297,22 @@ fn build_colour_lookup<'a>(color: Option<&'a Grid>, density: &Grid) -> Result<Co
     let (Values::Vec3(vv), Values::Vec3(tv)) = (&g.voxel_values, &g.tile_values) else {
         return Err(format!("grid {:?} is not a vec3 grid", g.name));
     };
+    if g.voxels == density.voxels && g.tiles == density.tiles {
+        let n = vv.len();
+        return Ok(Box::new(move |place: usize, _| if place < n { vv.get(place).copied() } else { tv.get(place - n).copied() }));
+    }
     let voxels: HashMap<[i32; 3], [f32; 3]> = g.voxels.iter().copied().zip(vv.iter().copied()).collect();
     let tiles: Vec<([i32; 3], u32, [f32; 3])> = g.tiles.iter().zip(tv).map(|(&(c, e), &v)| (c, e, v)).collect();
     let bg = match &g.background {
         Values::Vec3(b) => b.first().copied(),
         Values::Float(_) => None,
     };
-    Ok(Box::new(move |c: [i32; 3], _e: u32| {
+    Ok(Box::new(move |_, c: [i32; 3]| {
         if let Some(v) = voxels.get(&c) {
             return Some(*v);
         }
         for &(o, e, v) in &tiles {
-            let e = e as i64;
+            let e = i64::from(e);
             if (0..3).all(|a| i64::from(c[a]) >= i64::from(o[a]) && i64::from(c[a]) < i64::from(o[a]) + e) {
                 return Some(v);
             }

@@ -40,12 +40,17 @@ pub struct ReadLimits {
     /// cover, over all grids returned (an instance counts again): the file
     /// is refused beyond it.
     pub max_voxels: u64,
+    /// Count a tile as the voxels it covers (true: for a caller that
+    /// expands tiles) or as one entry (false: for a caller that resamples
+    /// tiles itself and bounds what it makes, such as the import: then
+    /// `max_voxels` bounds what the reader holds, leaf voxels plus tiles).
+    pub tile_cover: bool,
 }
 
 impl Default for ReadLimits {
     /// 2^31 voxels: about 8 GiB of float values and coordinates.
     fn default() -> Self {
-        ReadLimits { max_voxels: 1 << 31 }
+        ReadLimits { max_voxels: 1 << 31, tile_cover: true }
     }
 }
 
@@ -143,7 +148,7 @@ pub enum VdbReadError {
     #[error("unsupported compression{}: {what} (at byte {offset})", in_grid(grid))]
     UnsupportedCompression { grid: Option<String>, offset: u64, what: String },
     #[error(
-        "grid \"{grid}\" has more active voxels than the limit of {max} (tiles count as the voxels they cover; reached at byte {offset})"
+        "grid \"{grid}\" has more active voxels than the limit of {max} (reached at byte {offset})"
     )]
     TooManyVoxels { grid: String, max: u64, offset: u64 },
     #[error("grid \"{grid}\" is an instance of grid \"{parent}\", which the file does not hold")]
@@ -300,6 +305,7 @@ struct Reader<'a> {
     grid: Option<String>,
     voxels: u64,
     max_voxels: u64,
+    tile_cover: bool,
 }
 
 type Result<T> = std::result::Result<T, VdbReadError>;
@@ -565,7 +571,7 @@ impl<'a> Reader<'a> {
     /// off), of edge `2^child_total`, before its table is read.
     fn count_tiles(&mut self, child: &Mask, value: &Mask, child_total: u32) -> Result<()> {
         let n: u64 = value.0.iter().zip(&child.0).map(|(v, c)| u64::from((v & !c).count_ones())).sum();
-        self.count_voxels(n << (3 * child_total))
+        self.count_voxels(if self.tile_cover { n << (3 * child_total) } else { n })
     }
 
     /// The active tiles of a node: value-mask bits on where the child mask
@@ -604,7 +610,7 @@ impl<'a> Reader<'a> {
             table.insert(c, RootEntry::Tile);
             root_tiles.remove(&c);
             if active {
-                self.count_voxels(1 << 36)?;
+                self.count_voxels(if self.tile_cover { 1 << 36 } else { 1 })?;
                 root_tiles.insert(c, v);
             }
         }
@@ -669,7 +675,7 @@ struct Descriptor {
 /// Read every float and vec3 grid of an OpenVDB file held in memory; grids
 /// of other types are listed in the second vector.
 pub fn read_vdb(bytes: &[u8], limits: &ReadLimits) -> std::result::Result<(Vec<Grid>, Vec<Skipped>), VdbReadError> {
-    let mut r = Reader { data: bytes, pos: 0, grid: None, voxels: 0, max_voxels: limits.max_voxels };
+    let mut r = Reader { data: bytes, pos: 0, grid: None, voxels: 0, max_voxels: limits.max_voxels, tile_cover: limits.tile_cover };
     // Archive::readHeader (Archive.cc).
     if bytes.len() < 8 || r.i64("the magic number")? != MAGIC {
         return Err(VdbReadError::NotVdb);
@@ -762,7 +768,7 @@ pub fn read_vdb(bytes: &[u8], limits: &ReadLimits) -> std::result::Result<(Vec<G
                 r.grid = Some(g.name.clone());
                 r.count_voxels(p.voxels.len() as u64)?;
                 for (_, e) in &p.tiles {
-                    r.count_voxels(u64::from(*e).pow(3))?;
+                    r.count_voxels(if r.tile_cover { u64::from(*e).pow(3) } else { 1 })?;
                 }
                 g.background = p.background.clone();
                 g.voxels = p.voxels.clone();

@@ -8,7 +8,7 @@ use std::io::Cursor;
 use std::path::PathBuf;
 
 use glam::DVec3;
-use octopaint_export::import::{voxels_from_mesh, voxels_from_vdb};
+use octopaint_export::import::{estimate_voxels, voxels_from_mesh, voxels_from_vdb};
 use octopaint_export::mesh_read::{MeshLimits, read_mesh};
 use octopaint_export::vdb_read::{ReadLimits, read_vdb};
 use octopaint_export::voxels::{self, VoxelGrid};
@@ -41,7 +41,7 @@ fn round_trip(name: &str, placement: Placement, colour: ColourSpace) {
     let grid = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, 1 << 40).unwrap(), colour, placement, &mut |_| {});
     let mut file = Cursor::new(Vec::new());
     vdb::write_vdb(&mut file, &grid, "test").unwrap();
-    let (grids, _) = read_vdb(file.get_ref(), &ReadLimits { max_voxels: 1 << 26 }).unwrap();
+    let (grids, _) = read_vdb(file.get_ref(), &ReadLimits { max_voxels: 1 << 26, tile_cover: true }).unwrap();
     let density = grids.iter().find(|g| g.name == "density").unwrap();
     let color = grids.iter().find(|g| g.name == "color");
     let (vs, report) = voxels_from_vdb(density, color, &canvas, None, &placement, colour, [1.0; 3]).unwrap();
@@ -145,4 +145,29 @@ fn a_mesh_with_a_hole_is_refused_saying_so() {
     let canvas = Canvas { roots: [1, 1, 1], max_depth: 6, root_size: 1.0, capacity: 1 << 20 };
     let err = voxels_from_mesh(&mesh, &canvas, 4, &Placement::default(), true, 30.0).unwrap_err();
     assert!(err.contains("boundary"), "{err}");
+}
+
+#[test]
+fn a_depth_too_fine_is_refused_at_once_naming_one_that_fits() {
+    let (canvas, p) = painted("single_stamp");
+    let tree = &p.tree;
+    let grid = VoxelGrid::build(tree, &voxels::plan(tree, Some(6), None, 1 << 40).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
+    let mut file = Cursor::new(Vec::new());
+    vdb::write_vdb(&mut file, &grid, "test").unwrap();
+    let (grids, _) = read_vdb(file.get_ref(), &ReadLimits { max_voxels: 1 << 26, tile_cover: false }).unwrap();
+    let density = grids.iter().find(|g| g.name == "density").unwrap();
+    // The same canvas, deeper: depth 20 would make each VDB voxel 8^14 voxels.
+    let deep = Canvas { max_depth: 20, ..canvas };
+    let t0 = std::time::Instant::now();
+    let err = voxels_from_vdb(density, None, &deep, Some(20), &Placement::default(), ColourSpace::Linear, [1.0; 3]).unwrap_err();
+    assert!(t0.elapsed().as_secs() < 10, "refused only after {:?}", t0.elapsed());
+    let fits: u32 = err.split("--depth ").nth(1).and_then(|r| r.split(' ').next()).and_then(|d| d.parse().ok()).unwrap_or_else(|| panic!("{err}"));
+    // The finest depth whose count fits, counted as the import counts
+    // (an import at `fits` itself would make some 10^7 voxels).
+    let max = octopaint_tree::voxels::MAX_VOXELS as f64;
+    assert!(estimate_voxels(density, &deep, fits, &Placement::default()) <= max);
+    assert!(estimate_voxels(density, &deep, fits + 1, &Placement::default()) > max);
+    // And a depth that fits imports exactly the VDB's voxels' cells (depth 6 here).
+    let (vs, _) = voxels_from_vdb(density, None, &deep, Some(6), &Placement::default(), ColourSpace::Linear, [1.0; 3]).unwrap();
+    assert_eq!(vs.len() as f64, estimate_voxels(density, &deep, 6, &Placement::default()));
 }

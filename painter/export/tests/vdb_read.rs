@@ -18,7 +18,7 @@ use octopaint_tree::replay::{ReplayObserver, replay};
 use serde_json::Value;
 
 const SYSTEM_PYTHON: &str = "/usr/bin/python3";
-const ALL: ReadLimits = ReadLimits { max_voxels: u64::MAX };
+const ALL: ReadLimits = ReadLimits { max_voxels: u64::MAX, tile_cover: true };
 
 // ---------------------------------------------------------------------------
 // Helpers
@@ -330,19 +330,24 @@ fn a_root_tile_counts_as_the_voxels_it_covers() {
     let bytes = openvdb_file("root_tile.vdb");
     let grids = compare_with_openvdb("root_tile.vdb");
     assert_eq!(grid(&grids, "big").tiles, vec![([-4096, 0, 0], 4096)]);
-    assert!(read_vdb(&bytes, &ReadLimits { max_voxels: 1 << 36 }).is_ok());
-    match read_vdb(&bytes, &ReadLimits { max_voxels: (1 << 36) - 1 }) {
+    assert!(read_vdb(&bytes, &ReadLimits { max_voxels: 1 << 36, tile_cover: true }).is_ok());
+    match read_vdb(&bytes, &ReadLimits { max_voxels: (1 << 36) - 1, tile_cover: true }) {
         Err(e @ VdbReadError::TooManyVoxels { .. }) => assert!(e.to_string().contains("\"big\""), "{e}"),
         other => panic!("{:?}", other.map(|_| ())),
     }
+    // Counted as one entry (a caller that resamples tiles itself): what the
+    // reader holds, leaf voxels plus tiles.
+    let held = read_vdb(&bytes, &ALL).unwrap().0.iter().map(|g| (g.voxels.len() + g.tiles.len()) as u64).sum::<u64>();
+    assert!(read_vdb(&bytes, &ReadLimits { max_voxels: held, tile_cover: false }).is_ok());
+    assert!(matches!(read_vdb(&bytes, &ReadLimits { max_voxels: held - 1, tile_cover: false }), Err(VdbReadError::TooManyVoxels { .. })));
 }
 
 #[test]
 fn the_voxel_limit_counts_leaf_voxels() {
     let bytes = openvdb_file("float.vdb");
     let n = read_vdb(&bytes, &ALL).expect("reads").0.iter().map(|g| g.voxels.len() as u64 + g.tiles.iter().map(|t| u64::from(t.1).pow(3)).sum::<u64>()).sum::<u64>();
-    assert!(read_vdb(&bytes, &ReadLimits { max_voxels: n }).is_ok());
-    assert!(matches!(read_vdb(&bytes, &ReadLimits { max_voxels: n - 1 }), Err(VdbReadError::TooManyVoxels { .. })));
+    assert!(read_vdb(&bytes, &ReadLimits { max_voxels: n, tile_cover: true }).is_ok());
+    assert!(matches!(read_vdb(&bytes, &ReadLimits { max_voxels: n - 1, tile_cover: true }), Err(VdbReadError::TooManyVoxels { .. })));
 }
 
 #[test]
@@ -437,7 +442,7 @@ fn flipping_any_byte_never_panics() {
         for i in 0..b.len() {
             for &x in flips {
                 b[i] ^= x;
-                match read_vdb(&b, &ReadLimits { max_voxels: 1 << 40 }) {
+                match read_vdb(&b, &ReadLimits { max_voxels: 1 << 40, tile_cover: true }) {
                     Ok(_) => ok += 1,
                     Err(_) => err += 1,
                 }
@@ -669,7 +674,7 @@ fn absurd_counts_and_lengths_are_refused_quickly() {
         h.i64(zipped.len() as i64).bytes(&zipped);
     }
     let b = h.done();
-    let e = refused_quickly("tiles", &b, ReadLimits { max_voxels: 1 << 30 });
+    let e = refused_quickly("tiles", &b, ReadLimits { max_voxels: 1 << 30, tile_cover: true });
     assert!(matches!(e, VdbReadError::TooManyVoxels { max: 1073741824, .. }), "{e}");
     assert!(e.to_string().contains("\"g\""), "{e}");
     let (g, _) = read_vdb(&b, &ALL).expect("within an unlimited budget");
