@@ -61,15 +61,24 @@ class Document:
         return self.layers[self.selected]
 
     def begin_stroke(self, brush, line: int) -> bool:
-        la = self.current
-        if la.locked:
-            self.warn(f'line {line}: layer "{la.name}" is locked; this stroke is skipped')
+        la = self._ready_to_paint(line, "stroke")
+        if la is None:
             return False
-        self._drop_redo()
-        la.tree.capacity = self.share(la)
         la.painting.begin_stroke(brush, line)
         self._painting_on = la
         return True
+
+    def _ready_to_paint(self, line: int, what: str):
+        """The selected layer made ready for a stroke or an import: None,
+        with a warning, when it is locked (spec 14.2); else its redo history
+        dropped and its budget set to its share (14.1)."""
+        la = self.current
+        if la.locked:
+            self.warn(f'line {line}: layer "{la.name}" is locked; this {what} is skipped')
+            return None
+        self._drop_redo()
+        la.tree.capacity = self.share(la)
+        return la
 
     def add_sample(self, sample, line: int) -> None:
         if self._painting_on is not None:
@@ -87,12 +96,9 @@ class Document:
         """An `import` event (spec 15.3) on the selected layer, one step of
         the history; skipped with a warning when the layer is locked (the
         reader's model was put out of step by a skipped layer operation)."""
-        la = self.current
-        if la.locked:
-            self.warn(f'line {line}: layer "{la.name}" is locked; this import is skipped')
+        la = self._ready_to_paint(line, "import")
+        if la is None:
             return False
-        self._drop_redo()
-        la.tree.capacity = self.share(la)
         la.painting.import_voxels(imp.voxels, line)
         self.done.append(("stroke", la))
         return True

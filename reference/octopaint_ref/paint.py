@@ -153,17 +153,36 @@ class Painting:
     def end_stroke(self) -> None:
         st = self.stroke
         assert st is not None, "no stroke open"
-        touched = st.cell[: st.n].copy()
         self.stroke = None
+        self._clean_and_commit(st)
+
+    def _clean_and_commit(self, st: Stroke) -> None:
+        """The end of a stroke or an import: cleaning from the touched cells
+        (spec 9), then one undo step (spec 10)."""
         from .clean import clean
 
-        clean(self.tree, touched)
+        clean(self.tree, st.cell[: st.n].copy())
         self.history.commit()
+
+    def _round(self, st: Stroke, candidates: np.ndarray, line: int):
+        """One refinement round (spec 4.2) on `candidates`: the new cells
+        and whether the cell budget refused part of it (the first refusal
+        of a stroke or import warns, spec 2.4)."""
+        tree = self.tree
+        units, refused = tree.refine_round(candidates)
+        if refused:
+            self.capacity_refusals += 1
+            if not st.capacity_warned:
+                st.capacity_warned = True
+                self.warn(
+                    f"line {line}: the cell budget of {tree.capacity} cells is exhausted: "
+                    "refinement refused, painting goes on at the resolution reached"
+                )
+        return (units[:, None] + np.arange(UNIT)[None, :]).ravel(), refused
 
     # ------------------------------------------------------------ imports
     def import_voxels(self, vs, line: int = 0) -> None:
         """Paint the voxel set `vs` as one undo step (spec 15.3)."""
-        from .clean import clean
         from .voxelset import VoxelIndex
 
         assert self.stroke is None, "import inside a stroke"
@@ -192,18 +211,9 @@ class Painting:
             # 3-4. Refine what is not settled, round by round.
             candidates = self._import_candidates(st, index, leaves)
             while len(candidates):
-                units, refused = tree.refine_round(candidates)
-                if refused:
-                    self.capacity_refusals += 1
-                    if not st.capacity_warned:
-                        st.capacity_warned = True
-                        self.warn(
-                            f"line {line}: the cell budget of {tree.capacity} cells is exhausted: "
-                            "refinement refused, painting goes on at the resolution reached"
-                        )
-                if not len(units):
+                new, refused = self._round(st, candidates, line)
+                if not len(new):
                     break
-                new = (units[:, None] + np.arange(UNIT)[None, :]).ravel()
                 before_rgb, before_sigma = st.before_values(tree, tree.parent[new].astype(np.int64))
                 st.record(new, before_rgb, before_sigma)
                 self._write_import(st, index, new)
@@ -212,8 +222,7 @@ class Painting:
                 new = new[index.reached(tree, new)]
                 candidates = self._import_candidates(st, index, new)
         # 5. Cleaning; one undo step.
-        clean(tree, st.cell[: st.n].copy())
-        self.history.commit()
+        self._clean_and_commit(st)
 
     def _write_import(self, st, index, cells: np.ndarray) -> None:
         """Write each touched cell's import value: its centre voxel's value,
@@ -243,7 +252,6 @@ class Painting:
 
     # ------------------------------------------------------- one segment
     def _process_segment(self, st: Stroke, seg: Prims, line: int) -> None:
-        tree = self.tree
         leaves, needs = self._leaves_in_reach(seg)
         a, best = self._evaluate(st, seg, leaves)
         hit = a > 0
@@ -251,18 +259,9 @@ class Painting:
         candidates = leaves[needs]
         candidates = candidates[~self._settled(st, candidates)]
         while len(candidates):
-            units, refused = tree.refine_round(candidates)
-            if refused:
-                self.capacity_refusals += 1
-                if not st.capacity_warned:
-                    st.capacity_warned = True
-                    self.warn(
-                        f"line {line}: the cell budget of {tree.capacity} cells is exhausted: "
-                        "refinement refused, painting goes on at the resolution reached"
-                    )
-            if not len(units):
+            new, refused = self._round(st, candidates, line)
+            if not len(new):
                 break
-            new = (units[:, None] + np.arange(UNIT)[None, :]).ravel()
             self._paint_new_cells(st, new)
             if refused:
                 break

@@ -356,19 +356,33 @@ impl Document {
     /// Begin a stroke on the selected layer; false (with a warning) when it
     /// is locked: the stroke is skipped (spec 14.2).
     pub fn begin_stroke(&mut self, brush: &Brush, line: usize) -> bool {
+        let Some(id) = self.ready_to_paint(line, "stroke") else { return false };
+        self.arena.get_mut(&id).expect("listed").painting.begin_stroke(brush);
+        self.painting_on = Some(id);
+        true
+    }
+
+    /// The selected layer made ready for a stroke or an import (`what`, for
+    /// the warning): None, with the warning `line N: layer "NAME" is locked;
+    /// this WHAT is skipped`, when it is locked (spec 14.2); else the redo
+    /// history dropped and the layer's budget set to its share; its id.
+    fn ready_to_paint(&mut self, line: usize, what: &str) -> Option<u32> {
         if self.current().locked {
-            let msg = format!("line {line}: layer \"{}\" is locked; this stroke is skipped", self.current().name);
+            let msg = format!("line {line}: layer \"{}\" is locked; this {what} is skipped", self.current().name);
             self.warnings.push(msg);
-            return false;
+            return None;
         }
         self.drop_redo();
         let id = self.order[self.selected];
-        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
-        let layer = self.arena.get_mut(&id).expect("listed");
-        layer.painting.tree.capacity = share as u32;
-        layer.painting.begin_stroke(brush);
-        self.painting_on = Some(id);
-        true
+        let share = self.share_of(id);
+        self.arena.get_mut(&id).expect("listed").painting.tree.capacity = share;
+        Some(id)
+    }
+
+    /// What layer `id` may grow to: the budget less the other layers' used
+    /// lengths (spec 14.1).
+    fn share_of(&self, id: u32) -> u32 {
+        (u64::from(self.canvas.capacity) - self.used_but(&[id])) as u32
     }
 
     pub fn add_sample(&mut self, sample: &Sample, line: usize) {
@@ -394,17 +408,8 @@ impl Document {
     /// the history. Skipped with a warning when the layer is locked (the
     /// reader's model was put out of step by a skipped layer operation).
     pub fn import_voxels(&mut self, vs: &crate::voxels::VoxelSet, line: usize) -> bool {
-        if self.current().locked {
-            let msg = format!("line {line}: layer \"{}\" is locked; this import is skipped", self.current().name);
-            self.warnings.push(msg);
-            return false;
-        }
-        self.drop_redo();
-        let id = self.order[self.selected];
-        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
-        let layer = self.arena.get_mut(&id).expect("listed");
-        layer.painting.tree.capacity = share as u32;
-        layer.painting.import_voxels(vs, line);
+        let Some(id) = self.ready_to_paint(line, "import") else { return false };
+        self.arena.get_mut(&id).expect("listed").painting.import_voxels(vs, line);
         self.done.push(Step::Stroke(id));
         true
     }
@@ -419,9 +424,8 @@ impl Document {
             return Err(format!("layer \"{}\" is locked", self.current().name));
         }
         let id = self.order[self.selected];
-        let share = u64::from(self.canvas.capacity) - self.used_but(&[id]);
         let mut trial = self.arena.get(&id).expect("listed").painting.clone();
-        trial.tree.capacity = share as u32;
+        trial.tree.capacity = self.share_of(id);
         let (refusals, warned) = (trial.counters.refusals, trial.warnings.len());
         trial.import_voxels(vs, 0);
         if trial.counters.refusals > refusals {

@@ -15,7 +15,7 @@ use crate::brush::{self, Capsule, StampReach, TINY, blend, quantize_rgb, quantiz
 use crate::clean::clean;
 use crate::history::History;
 use crate::noise::permutation;
-use crate::pool::{NONE, Refusal, Tree, UNIT};
+use crate::pool::{NONE, Tree, UNIT};
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
@@ -291,16 +291,23 @@ impl Painting {
         for s in &st.slots {
             self.slot_of[s.cell as usize] = NONE;
         }
-        let collapses = clean(&mut self.tree, st.slots.iter().map(|s| s.cell));
+        self.clean_and_commit(st.slots.iter().map(|s| s.cell));
         st.slots.clear();
         st.slot_a.clear();
         self.spare_slots = st.slots;
         self.spare_slot_a = st.slot_a;
+        self.counters.stroke_end_ns += t0.elapsed().as_nanos() as u64;
+    }
+
+    /// The end of a stroke or an import: cleaning from the touched cells
+    /// (spec 9), then the journal made one undo step (spec 10), which drops
+    /// the redo history.
+    fn clean_and_commit(&mut self, touched: impl IntoIterator<Item = u32>) {
+        let collapses = clean(&mut self.tree, touched);
         self.counters.collapses += collapses as u64;
         let step = self.tree.commit_journal();
         self.history.done.push(step);
         self.history.undone.clear();
-        self.counters.stroke_end_ns += t0.elapsed().as_nanos() as u64;
     }
 
     /// Paint a voxel set (an `import` event, spec 15.3) as one undo step:
@@ -314,11 +321,7 @@ impl Painting {
         self.counters.cells_created += work.created;
         self.counters.refusals += work.refusals;
         self.counters.cells_written += work.touched.len() as u64;
-        let collapses = clean(&mut self.tree, work.touched);
-        self.counters.collapses += collapses as u64;
-        let step = self.tree.commit_journal();
-        self.history.done.push(step);
-        self.history.undone.clear();
+        self.clean_and_commit(work.touched);
         self.counters.refine_ns += t0.elapsed().as_nanos() as u64;
     }
 
@@ -502,17 +505,7 @@ impl Painting {
             let st = self.stroke.as_mut().expect("stroke");
             if !st.refusal_warned {
                 st.refusal_warned = true;
-                let msg = match r {
-                    Refusal::Capacity => format!(
-                        "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
-                        self.tree.capacity
-                    ),
-                    Refusal::Memory => format!(
-                        "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
-                        self.tree.n_used()
-                    ),
-                };
-                self.warnings.push(msg);
+                self.warnings.push(r.warning(line, &self.tree));
             }
         }
         if units.is_empty() {

@@ -67,6 +67,23 @@ pub enum Refusal {
     Memory,
 }
 
+impl Refusal {
+    /// The warning a refused refinement gives, once per stroke or import
+    /// (spec 2.4; `line` the event's line, `tree` the refusing tree).
+    pub fn warning(self, line: usize, tree: &Tree) -> String {
+        match self {
+            Refusal::Capacity => format!(
+                "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
+                tree.capacity
+            ),
+            Refusal::Memory => format!(
+                "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
+                tree.n_used()
+            ),
+        }
+    }
+}
+
 /// A root array of octrees with pooled cells.
 #[derive(Clone)]
 pub struct Tree {

@@ -11,7 +11,7 @@ use std::io::Cursor;
 use sha2::{Digest, Sha256};
 
 use crate::dump::{NpyArray, Values, write_npz};
-use crate::pool::{NONE, Refusal, Tree, UNIT};
+use crate::pool::{NONE, Tree, UNIT};
 use crate::trace::Canvas;
 
 /// The most voxels one set may hold (spec 15.1).
@@ -287,16 +287,7 @@ pub(crate) fn paint_voxels(tree: &mut Tree, vs: &VoxelSet, line: usize, warnings
             work.refusals += 1;
             if !warned {
                 warned = true;
-                warnings.push(match r {
-                    Refusal::Capacity => format!(
-                        "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
-                        tree.capacity
-                    ),
-                    Refusal::Memory => format!(
-                        "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
-                        tree.n_used()
-                    ),
-                });
+                warnings.push(r.warning(line, tree));
             }
         }
         if units.is_empty() {
