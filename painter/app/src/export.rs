@@ -195,6 +195,27 @@ pub fn run(args: &Args) -> ExitCode {
     }
 }
 
+/// `--scale`: file units per canvas unit, in [1e-9, 1e9].
+fn check_scale(scale: f64) -> Result<(), String> {
+    if scale.is_finite() && (1e-9..=1e9).contains(&scale) { Ok(()) } else { Err(format!("--scale {scale} is not in [1e-9, 1e9]")) }
+}
+
+/// Where the files go from the canvas (exports) or come to it (imports):
+/// `--scale`, `--origin` (default the canvas's corner, on the canvas) and
+/// `--up`, checked against a canvas of `roots` roots of `root_size`.
+pub fn placement_of(scale: f64, origin: Option<[f64; 3]>, up: UpChoice, roots: [u32; 3], root_size: f64) -> Result<Placement, String> {
+    check_scale(scale)?;
+    let origin = origin.unwrap_or([0.0; 3]);
+    let size = roots.map(|r| f64::from(r) * root_size);
+    if (0..3).any(|a| !(0.0..=size[a]).contains(&origin[a])) {
+        return Err(format!(
+            "--origin {},{},{} is off the canvas, which spans [0, {}] x [0, {}] x [0, {}]",
+            origin[0], origin[1], origin[2], size[0], size[1], size[2]
+        ));
+    }
+    Ok(Placement { scale, z_up: up == UpChoice::Z, origin })
+}
+
 pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
     let v: Vec<f64> = s
         .split(',')
@@ -281,9 +302,8 @@ fn check_options<'a>(args: &'a Args, vdb: Option<&'a Path>) -> Result<Vec<&'a Pa
             return Err(refuse(format!("{} is the input: refusing to overwrite it", a.display())));
         }
     }
-    if !(args.scale.is_finite() && (1e-9..=1e9).contains(&args.scale)) {
-        return Err(refuse(format!("--scale {} is not in [1e-9, 1e9]", args.scale)));
-    }
+    // The scale before the replay, the origin once the canvas is known.
+    check_scale(args.scale).map_err(refuse)?;
     if let Some(iso) = args.iso
         && !(iso.is_finite() && iso > 0.0)
     {
@@ -389,15 +409,8 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         ColourChoice::Linear => ColourSpace::Linear,
         ColourChoice::Srgb => ColourSpace::Srgb,
     };
-    let origin = args.origin.unwrap_or([0.0; 3]);
+    let placement = placement_of(args.scale, args.origin, args.up, tree.lat.roots, tree.lat.root_size).map_err(refuse)?;
     let size = tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size);
-    if (0..3).any(|a| !(0.0..=size[a]).contains(&origin[a])) {
-        return Err(refuse(format!(
-            "--origin {},{},{} is off the canvas, which spans [0, {}] x [0, {}] x [0, {}]",
-            origin[0], origin[1], origin[2], size[0], size[1], size[2]
-        )));
-    }
-    let placement = Placement { scale: args.scale, z_up: args.up == UpChoice::Z, origin };
     let cap = args.max_mib << 20;
     let crop = args.region;
     if let Some(c) = crop {

@@ -16,7 +16,7 @@ use octopaint_export::{ColourSpace, Placement};
 use octopaint_tree::trace::{Event, EventKind, LayerOp, LayerOpKind};
 use octopaint_tree::voxels::{MAX_VOXELS, VoxelSet};
 
-use crate::export::{ColourChoice, UpChoice, parse_point};
+use crate::export::{ColourChoice, UpChoice, parse_point, placement_of};
 
 /// Where the file goes on the canvas, and into which layer.
 #[derive(clap::Args)]
@@ -94,15 +94,8 @@ fn refuse(msg: impl std::fmt::Display) -> ExitCode {
 }
 
 fn placement(t: &Target, s: &Session) -> Result<Placement, String> {
-    if !(t.scale.is_finite() && (1e-9..=1e9).contains(&t.scale)) {
-        return Err(format!("--scale {} is not in [1e-9, 1e9]", t.scale));
-    }
-    let origin = t.origin.unwrap_or([0.0; 3]);
     let c = s.doc.canvas();
-    if (0..3).any(|a| !(0.0..=f64::from(c.roots[a]) * c.root_size).contains(&origin[a])) {
-        return Err(format!("--origin {},{},{} is off the canvas", origin[0], origin[1], origin[2]));
-    }
-    Ok(Placement { scale: t.scale, z_up: t.up == UpChoice::Z, origin })
+    placement_of(t.scale, t.origin, t.up, c.roots, c.root_size)
 }
 
 /// Select (or make) the target layer, then import: the layer events are
