@@ -5,6 +5,9 @@
 //! must hold exactly that stroke. Needs `Xvfb` and `xdotool` (`make
 //! system` installs them); without them the test fails and says so.
 
+// An X server and a 0700 runtime folder (Unix permissions): Linux only.
+#![cfg(unix)]
+
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -138,7 +141,6 @@ fn scratch_with_document(name: &str) -> (tempfile::TempDir, std::path::PathBuf, 
     (scratch, runtime, doc)
 }
 
-/// Ctrl+Q, then wait (up to a minute) for the window's process to exit.
 /// Wait until the window has drawn a frame (its frame log has a line: the
 /// event loop runs and the renderer is up) and holds the keyboard focus, so
 /// that keys sent next are not lost on a loaded machine.
@@ -157,6 +159,7 @@ fn ready_for_keys(display: &str, id: &str, frame_log: &std::path::Path) {
     }
 }
 
+/// Ctrl+Q, then wait (up to a minute) for the window's process to exit.
 fn close_with_ctrl_q(display: &str, window: &mut Child) {
     xdotool(display, &["key", "ctrl+q"]);
     let t0 = Instant::now();

@@ -1031,12 +1031,14 @@ fn malformed_files_are_errors_not_panics() {
     assert!(matches!(e, MeshError::NonFinite { .. }), "{e:?}");
 }
 
-// ------------------------------------------------------------ speed
+// ------------------------------------------------------------ a big mesh
 
-/// `cargo test -p octopaint-export --test mesh_import -- --ignored --nocapture`
+/// A sphere of 100,488 triangles into 256³ fills the mesh's volume within
+/// 0.5 %. It prints how long the closedness check and the voxelising took
+/// (the figures docs/documents.md quotes; `-- --nocapture` shows them); no
+/// time is asserted.
 #[test]
-#[ignore = "a timing, not a check: run by hand"]
-fn speed_of_a_100k_triangle_sphere_in_256_cubed() {
+fn a_100k_triangle_sphere_fills_its_volume_in_256_cubed() {
     let m = uv_sphere(159, 1.0);
     assert!(m.triangles.len() > 100_000, "{}", m.triangles.len());
     let t0 = std::time::Instant::now();
