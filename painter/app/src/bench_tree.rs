@@ -50,6 +50,10 @@ pub struct Args {
     /// then one `x y z` line per sample).
     #[arg(long)]
     write_strokes: Option<std::path::PathBuf>,
+    /// Threads of the core's parallel passes (default: every core). The
+    /// result is the same tree for any count; `tree_digest` shows it.
+    #[arg(long)]
+    threads: Option<usize>,
 }
 
 /// Max depth of the benchmark canvas: one root of 2^11 finest cells a side.
@@ -118,6 +122,41 @@ fn count_cells(t: &Tree) -> (u64, u64) {
     (live, leaves)
 }
 
+/// FNV-1a over the pools in use and the undo steps: equal digests, equal
+/// trees and histories (for comparing thread counts; not a checksum for
+/// files).
+fn digest(p: &Painting) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3);
+        }
+    };
+    let t = &p.tree;
+    let n = t.n_used() as usize;
+    for c in 0..n {
+        let r = t.record(c as u32);
+        eat(&r.parent.to_le_bytes());
+        eat(&r.first_child.to_le_bytes());
+        eat(&[r.depth]);
+        eat(&r.rgb);
+        eat(&r.sigma.to_bits().to_le_bytes());
+    }
+    for step in &p.history.done {
+        for (c, b, a) in step.entries() {
+            eat(&c.to_le_bytes());
+            for r in [b, a] {
+                eat(&r.parent.to_le_bytes());
+                eat(&r.first_child.to_le_bytes());
+                eat(&[r.depth]);
+                eat(&r.rgb);
+                eat(&r.sigma.to_bits().to_le_bytes());
+            }
+        }
+    }
+    h
+}
+
 pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
     anyhow::ensure!((0.0..=1.0).contains(&a.hardness), "--hardness must be in [0, 1]");
@@ -128,14 +167,19 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let canvas = Canvas { roots: [1, 1, 1], max_depth: DEPTH, root_size: SIDE, capacity: 0xFFFF_FFF8 };
     let mut painting = Painting::new(&canvas);
     painting.set_settling(!a.no_settling);
+    anyhow::ensure!(a.threads.is_none_or(|n| (1..=1024).contains(&n)), "--threads must be in [1, 1024]");
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build().context("cannot start the thread pool")?;
+    let threads = pool.current_num_threads();
     let t0 = Instant::now();
-    for (b, pts) in set.brushes.iter().zip(&set.samples) {
-        painting.begin_stroke(b);
-        for p in pts {
-            painting.add_sample(&Sample::at(*p), 0);
+    pool.install(|| {
+        for (b, pts) in set.brushes.iter().zip(&set.samples) {
+            painting.begin_stroke(b);
+            for p in pts {
+                painting.add_sample(&Sample::at(*p), 0);
+            }
+            painting.end_stroke();
         }
-        painting.end_stroke();
-    }
+    });
     let seconds = t0.elapsed().as_secs_f64();
     let c = painting.counters;
     let t = &painting.tree;
@@ -150,7 +194,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"hardness\": {}, \"settling\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, ",
-            "\"peak_rss_mib\": {:.1}}}"
+            "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
         a.radius,
         a.strokes,
@@ -178,6 +222,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         history / n,
         history / painting.history.changed_cells().max(1) as f64,
         octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
+        threads,
+        digest(&painting),
     );
     println!("{json}");
     Ok(())

@@ -344,7 +344,11 @@ pub fn blend(
 /// Store a colour in [0, 1] as u8: `floor(v·255 + 0.5)`, clamped (spec 5).
 #[inline]
 pub fn quantize_rgb(v: [f64; 3]) -> [u8; 3] {
-    v.map(|x| (x * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
+    #[inline(always)]
+    fn q(x: f64) -> u8 {
+        (x * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8
+    }
+    [q(v[0]), q(v[1]), q(v[2])]
 }
 
 /// Store a density: the nearest f32, at most the largest finite f32 (spec 5).

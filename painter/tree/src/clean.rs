@@ -10,6 +10,7 @@
 //! collapsed; collapses in one batch never invalidate each other.
 
 use crate::lattice::FACES;
+use crate::par;
 use crate::pool::{FREE, NONE, Tree};
 
 /// Collapse to the fixpoint, starting from the parents of `touched`.
@@ -28,12 +29,11 @@ pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
         work.dedup();
         work.sort_unstable();
         work.dedup();
-        let done: Vec<u32> = work
-            .iter()
-            .copied()
-            .filter(|&p| tree.depth[p as usize] != FREE && tree.first_child[p as usize] != NONE)
-            .filter(|&p| tree.collapsible(p))
-            .collect();
+        // Decided in parallel (reads only), collapsed in order.
+        let view = &*tree;
+        let done: Vec<u32> = par::filter(&work, |&p| {
+            view.depth[p as usize] != FREE && view.first_child[p as usize] != NONE && view.collapsible(p)
+        });
         if done.is_empty() {
             return collapses;
         }

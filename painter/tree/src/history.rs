@@ -9,6 +9,7 @@
 //! for byte what they were, indices and free units included; redo writes
 //! the after-records.
 
+use crate::par;
 use crate::pool::{CellRecord, NONE, Tree};
 
 #[derive(Clone)]
@@ -91,6 +92,38 @@ impl UndoStep {
         } else {
             self.other_cells.push(c);
             self.other.push([before, after]);
+        }
+    }
+
+    /// Steps built in parts, one after another, as one step (the parts'
+    /// entries in order, with no spare capacity).
+    fn joined(parts: Vec<UndoStep>) -> UndoStep {
+        if parts.len() == 1 {
+            let mut step = parts.into_iter().next().expect("one part");
+            step.shrink();
+            return step;
+        }
+        fn join<T: Copy>(parts: &[UndoStep], field: impl Fn(&UndoStep) -> &Vec<T>) -> Vec<T> {
+            let mut out = Vec::with_capacity(parts.iter().map(|p| field(p).len()).sum());
+            for p in parts {
+                out.extend_from_slice(field(p));
+            }
+            out
+        }
+        UndoStep {
+            n_before: 0,
+            n_after: 0,
+            value_cells: join(&parts, |p| &p.value_cells),
+            value_parent: join(&parts, |p| &p.value_parent),
+            value_depth: join(&parts, |p| &p.value_depth),
+            value_rgb: join(&parts, |p| &p.value_rgb),
+            value_sigma: join(&parts, |p| &p.value_sigma),
+            born_cells: join(&parts, |p| &p.born_cells),
+            born: join(&parts, |p| &p.born),
+            freed_cells: join(&parts, |p| &p.freed_cells),
+            freed: join(&parts, |p| &p.freed),
+            other_cells: join(&parts, |p| &p.other_cells),
+            other: join(&parts, |p| &p.other),
         }
     }
 
@@ -185,20 +218,32 @@ impl Tree {
     /// length, which were free.
     pub(crate) fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
-        let mut step = UndoStep::new(j.n_before, self.n_used());
-        for (&c, before) in j.cells.iter().zip(&j.before) {
-            let now = self.record(c);
-            if !now.same_bits(before) {
-                step.push(c, *before, now);
+        let n_used = self.n_used();
+        // Built in parallel chunks, joined in order: the same step as one
+        // pass over the saved cells and then the new ones.
+        let tree = &*self;
+        let mut parts = par::chunks(&j.cells, |at, cells| {
+            let mut part = UndoStep::default();
+            for (&c, before) in cells.iter().zip(&j.before[at..]) {
+                let now = tree.record(c);
+                if !now.same_bits(before) {
+                    part.push(c, *before, now);
+                }
             }
-        }
-        for c in j.n_before..self.n_used() {
-            let now = self.record(c);
-            if !now.same_bits(&CellRecord::FREE) {
-                step.push(c, CellRecord::FREE, now);
+            part
+        });
+        parts.extend(par::ranges(j.n_before, n_used, |cells| {
+            let mut part = UndoStep::default();
+            for c in cells {
+                let now = tree.record(c);
+                if !now.same_bits(&CellRecord::FREE) {
+                    part.push(c, CellRecord::FREE, now);
+                }
             }
-        }
-        step.shrink();
+            part
+        }));
+        let mut step = UndoStep::joined(parts);
+        (step.n_before, step.n_after) = (j.n_before, n_used);
         step
     }
 

@@ -20,6 +20,7 @@
 //! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
 //! | [`clean`] | topology cleaning | clean.py |
 //! | [`history`] | undo and redo | history.py |
+//! | [`par`] | parallel passes, the same bytes on any pool | — |
 //! | [`layers`] | documents of layers, merge down, document dumps | layers.py, layer_rules.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
 //! | [`trace`] | the event model and the trace reader | trace.py |
@@ -39,6 +40,7 @@ pub mod lattice;
 pub mod layers;
 pub mod noise;
 pub mod paint;
+pub mod par;
 pub mod pool;
 pub mod raycast;
 pub mod replay;

@@ -11,17 +11,27 @@
 
 use glam::DVec3;
 
-use crate::brush::{self, Capsule, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
+use crate::brush::{self, Capsule, CapsulePoint, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::clean::clean;
 use crate::history::History;
 use crate::noise::permutation;
+use crate::par;
 use crate::pool::{NONE, Tree, UNIT};
+use rayon::prelude::*;
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
 /// `v / 255.0` for every stored channel value, computed once (the same
 /// correctly rounded quotients the blend would compute each time).
-static UNIT_RGB: std::sync::LazyLock<[f64; 256]> = std::sync::LazyLock::new(|| std::array::from_fn(|v| v as f64 / 255.0));
+static UNIT_RGB: [f64; 256] = {
+    let mut t = [0.0; 256];
+    let mut v = 0;
+    while v < 256 {
+        t[v] = v as f64 / 255.0;
+        v += 1;
+    }
+    t
+};
 
 /// A touched cell's stroke state (spec 8.8), but for its stroke maximum
 /// `a`, which lives in its own array: the paint pass reads it for every
@@ -115,7 +125,7 @@ impl StrokeState {
     /// at stroke maximum `a` (spec 8.5, rounded by spec 5).
     #[inline]
     fn stored(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
-        let before = before_rgb.map(|v| UNIT_RGB[v as usize]);
+        let before = [UNIT_RGB[before_rgb[0] as usize], UNIT_RGB[before_rgb[1] as usize], UNIT_RGB[before_rgb[2] as usize]];
         let b = &self.brush;
         let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), colour, self.sigma_b, self.alpha, a, b.mix_ratio);
         (quantize_rgb(rgb), quantize_sigma(sigma))
@@ -430,7 +440,22 @@ impl Painting {
     /// The paint pass of a segment that is one capsule (every sphere
     /// stroke): the same traversal and decisions as the general pass, with
     /// the projection of each cell centre on the capsule computed once for
-    /// reach, refinement and coverage.
+    /// reach, refinement and coverage, a unit of 8 leaves at a time, and
+    /// on the current rayon pool when the capsule reaches enough leaves.
+    /// Same result and same order of every list on any pool:
+    ///
+    /// 1. On more than one thread, the traversal stack is expanded top-down
+    ///    into a *front* of subtrees in the order the serial pass visits
+    ///    them (a stack pops its last entry, and a unit's children are
+    ///    visited 7 to 0), cut into runs. On one thread the stack is one run.
+    /// 2. The runs are walked in parallel, each exactly as the serial pass
+    ///    walks it ([`walk_run`]). A leaf the stroke touched before (it has
+    ///    a slot) is blended and written in place: its cell and slot belong
+    ///    to that run alone, and its journal entry was saved at its first
+    ///    write. A leaf touched for the first time is only evaluated.
+    /// 3. In the runs' order, serially: the first-touched leaves get their
+    ///    slots and are written (journalled in the serial order), the dirty
+    ///    blocks are marked, and the candidates are joined.
     fn paint_pass_capsule(
         &mut self,
         cap: &Capsule,
@@ -438,60 +463,138 @@ impl Painting {
         mut stack: Vec<(u32, [u32; 3])>,
         candidates: &mut Vec<u32>,
     ) -> Vec<(u32, [u32; 3])> {
-        let colour = prim.colour;
-        let st = self.stroke.as_ref().expect("stroke");
-        let hardness = st.brush.hardness;
-        let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
-        let settles = st.settles;
-        // Candidates with their centres and reach radii, when they may be
-        // settled: decided after the pass, over the stroke's capsules.
-        let mut maybe: Vec<(u32, DVec3, f64)> = Vec::new();
-        let (mut visited, mut hit) = (0u64, 0u64);
-        while let Some((c, o)) = stack.pop() {
-            let d = u32::from(self.tree.depth[c as usize]);
-            let lat = &self.tree.lat;
-            let x = lat.centre(o, d);
-            let cp = cap.project(x);
-            let h = lat.reach_radius[d as usize];
-            if !cap.within_reach(&cp, h) {
-                continue;
-            }
-            let fc = self.tree.first_child[c as usize];
-            if fc != NONE {
-                for k in 0..UNIT {
-                    stack.push((fc + k, self.tree.child_origin(o, d, k)));
+        let threads = rayon::current_num_threads();
+        let lat = &self.tree.lat;
+        let parallel = threads > 1 && {
+            let cell = lat.size_canvas[lat.target_depth(cap.r0.max(cap.r1)) as usize];
+            let reach = (prim.hi - prim.lo + 2.0 * cell).max(DVec3::splat(cell));
+            par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell)).min(1e18) as usize)
+        };
+        let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
+        // 1. The front, in visiting order, and its runs.
+        let mut front: Vec<(u32, [u32; 3])> = stack.drain(..).rev().collect();
+        let mut bounds = vec![0];
+        if parallel {
+            // Internal cells larger than a quarter of the capsule's box are
+            // opened, so that each one left holds a small share of the work
+            // (it lies under internal cells; a leaf is one visit). Runs take
+            // about equal volumes of internal cells, a few runs a thread,
+            // and rayon's stealing evens out the rest.
+            let extent = (prim.hi - prim.lo).max_element();
+            let open = |c: u32| first_child[c as usize] != NONE && lat.size_canvas[depth[c as usize] as usize] > 0.25 * extent;
+            while front.iter().any(|&(c, _)| open(c)) {
+                let mut next = Vec::with_capacity(front.len() * UNIT as usize);
+                for &(c, o) in &front {
+                    if !open(c) {
+                        next.push((c, o));
+                        continue;
+                    }
+                    let d = u32::from(depth[c as usize]);
+                    if !cap.within_reach(&cap.project(lat.centre(o, d)), lat.reach_radius[d as usize]) {
+                        continue;
+                    }
+                    let fc = first_child[c as usize];
+                    next.extend((0..UNIT).rev().map(|k| (fc + k, self.tree.child_origin(o, d, k))));
                 }
-                continue;
+                front = next;
             }
-            visited += 1;
-            let needs = lat.coarser_than_target(d, cp.r) && !(sigma_gate && !(self.tree.sigma[c as usize] > 0.0));
-            let a = if prim.holds(x) { cap.coverage_at(&cp, hardness) } else { 0.0 };
-            if a >= TINY {
-                hit += 1;
-                self.apply(c, a, colour, false);
-            }
-            if needs {
-                if settles {
-                    maybe.push((c, x, h));
-                } else {
-                    candidates.push(c);
+            let weight = |c: u32| if first_child[c as usize] == NONE { 0.0 } else { lat.size_canvas[depth[c as usize] as usize].powi(3) };
+            let share = front.iter().map(|&(c, _)| weight(c)).sum::<f64>() / (8 * threads) as f64;
+            let mut acc = 0.0;
+            for (i, &(c, _)) in front.iter().enumerate() {
+                acc += weight(c);
+                if acc >= share {
+                    bounds.push(i + 1);
+                    acc = 0.0;
                 }
             }
         }
-        self.counters.leaves_visited += visited;
-        self.counters.leaves_hit += hit;
+        if *bounds.last().expect("one bound") != front.len() {
+            bounds.push(front.len());
+        }
+        // 2. The runs.
+        let st = self.stroke.as_mut().expect("stroke");
+        let slot_a = Disjoint(st.slot_a.as_mut_ptr());
+        let slots = Disjoint(st.slots.as_mut_ptr());
+        let st: &StrokeState = st;
+        let tree = &mut self.tree;
+        let (rgb, sigma) = (Disjoint(tree.rgb.as_mut_ptr()), Disjoint(tree.sigma.as_mut_ptr()));
+        let ctx = RunContext {
+            tree,
+            st,
+            slot_of: &self.slot_of,
+            cap,
+            prim,
+            hardness: st.brush.hardness,
+            sigma_gate: matches!(st.brush.mode, Mode::Erase | Mode::Recolor),
+            rgb,
+            sigma,
+            slot_a,
+            slots,
+        };
+        let runs: Vec<Run> = if parallel {
+            bounds.par_windows(2).map(|w| walk_run(&ctx, &front[w[0]..w[1]], Vec::new())).collect()
+        } else {
+            // The walk's stack is the traversal's, kept between passes.
+            vec![walk_run(&ctx, &front, std::mem::take(&mut stack))]
+        };
+        // 3. In order, serially.
+        let colour = prim.colour;
+        let settles = st.settles;
+        let mut maybe = Vec::new();
+        for mut run in runs {
+            for b in run.blocks {
+                self.tree.changes.mark_block(b * crate::dirty::BLOCK_CELLS);
+            }
+            self.counters.cells_written += run.written + run.fresh.len() as u64;
+            for f in run.fresh {
+                let slot = self.record(f.c, f.before_rgb, f.before_sigma);
+                let st = self.stroke.as_mut().expect("stroke");
+                st.slot_a[slot as usize] = f.a;
+                st.slots[slot as usize].colour = colour;
+                self.tree.set_value(f.c, f.rgb, f.sigma);
+            }
+            self.counters.leaves_visited += run.visited;
+            self.counters.leaves_hit += run.hit;
+            if settles {
+                maybe.append(&mut run.needs);
+            } else {
+                candidates.extend(run.needs.iter().map(|&(c, _, _)| c));
+            }
+            if run.stack.capacity() > stack.capacity() {
+                stack = std::mem::take(&mut run.stack);
+            }
+        }
         if !maybe.is_empty() {
             let st = self.stroke.as_ref().expect("stroke");
             let caps = capsules_near(&st.prims, maybe.iter().map(|&(_, x, h)| (x, h)));
-            for &(c, x, h) in &maybe {
-                if self.settled(c, x, h, &caps) {
-                    self.counters.leaves_settled += 1;
-                } else {
-                    candidates.push(c);
-                }
+            candidates.extend(self.unsettled(maybe, &caps));
+        }
+        stack.clear();
+        stack
+    }
+
+    /// The cells among `leaves` (cell, centre, reach radius) that are not
+    /// settled, in order; the settled ones are counted. The tests run in
+    /// parallel; each touched leaf's bounds are written back after.
+    fn unsettled(&mut self, leaves: Vec<(u32, DVec3, f64)>, caps: &[(u32, Prim)]) -> Vec<u32> {
+        let tests = par::map(&leaves, |&(c, x, h)| self.settled(c, x, h, caps));
+        let st = self.stroke.as_mut().expect("stroke");
+        let upto = st.prims.len() as u32;
+        let mut out = Vec::with_capacity(leaves.len());
+        for (&(c, _, _), (settled, bounds)) in leaves.iter().zip(tests) {
+            if let Some((slot, bounds)) = bounds {
+                let s = &mut st.slots[slot as usize];
+                s.bounds = bounds;
+                s.bounds_upto = upto;
+            }
+            if settled {
+                self.counters.leaves_settled += 1;
+            } else {
+                out.push(c);
             }
         }
-        stack
+        out
     }
 
     /// Refinement of (part of) a round's sorted candidates, then the new
@@ -537,38 +640,35 @@ impl Painting {
             Vec::new()
         };
         let settles = st.settles;
-        let mut next = Vec::new();
-        for &(c, x, d) in &cells {
+        let tree = &self.tree;
+        let next: Vec<(u32, DVec3, f64)> = par::map(&cells, |&(c, x, d)| {
             let h = lat.reach_radius[d as usize];
-            let (reach, needs) = segment_reach(&self.tree, st, seg, x, d, h, true);
-            let empty = !(self.tree.sigma[c as usize] > 0.0);
-            if reach && needs && !(empty && matches!(st.brush.mode, Mode::Erase | Mode::Recolor)) {
-                next.push((c, x, h));
-            }
-        }
-        if settles {
-            let before = next.len();
-            next.retain(|&(c, x, h)| !self.settled(c, x, h, &caps));
-            self.counters.leaves_settled += (before - next.len()) as u64;
-        }
-        Some((consumed, next.into_iter().map(|(c, _, _)| c).collect()))
+            let (reach, needs) = segment_reach(tree, st, seg, x, d, h, true);
+            let empty = !(tree.sigma[c as usize] > 0.0);
+            (reach && needs && !(empty && matches!(st.brush.mode, Mode::Erase | Mode::Recolor))).then_some((c, x, h))
+        })
+        .into_iter()
+        .flatten()
+        .collect();
+        let next = if settles { self.unsettled(next, &caps) } else { next.into_iter().map(|(c, _, _)| c).collect() };
+        Some((consumed, next))
     }
 
     /// New children take their parent's before-value and their own stroke
     /// maximum over every primitive of the stroke so far (spec 8.8), and are
     /// always written: one outside the brush returns to its before-value.
+    /// Values are decided in parallel for large rounds, written in order.
     fn paint_new_cells(&mut self, cells: &[(u32, DVec3, u32)]) {
         let st = self.stroke.as_ref().expect("stroke");
         let (lo, hi) = centre_bounds(cells.iter().map(|&(_, x, _)| x));
         // Only primitives whose box meets the new centres can cover them.
         let near: Vec<Prim> = st.prims.iter().filter(|p| p.overlaps(lo, hi)).copied().collect();
-        let mut values = Vec::with_capacity(cells.len());
-        for &(c, x, _) in cells {
+        let values = par::map(cells, |&(c, x, _)| {
             let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
             let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
             let colour = if near.is_empty() { [0.0; 3] } else { near[k].colour };
-            values.push((c, before_rgb, before_sigma, a, colour));
-        }
+            (c, before_rgb, before_sigma, a, colour)
+        });
         for (c, before_rgb, before_sigma, a, colour) in values {
             self.record(c, before_rgb, before_sigma);
             self.apply(c, a, colour, true);
@@ -584,10 +684,11 @@ impl Painting {
     /// to bytes and f32 are monotone in `a`). Nothing covering it counts as
     /// settled too: every cell under it keeps the before-value. A touched
     /// leaf keeps its bounds in its slot, so the next test folds in only
-    /// the capsules added since.
-    fn settled(&mut self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> bool {
+    /// the capsules added since: returned with its slot, for the caller to
+    /// write.
+    fn settled(&self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> (bool, Option<(u32, [f64; 2])>) {
         let slot = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
-        let st = self.stroke.as_mut().expect("stroke");
+        let st = self.stroke.as_ref().expect("stroke");
         let hardness = st.brush.hardness;
         let (mut a_lo, mut a_hi, from) = match slot {
             NONE => (0.0f64, 0.0f64, 0),
@@ -597,7 +698,7 @@ impl Painting {
             }
         };
         if a_lo.is_nan() {
-            return false;
+            return (false, None);
         }
         let (ball_lo, ball_hi) = (x - h, x + h);
         for (i, p) in caps {
@@ -613,27 +714,22 @@ impl Painting {
             a_lo = a_lo.max(lo);
             a_hi = a_hi.max(hi);
         }
-        if slot != NONE {
-            let s = &mut st.slots[slot as usize];
-            s.bounds = [a_lo, a_hi];
-            s.bounds_upto = st.prims.len() as u32;
-        }
-        let st = self.stroke.as_ref().expect("stroke");
+        let bounds = (slot != NONE).then_some((slot, [a_lo, a_hi]));
         if a_lo.is_nan() {
-            return false;
+            return (false, bounds);
         }
         if a_hi < TINY {
-            return true;
+            return (true, bounds);
         }
         if a_lo < TINY {
-            return false; // 0 and a > 0 may differ at any a
+            return (false, bounds); // 0 and a > 0 may differ at any a
         }
         let (before_rgb, before_sigma) = self.before_value(c);
         let value = |a: f64| {
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, st.colour, a);
             (rgb, sigma.to_bits())
         };
-        value(a_lo) == value(a_hi)
+        (value(a_lo) == value(a_hi), bounds)
     }
 
     /// `c`'s before-value (spec 8.8): the one its slot recorded when the
@@ -687,6 +783,159 @@ impl Painting {
         self.tree.set_value(c, rgb, sigma);
         self.counters.cells_written += 1;
     }
+}
+
+/// A vector's elements, written by the parallel paint pass through a raw
+/// pointer: each run touches only the cells of its own subtrees and their
+/// slots, so no element is accessed by two threads.
+#[derive(Clone, Copy)]
+struct Disjoint<T>(*mut T);
+
+// SAFETY: the pointer is only dereferenced at elements one run owns (see
+// `Painting::paint_pass_capsule_parallel`).
+unsafe impl<T: Send> Send for Disjoint<T> {}
+unsafe impl<T: Send> Sync for Disjoint<T> {}
+
+impl<T> Disjoint<T> {
+    /// # Safety
+    /// `i` is in bounds and no other thread accesses element `i` meanwhile.
+    #[inline]
+    unsafe fn at(self, i: usize) -> *mut T {
+        unsafe { self.0.add(i) }
+    }
+}
+
+/// What a run of the capsule paint pass reads, and the vectors it writes
+/// in place (see [`Painting::paint_pass_capsule`]).
+struct RunContext<'a> {
+    tree: &'a Tree,
+    st: &'a StrokeState,
+    slot_of: &'a [u32],
+    cap: &'a Capsule,
+    prim: &'a Prim,
+    hardness: f64,
+    sigma_gate: bool,
+    rgb: Disjoint<[u8; 3]>,
+    sigma: Disjoint<f32>,
+    slot_a: Disjoint<f64>,
+    slots: Disjoint<Slot>,
+}
+
+/// Walk a run of the front (subtrees in visiting order) as the serial paint
+/// pass does, with `stack` as the traversal's stack. A unit whose 8
+/// children are all leaves is done at once: the serial pass would pop
+/// them next, 7 to 0, with nothing between, and their projections are
+/// independent, so the processor overlaps their divisions and square roots.
+fn walk_run(ctx: &RunContext, run: &[(u32, [u32; 3])], mut stack: Vec<(u32, [u32; 3])>) -> Run {
+    let (tree, cap) = (ctx.tree, ctx.cap);
+    let lat = &tree.lat;
+    let mut out = Run::default();
+    stack.clear();
+    stack.extend(run.iter().rev().copied());
+    while let Some((c, o)) = stack.pop() {
+        let d = u32::from(tree.depth[c as usize]);
+        let x = lat.centre(o, d);
+        let cp = cap.project(x);
+        let h = lat.reach_radius[d as usize];
+        if !cap.within_reach(&cp, h) {
+            continue;
+        }
+        let fc = tree.first_child[c as usize];
+        if fc == NONE {
+            leaf(ctx, &mut out, c, d, x, &cp, h);
+            continue;
+        }
+        let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
+        if unit.iter().any(|&g| g != NONE) {
+            for k in 0..UNIT {
+                stack.push((fc + k, tree.child_origin(o, d, k)));
+            }
+            continue;
+        }
+        let d1 = d + 1;
+        let h1 = lat.reach_radius[d1 as usize];
+        let xs: [DVec3; UNIT as usize] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
+        let cps: [CapsulePoint; UNIT as usize] = std::array::from_fn(|k| cap.project(xs[k]));
+        for k in (0..UNIT as usize).rev() {
+            if cap.within_reach(&cps[k], h1) {
+                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], &cps[k], h1);
+            }
+        }
+    }
+    out.stack = stack;
+    out
+}
+
+/// A leaf within reach of the capsule: its coverage, its write (in place
+/// when its slot exists, else kept for the serial part) and whether it is a
+/// candidate for refinement.
+#[inline]
+fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, cp: &CapsulePoint, h: f64) {
+    out.visited += 1;
+    // SAFETY (every `Disjoint` access here): `c` is a live cell of this
+    // run's subtrees, which no other run holds, and its slot is its own;
+    // the vectors do not change length while the runs go on.
+    let before_sigma = unsafe { *ctx.sigma.at(c as usize) };
+    let needs = ctx.tree.lat.coarser_than_target(d, cp.r) && !(ctx.sigma_gate && !(before_sigma > 0.0));
+    let a = if ctx.prim.holds(x) { ctx.cap.coverage_at(cp, ctx.hardness) } else { 0.0 };
+    if a >= TINY {
+        out.hit += 1;
+        let colour = ctx.prim.colour;
+        match ctx.slot_of.get(c as usize).copied().unwrap_or(NONE) {
+            NONE => {
+                let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
+                let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
+                out.fresh.push(Fresh { c, a, before_rgb, before_sigma, rgb, sigma });
+            }
+            s => unsafe {
+                // Touched before in this stroke, so written and journalled.
+                debug_assert!(ctx.tree.journal.as_ref().is_none_or(|j| !j.needs_save(c)));
+                let sa = &mut *ctx.slot_a.at(s as usize);
+                if a > *sa {
+                    *sa = a;
+                    let slot = &mut *ctx.slots.at(s as usize);
+                    slot.colour = colour;
+                    let (rgb, sigma) = ctx.st.stored(slot.before_rgb, slot.before_sigma, colour, a);
+                    *ctx.rgb.at(c as usize) = rgb;
+                    *ctx.sigma.at(c as usize) = sigma;
+                    out.written += 1;
+                    let block = c / crate::dirty::BLOCK_CELLS;
+                    if out.blocks.last() != Some(&block) {
+                        out.blocks.push(block);
+                    }
+                }
+            },
+        }
+    }
+    if needs {
+        out.needs.push((c, x, h));
+    }
+}
+
+/// A leaf first touched by the stroke in a paint pass: its
+/// before-value and what it stores now, written serially in order.
+struct Fresh {
+    c: u32,
+    a: f64,
+    before_rgb: [u8; 3],
+    before_sigma: f32,
+    rgb: [u8; 3],
+    sigma: f32,
+}
+
+/// What one run of the parallel paint pass leaves for the serial part.
+#[derive(Default)]
+struct Run {
+    fresh: Vec<Fresh>,
+    /// Leaves coarser than their target depth: (cell, centre, reach radius).
+    needs: Vec<(u32, DVec3, f64)>,
+    /// Dirty blocks of the cells written in place, consecutive repeats dropped.
+    blocks: Vec<u32>,
+    visited: u64,
+    hit: u64,
+    written: u64,
+    /// The walk's stack, handed back for reuse.
+    stack: Vec<(u32, [u32; 3])>,
 }
 
 /// The bounding box of some centres.

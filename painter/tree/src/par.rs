@@ -1,0 +1,112 @@
+//! The painter core's parallel passes: work is decided in parallel, in
+//! chunks whose results are joined in index order, and written serially
+//! (or into disjoint cells), so the tree, its undo steps and its dirty
+//! marks are the same bytes for any number of threads.
+//!
+//! The passes run on rayon's current pool: the global one (all cores, or
+//! `RAYON_NUM_THREADS`) unless the caller installs its own
+//! (`rayon::ThreadPool::install`, as `octopaint bench tree --threads` and
+//! the thread-count tests do). On one thread, and for batches smaller than
+//! the grain, everything runs serially with no hand-off at all.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+/// Batches below this many items run serially: handing a batch to the pool
+/// costs a few microseconds, which a batch of a few hundred cells does not
+/// repay.
+pub const DEFAULT_GRAIN: usize = 2048;
+
+static GRAIN: AtomicUsize = AtomicUsize::new(DEFAULT_GRAIN);
+
+/// Set the grain (tests set 1 so that every batch is split, however small
+/// the trace; the results must not change).
+pub fn set_grain(items: usize) {
+    GRAIN.store(items.max(1), Ordering::Relaxed);
+}
+
+pub fn grain() -> usize {
+    GRAIN.load(Ordering::Relaxed)
+}
+
+/// Whether a batch of `len` items is split across the pool.
+#[inline]
+pub fn worth(len: usize) -> bool {
+    len >= grain() && rayon::current_num_threads() > 1
+}
+
+/// The chunk length that splits `len` items into 4 chunks a thread (a batch
+/// is split only when it is worth it, so chunks are never tiny in use).
+fn chunk_len(len: usize) -> usize {
+    len.div_ceil(rayon::current_num_threads() * 4).max(1)
+}
+
+/// `items.iter().map(f).collect()`, in parallel when worth it; the results
+/// are in the items' order.
+pub fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
+    if !worth(items.len()) {
+        return items.iter().map(f).collect();
+    }
+    items.par_iter().with_min_len(chunk_len(items.len())).map(f).collect()
+}
+
+/// The items for which `keep` holds, in their order.
+pub fn filter<T: Sync + Send + Copy>(items: &[T], keep: impl Fn(&T) -> bool + Sync + Send) -> Vec<T> {
+    if !worth(items.len()) {
+        return items.iter().copied().filter(|t| keep(t)).collect();
+    }
+    items.par_iter().with_min_len(chunk_len(items.len())).copied().filter(|t| keep(t)).collect()
+}
+
+/// `f` over consecutive chunks of `items` (each chunk's first index and its
+/// slice), the chunks' results in order: for passes that build a
+/// partial result per chunk and join them.
+pub fn chunks<T: Sync, U: Send>(items: &[T], f: impl Fn(usize, &[T]) -> U + Sync + Send) -> Vec<U> {
+    if !worth(items.len()) {
+        return vec![f(0, items)];
+    }
+    let n = chunk_len(items.len());
+    items.par_chunks(n).enumerate().map(|(i, c)| f(i * n, c)).collect()
+}
+
+/// `f` over consecutive sub-ranges of `lo..hi`, the results in order.
+pub fn ranges<U: Send>(lo: u32, hi: u32, f: impl Fn(std::ops::Range<u32>) -> U + Sync + Send) -> Vec<U> {
+    let len = hi.saturating_sub(lo) as usize;
+    if !worth(len) {
+        return vec![f(lo..hi.max(lo))];
+    }
+    let n = chunk_len(len) as u32;
+    let starts: Vec<u32> = (lo..hi).step_by(n as usize).collect();
+    starts.par_iter().map(|&s| f(s..(s + n).min(hi))).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn results_keep_their_order_on_any_pool() {
+        let items: Vec<u32> = (0..10_000).collect();
+        for threads in [1, 2, 7] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (m, f, c, r) = pool.install(|| {
+                (
+                    map(&items, |x| x * 3),
+                    filter(&items, |x| x % 7 == 3),
+                    chunks(&items, |at, c| (at, c.len())),
+                    ranges(5, 9_999, |r| r.collect::<Vec<u32>>()),
+                )
+            });
+            assert_eq!(r.concat(), (5..9_999).collect::<Vec<u32>>());
+            assert_eq!(m, items.iter().map(|x| x * 3).collect::<Vec<_>>());
+            assert_eq!(f, items.iter().copied().filter(|x| x % 7 == 3).collect::<Vec<_>>());
+            let mut next = 0;
+            for (at, len) in c {
+                assert_eq!(at, next);
+                next += len;
+            }
+            assert_eq!(next, items.len());
+        }
+    }
+}
