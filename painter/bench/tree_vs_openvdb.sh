@@ -11,9 +11,10 @@
 #            thread and at all cores (TBB's LeafManager for the merge);
 #   compmax  density only, merged with tools::compMax (context);
 #   voxels   density only, merged voxel by voxel (context).
+# Octopaint runs at 1 thread and at all cores (`--threads`); the table
+# checks that both painted the same tree and undo steps (tree_digest).
 # Everything runs in this one script, one after the other, and the tables
-# give every figure with its ratio. Octopaint has no parallel paths yet: its
-# all-cores figure is its one-thread run. Installs libopenvdb-dev and boost
+# give every figure with its ratio. Installs libopenvdb-dev and boost
 # headers with apt-get when they are missing (needs root), builds the peer
 # with g++ and the painter with cargo.
 set -euo pipefail
@@ -36,7 +37,8 @@ octopaint="$painter_dir/target/release/octopaint"
 
 cores=$(nproc)
 for r in "${radii[@]}"; do
-    "$octopaint" bench tree --radius "$r" --write-strokes "$build/strokes_$r.txt" > "$build/octopaint_$r.json"
+    "$octopaint" bench tree --radius "$r" --threads 1 --write-strokes "$build/strokes_$r.txt" > "$build/octopaint_1_$r.json"
+    "$octopaint" bench tree --radius "$r" --threads "$cores" > "$build/octopaint_all_$r.json"
     "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge equal --threads 1 > "$build/openvdb_equal_1_$r.json"
     "$build/openvdb_stamp" "$build/strokes_$r.txt" --merge equal --threads "$cores" > "$build/openvdb_equal_all_$r.json"
     # TBB capped at one thread: the density-only rows are single-threaded.

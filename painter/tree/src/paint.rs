@@ -666,12 +666,21 @@ impl Painting {
         let values = par::map(cells, |&(c, x, _)| {
             let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
             let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
-            let colour = if near.is_empty() { [0.0; 3] } else { near[k].colour };
-            (c, before_rgb, before_sigma, a, colour)
+            // A new slot's maximum is 0 and its colour black until `a`
+            // rises above it (as `apply` with `force` would do).
+            let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
+            let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
+            NewCell { c, before_rgb, before_sigma, a, colour, rgb, sigma }
         });
-        for (c, before_rgb, before_sigma, a, colour) in values {
-            self.record(c, before_rgb, before_sigma);
-            self.apply(c, a, colour, true);
+        self.counters.cells_written += values.len() as u64;
+        for v in values {
+            let slot = self.record(v.c, v.before_rgb, v.before_sigma) as usize;
+            if v.a > 0.0 {
+                let st = self.stroke.as_mut().expect("stroke");
+                st.slot_a[slot] = v.a;
+                st.slots[slot].colour = v.colour;
+            }
+            self.tree.set_value(v.c, v.rgb, v.sigma);
         }
     }
 
@@ -910,6 +919,17 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, cp: &CapsuleP
     if needs {
         out.needs.push((c, x, h));
     }
+}
+
+/// A new child's values, decided before any is written.
+struct NewCell {
+    c: u32,
+    before_rgb: [u8; 3],
+    before_sigma: f32,
+    a: f64,
+    colour: [f64; 3],
+    rgb: [u8; 3],
+    sigma: f32,
 }
 
 /// A leaf first touched by the stroke in a paint pass: its
