@@ -285,7 +285,20 @@ impl Pipeline {
     }
 }
 
+/// The stroke thread runs the painter core on its own rayon pool of
+/// `settings.core_threads` threads (the core's parallel passes, docs/
+/// architecture.md), so that they never wait on threads the render and
+/// staging threads have pushed off the cores.
 fn stroke_thread(shared: &Shared, settings: &Settings, hooks: &Hooks) {
+    let threads = settings.core_threads.max(1);
+    match rayon::ThreadPoolBuilder::new().num_threads(threads).thread_name(|i| format!("stroke-core-{i}")).build() {
+        Ok(pool) => pool.install(|| stroke_jobs(shared, settings, hooks)),
+        // No threads to spare: the core on the caller's pool, as elsewhere.
+        Err(_) => stroke_jobs(shared, settings, hooks),
+    }
+}
+
+fn stroke_jobs(shared: &Shared, settings: &Settings, hooks: &Hooks) {
     let block = settings.block;
     let publish = |painting: &mut Painting, seq: u64| {
         let p = painting.tree.take_publication();

@@ -65,6 +65,15 @@ pub struct Settings {
     pub target_hz: Option<f64>,
     /// Read every frame's image back (corruption analysis; costs time).
     pub capture: bool,
+    /// Threads the stroke thread's painter core may use (its parallel
+    /// passes give the same bytes for any count). Default: the cores less
+    /// two, kept for the render and staging threads, at least 1.
+    pub core_threads: usize,
+}
+
+/// The default of [`Settings::core_threads`].
+pub fn default_core_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get()).saturating_sub(2).max(1)
 }
 
 impl Settings {
@@ -81,6 +90,7 @@ impl Settings {
             backend: Backend::Auto,
             target_hz: None,
             capture: false,
+            core_threads: default_core_threads(),
         }
     }
 }
