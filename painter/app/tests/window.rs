@@ -462,13 +462,20 @@ fn mirror_painting_paints_both_sides_and_records_its_planes() {
     xdotool(&display, &["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
     close_with_ctrl_q(&display, &mut window);
+    // What the window said, for any failure below (CI once found no
+    // mirror event here and could not say why).
+    let mut log = String::new();
+    std::io::Read::read_to_string(window.stderr.as_mut().unwrap(), &mut log).unwrap();
+    assert!(window.wait().unwrap().success(), "the window failed:\n{log}");
     // The session holds the planes as a mirror event before the stroke.
     let trace = s.join("m.jsonl");
     let res = octopaint().arg("record").arg(&doc).arg("--out").arg(&trace).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
     let text = std::fs::read_to_string(&trace).unwrap();
-    let mirror = text.lines().position(|l| l.contains("\"ev\":\"mirror\"")).expect("a mirror event");
-    let begin = text.lines().position(|l| l.contains("\"ev\":\"stroke_begin\"")).expect("a stroke");
+    let frames = std::fs::read_to_string(&frame_log).unwrap_or_default();
+    let context = || format!("recorded:\n{text}\nwindow log:\n{log}\nframes drawn: {}", frames.lines().count());
+    let mirror = text.lines().position(|l| l.contains("\"ev\":\"mirror\"")).unwrap_or_else(|| panic!("no mirror event; {}", context()));
+    let begin = text.lines().position(|l| l.contains("\"ev\":\"stroke_begin\"")).unwrap_or_else(|| panic!("no stroke; {}", context()));
     assert!(mirror < begin && text.contains("\"axes\":[true,false,false]") && text.contains("\"centre\":[0.5,0.5,0.5]"), "{text}");
     // The painting: paint on both sides of x = 0.5, about as much on each.
     let dump = s.join("m.npz");

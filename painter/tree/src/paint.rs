@@ -514,11 +514,11 @@ impl Painting {
         }
         // 2. The runs.
         let st = self.stroke.as_mut().expect("stroke");
-        let slot_a = Disjoint(st.slot_a.as_mut_ptr());
-        let slots = Disjoint(st.slots.as_mut_ptr());
+        let slot_a = Disjoint::new(&mut st.slot_a);
+        let slots = Disjoint::new(&mut st.slots);
         let st: &StrokeState = st;
         let tree = &mut self.tree;
-        let (rgb, sigma) = (Disjoint(tree.rgb.as_mut_ptr()), Disjoint(tree.sigma.as_mut_ptr()));
+        let (rgb, sigma) = (Disjoint::new(&mut tree.rgb), Disjoint::new(&mut tree.sigma));
         let ctx = RunContext {
             tree,
             st,
@@ -798,19 +798,30 @@ impl Painting {
 /// pointer: each run touches only the cells of its own subtrees and their
 /// slots, so no element is accessed by two threads.
 #[derive(Clone, Copy)]
-struct Disjoint<T>(*mut T);
+struct Disjoint<T> {
+    ptr: *mut T,
+    len: usize,
+}
 
 // SAFETY: the pointer is only dereferenced at elements one run owns (see
-// `Painting::paint_pass_capsule_parallel`).
+// `Painting::paint_pass_capsule`).
 unsafe impl<T: Send> Send for Disjoint<T> {}
 unsafe impl<T: Send> Sync for Disjoint<T> {}
 
 impl<T> Disjoint<T> {
+    fn new(v: &mut [T]) -> Self {
+        Disjoint { ptr: v.as_mut_ptr(), len: v.len() }
+    }
+
+    /// Element `i` (checked against the length: an index past it panics).
+    ///
     /// # Safety
-    /// `i` is in bounds and no other thread accesses element `i` meanwhile.
+    /// No other thread accesses element `i` while the pointer is used, and
+    /// the vector is not resized meanwhile.
     #[inline]
     unsafe fn at(self, i: usize) -> *mut T {
-        unsafe { self.0.add(i) }
+        assert!(i < self.len, "cell or slot {i} out of range");
+        unsafe { self.ptr.add(i) }
     }
 }
 
