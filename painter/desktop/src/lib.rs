@@ -71,7 +71,9 @@ impl Resolution {
     /// learns from the last frame's interval when that frame was moving.
     /// `full`: cast this frame at full size anyway (a screenshot); its
     /// interval then teaches nothing.
-    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, look: Look, tree_changed: bool, full: bool) -> ([u32; 2], bool) {
+    /// `mirror`: the mirror planes the brush has now (bit a: axis a), for
+    /// the frame log only.
+    fn next(&mut self, window: [u32; 2], camera: &OrbitCamera, look: Look, tree_changed: bool, full: bool, mirror: u8) -> ([u32; 2], bool) {
         let now = Instant::now();
         let view = (*camera, window, look);
         let still = !tree_changed && self.last_view == Some(view);
@@ -87,7 +89,7 @@ impl Resolution {
         self.last_frame = Some((now, !still && !full));
         if let Some((log, t0)) = self.log.as_mut() {
             let ms = interval.map_or(0.0, |(ms, _)| ms);
-            let _ = writeln!(log, "{:.1},{ms:.2},{scale:.4},{},{},{}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still));
+            let _ = writeln!(log, "{:.1},{ms:.2},{scale:.4},{},{},{},{mirror}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still));
             // Line by line: a script (or a test) watching the log sees each
             // frame as it is drawn. One small write a frame.
             let _ = log.flush();
@@ -599,7 +601,7 @@ impl App {
                     Some(p) => {
                         let f = std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
                         let mut w = std::io::BufWriter::new(f);
-                        let _ = writeln!(w, "t_ms,interval_ms,scale,width,height,still");
+                        let _ = writeln!(w, "t_ms,interval_ms,scale,width,height,still,mirror");
                         Some((w, Instant::now()))
                     }
                     None => None,
@@ -644,7 +646,8 @@ impl App {
         let size = [r.config.width, r.config.height];
         let light = r.brush.light.light(r.camera.rotation());
         // A screenshot is always of the full resolution, moving or not.
-        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), tree_changed, r.want_screenshot);
+        let mirror = r.brush.mirror_axes.iter().enumerate().fold(0u8, |m, (a, &on)| m | (u8::from(on) << a));
+        let (cast, _) = r.resolution.next(size, &r.camera, (r.brush.grid, light), tree_changed, r.want_screenshot, mirror);
         let camera = r.camera.camera(cast, BACKGROUND);
         let mut params = RayParams::new(&tree.lat, &camera).with_light(light.as_ref());
         if r.brush.grid {

@@ -219,30 +219,44 @@ impl Tree {
     pub(crate) fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
         let n_used = self.n_used();
-        // Built in parallel chunks, joined in order: the same step as one
-        // pass over the saved cells and then the new ones.
         let tree = &*self;
-        let mut parts = par::chunks(&j.cells, |at, cells| {
-            let mut part = UndoStep::default();
+        let saved = |part: &mut UndoStep, at: usize, cells: &[u32]| {
             for (&c, before) in cells.iter().zip(&j.before[at..]) {
                 let now = tree.record(c);
                 if !now.same_bits(before) {
                     part.push(c, *before, now);
                 }
             }
-            part
-        });
-        parts.extend(par::ranges(j.n_before, n_used, |cells| {
-            let mut part = UndoStep::default();
+        };
+        let born = |part: &mut UndoStep, cells: std::ops::Range<u32>| {
             for c in cells {
                 let now = tree.record(c);
                 if !now.same_bits(&CellRecord::FREE) {
                     part.push(c, CellRecord::FREE, now);
                 }
             }
-            part
-        }));
-        let mut step = UndoStep::joined(parts);
+        };
+        let mut step = if par::worth(j.cells.len() + n_used.saturating_sub(j.n_before) as usize) {
+            // Built in parallel chunks, joined in order: the same step as
+            // one pass over the saved cells and then the new ones.
+            let mut parts = par::chunks(&j.cells, |at, cells| {
+                let mut part = UndoStep::default();
+                saved(&mut part, at, cells);
+                part
+            });
+            parts.extend(par::ranges(j.n_before, n_used, |cells| {
+                let mut part = UndoStep::default();
+                born(&mut part, cells);
+                part
+            }));
+            UndoStep::joined(parts)
+        } else {
+            let mut step = UndoStep::default();
+            saved(&mut step, 0, &j.cells);
+            born(&mut step, j.n_before..n_used.max(j.n_before));
+            step.shrink();
+            step
+        };
         (step.n_before, step.n_after) = (j.n_before, n_used);
         step
     }
