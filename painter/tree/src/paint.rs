@@ -471,10 +471,11 @@ impl Painting {
             par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell)).min(1e18) as usize)
         };
         let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
-        // 1. The front, in visiting order, and its runs.
-        let mut front: Vec<(u32, [u32; 3])> = stack.drain(..).rev().collect();
+        // 1. The front, in visiting order, and its runs (parallel only).
+        let mut front: Vec<(u32, [u32; 3])> = Vec::new();
         let mut bounds = vec![0];
         if parallel {
+            front.extend(stack.drain(..).rev());
             // Internal cells larger than a quarter of the capsule's box are
             // opened, so that each one left holds a small share of the work
             // (it lies under internal cells; a leaf is one visit). Runs take
@@ -508,9 +509,9 @@ impl Painting {
                     acc = 0.0;
                 }
             }
-        }
-        if *bounds.last().expect("one bound") != front.len() {
-            bounds.push(front.len());
+            if *bounds.last().expect("one bound") != front.len() {
+                bounds.push(front.len());
+            }
         }
         // 2. The runs.
         let st = self.stroke.as_mut().expect("stroke");
@@ -533,13 +534,13 @@ impl Painting {
             slots,
         };
         let runs: Vec<Run> = if parallel {
-            bounds.par_windows(2).map(|w| walk_run(&ctx, &front[w[0]..w[1]], Vec::new())).collect()
+            // Each run's stack pops its subtrees in visiting order.
+            bounds.par_windows(2).map(|w| walk_run(&ctx, front[w[0]..w[1]].iter().rev().copied().collect())).collect()
         } else {
-            // The walk's stack is the traversal's, kept between passes.
-            vec![walk_run(&ctx, &front, std::mem::take(&mut stack))]
+            // One run: the traversal's stack itself, kept between passes.
+            vec![walk_run(&ctx, std::mem::take(&mut stack))]
         };
         // 3. In order, serially.
-        let colour = prim.colour;
         let settles = st.settles;
         let mut maybe = Vec::new();
         for mut run in runs {
@@ -547,12 +548,8 @@ impl Painting {
                 self.tree.changes.mark_block(b * crate::dirty::BLOCK_CELLS);
             }
             self.counters.cells_written += run.written + run.fresh.len() as u64;
-            for f in run.fresh {
-                let slot = self.record(f.c, f.before_rgb, f.before_sigma);
-                let st = self.stroke.as_mut().expect("stroke");
-                st.slot_a[slot as usize] = f.a;
-                st.slots[slot as usize].colour = colour;
-                self.tree.set_value(f.c, f.rgb, f.sigma);
+            for f in &run.fresh {
+                self.first_write(f);
             }
             self.counters.leaves_visited += run.visited;
             self.counters.leaves_hit += run.hit;
@@ -670,18 +667,25 @@ impl Painting {
             // rises above it (as `apply` with `force` would do).
             let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
-            NewCell { c, before_rgb, before_sigma, a, colour, rgb, sigma }
+            FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }
         });
         self.counters.cells_written += values.len() as u64;
-        for v in values {
-            let slot = self.record(v.c, v.before_rgb, v.before_sigma) as usize;
-            if v.a > 0.0 {
-                let st = self.stroke.as_mut().expect("stroke");
-                st.slot_a[slot] = v.a;
-                st.slots[slot].colour = v.colour;
-            }
-            self.tree.set_value(v.c, v.rgb, v.sigma);
+        for v in &values {
+            self.first_write(v);
         }
+    }
+
+    /// A cell's first write in the stroke, decided already: its slot with
+    /// its before-value, its maximum and colour when `a` rose above 0 (as
+    /// [`Painting::apply`] would set them), and the stored value.
+    fn first_write(&mut self, w: &FirstWrite) {
+        let slot = self.record(w.c, w.before_rgb, w.before_sigma) as usize;
+        if w.a > 0.0 {
+            let st = self.stroke.as_mut().expect("stroke");
+            st.slot_a[slot] = w.a;
+            st.slots[slot].colour = w.colour;
+        }
+        self.tree.set_value(w.c, w.rgb, w.sigma);
     }
 
     /// A leaf whose refinement could not change a value (spec 8.7): over
@@ -841,17 +845,15 @@ struct RunContext<'a> {
     slots: Disjoint<Slot>,
 }
 
-/// Walk a run of the front (subtrees in visiting order) as the serial paint
-/// pass does, with `stack` as the traversal's stack. A unit whose 8
+/// Walk a run of the paint pass as the serial pass does: `stack` holds its
+/// subtrees, the next to visit last. A unit whose 8
 /// children are all leaves is done at once: the serial pass would pop
 /// them next, 7 to 0, with nothing between, and their projections are
 /// independent, so the processor overlaps their divisions and square roots.
-fn walk_run(ctx: &RunContext, run: &[(u32, [u32; 3])], mut stack: Vec<(u32, [u32; 3])>) -> Run {
+fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
     let (tree, cap) = (ctx.tree, ctx.cap);
     let lat = &tree.lat;
     let mut out = Run::default();
-    stack.clear();
-    stack.extend(run.iter().rev().copied());
     while let Some((c, o)) = stack.pop() {
         let d = u32::from(tree.depth[c as usize]);
         let x = lat.centre(o, d);
@@ -905,7 +907,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, cp: &CapsuleP
             NONE => {
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
-                out.fresh.push(Fresh { c, a, before_rgb, before_sigma, rgb, sigma });
+                out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma });
             }
             s => unsafe {
                 // Touched before in this stroke, so written and journalled.
@@ -932,8 +934,10 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, cp: &CapsuleP
     }
 }
 
-/// A new child's values, decided before any is written.
-struct NewCell {
+/// A cell's first write in the stroke (a new child, or a leaf a paint-pass
+/// run touched for the first time), decided before any is written: its
+/// before-value, its stroke maximum and colour, and what it stores now.
+struct FirstWrite {
     c: u32,
     before_rgb: [u8; 3],
     before_sigma: f32,
@@ -943,21 +947,10 @@ struct NewCell {
     sigma: f32,
 }
 
-/// A leaf first touched by the stroke in a paint pass: its
-/// before-value and what it stores now, written serially in order.
-struct Fresh {
-    c: u32,
-    a: f64,
-    before_rgb: [u8; 3],
-    before_sigma: f32,
-    rgb: [u8; 3],
-    sigma: f32,
-}
-
 /// What one run of the parallel paint pass leaves for the serial part.
 #[derive(Default)]
 struct Run {
-    fresh: Vec<Fresh>,
+    fresh: Vec<FirstWrite>,
     /// Leaves coarser than their target depth: (cell, centre, reach radius).
     needs: Vec<(u32, DVec3, f64)>,
     /// Dirty blocks of the cells written in place, consecutive repeats dropped.

@@ -5,10 +5,11 @@
 //! record, in order) and the warnings must be equal. (threads_grain.rs
 //! checks the same at the production grain, in its own process.)
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use octopaint_tree::layers::Document;
-use octopaint_tree::paint::Painting;
 use octopaint_tree::par;
 use octopaint_tree::replay::replay_document;
 use octopaint_tree::read_trace;
@@ -22,30 +23,8 @@ struct Outcome {
     warnings: Vec<String>,
 }
 
-fn history_bytes(p: &Painting) -> Vec<u8> {
-    let mut out = Vec::new();
-    for (tag, steps) in [(0u8, &p.history.done), (1, &p.history.undone)] {
-        for step in steps {
-            out.push(tag);
-            out.extend(step.n_before.to_le_bytes());
-            out.extend(step.n_after.to_le_bytes());
-            for (c, b, a) in step.entries() {
-                out.extend(c.to_le_bytes());
-                for r in [b, a] {
-                    out.extend(r.parent.to_le_bytes());
-                    out.extend(r.first_child.to_le_bytes());
-                    out.push(r.depth);
-                    out.extend(r.rgb);
-                    out.extend(r.sigma.to_bits().to_le_bytes());
-                }
-            }
-        }
-    }
-    out
-}
-
 fn document_history(doc: &Document) -> Vec<Vec<u8>> {
-    doc.layers().map(|l| history_bytes(&l.painting)).collect()
+    doc.layers().map(|l| common::history_bytes(&l.painting)).collect()
 }
 
 fn replay_on(threads: usize, trace: &Path) -> Outcome {

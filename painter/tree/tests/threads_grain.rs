@@ -4,28 +4,11 @@
 //! same dump and undo steps on 1, 2 and 7 threads. Its own test binary, so
 //! that no other test's grain applies.
 
+mod common;
+
 use octopaint_tree::paint::Painting;
 use octopaint_tree::par;
 use octopaint_tree::trace::{Brush, Canvas, Mode, Sample, Shape};
-
-fn history_bytes(p: &Painting) -> Vec<u8> {
-    let mut out = Vec::new();
-    for step in p.history.done.iter().chain(&p.history.undone) {
-        out.extend(step.n_before.to_le_bytes());
-        out.extend(step.n_after.to_le_bytes());
-        for (c, b, a) in step.entries() {
-            out.extend(c.to_le_bytes());
-            for r in [b, a] {
-                out.extend(r.parent.to_le_bytes());
-                out.extend(r.first_child.to_le_bytes());
-                out.push(r.depth);
-                out.extend(r.rgb);
-                out.extend(r.sigma.to_bits().to_le_bytes());
-            }
-        }
-    }
-    out
-}
 
 /// Strokes like `octopaint bench tree`'s, smaller: batches of thousands of
 /// cells, split at the production grain.
@@ -47,7 +30,7 @@ fn paint_strokes(threads: usize) -> (Vec<u8>, Vec<u8>, u64) {
         }
         assert!(p.undo());
     });
-    (octopaint_tree::dump::dump_bytes(&p.tree), history_bytes(&p), p.counters.cells_created)
+    (octopaint_tree::dump::dump_bytes(&p.tree), common::history_bytes(&p), p.counters.cells_created)
 }
 
 #[test]
