@@ -54,6 +54,11 @@ pub struct Args {
     /// result is the same tree for any count; `tree_digest` shows it.
     #[arg(long)]
     threads: Option<usize>,
+    /// The smallest batch the parallel passes split across threads
+    /// (default: the core's, `par::DEFAULT_GRAIN`): smaller hands off more
+    /// often. Any value gives the same tree.
+    #[arg(long)]
+    grain: Option<usize>,
 }
 
 /// Max depth of the benchmark canvas: one root of 2^11 finest cells a side.
@@ -170,6 +175,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.threads.is_none_or(|n| (1..=1024).contains(&n)), "--threads must be in [1, 1024]");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build().context("cannot start the thread pool")?;
     let threads = pool.current_num_threads();
+    anyhow::ensure!(a.grain.is_none_or(|g| g >= 1), "--grain must be at least 1");
+    octopaint_tree::par::set_grain(a.grain.unwrap_or(octopaint_tree::par::DEFAULT_GRAIN));
     let t0 = Instant::now();
     pool.install(|| {
         for (b, pts) in set.brushes.iter().zip(&set.samples) {
@@ -194,7 +201,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"hardness\": {}, \"settling\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, ",
-            "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"tree_digest\": \"{:016x}\"}}"
+            "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
         a.radius,
         a.strokes,
@@ -223,6 +230,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         history / painting.history.changed_cells().max(1) as f64,
         octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
         threads,
+        octopaint_tree::par::grain(),
         digest(&painting),
     );
     println!("{json}");

@@ -60,6 +60,12 @@ impl Tree {
     fn refine_balanced(&mut self, l: u32, new_units: &mut Vec<(u32, u32)>) -> Result<(), Refusal> {
         let d = self.depth[l as usize];
         for f in 0..6 {
+            // Across an inward face lies the sibling, as deep as `l`: only
+            // the outward faces can hold a coarser leaf.
+            let (a, s) = FACES[f];
+            if d > 0 && (s > 0) == ((l >> a) & 1 == 0) {
+                continue;
+            }
             let nb = self.neighbour(l, f);
             if nb != NONE && self.depth[nb as usize] < d && self.first_child[nb as usize] == NONE {
                 self.refine_balanced(nb, new_units)?;

@@ -12,7 +12,7 @@
 use crate::par;
 use crate::pool::{CellRecord, NONE, Tree};
 
-#[derive(Clone)]
+#[derive(Clone, Default)]
 pub(crate) struct Journal {
     n_before: u32,
     saved: Vec<u64>,
@@ -31,6 +31,17 @@ impl Journal {
         }
         let w = (c / 64) as usize;
         w >= self.saved.len() || self.saved[w] >> (c % 64) & 1 == 0
+    }
+
+    /// The journal with nothing saved, its vectors kept: the saved bits are
+    /// cleared word by word from the saved cells, not the whole bitset.
+    fn emptied(mut self) -> Journal {
+        for &c in &self.cells {
+            self.saved[(c / 64) as usize] = 0;
+        }
+        self.cells.clear();
+        self.before.clear();
+        self
     }
 
     pub fn save(&mut self, c: u32, rec: CellRecord) {
@@ -209,7 +220,12 @@ impl History {
 impl Tree {
     /// Start saving records for an undo step.
     pub(crate) fn begin_journal(&mut self) {
-        self.journal = Some(Journal { n_before: self.n_used(), saved: Vec::new(), cells: Vec::new(), before: Vec::new() });
+        // The last stroke's vectors, emptied: a stroke saves about as many
+        // cells as the one before, and fresh vectors cost page faults and
+        // copies as they grow.
+        let mut j = std::mem::take(&mut self.spare_journal);
+        j.n_before = self.n_used();
+        self.journal = Some(j);
     }
 
     /// Stop saving and return the stroke's undo step: the cells whose
@@ -258,6 +274,7 @@ impl Tree {
             step
         };
         (step.n_before, step.n_after) = (j.n_before, n_used);
+        self.spare_journal = j.emptied();
         step
     }
 

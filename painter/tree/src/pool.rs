@@ -99,6 +99,8 @@ pub struct Tree {
     pub(crate) free_units: BTreeSet<u32>,
     pub(crate) changes: Changes,
     pub(crate) journal: Option<Journal>,
+    /// The last journal's vectors, empty, for the next stroke's.
+    pub(crate) spare_journal: Journal,
 }
 
 impl Tree {
@@ -115,6 +117,7 @@ impl Tree {
             free_units: BTreeSet::new(),
             changes: Changes::new(canvas.capacity),
             journal: None,
+            spare_journal: Journal::default(),
             lat,
         };
         for r in 0..t.lat.n_roots as usize {
