@@ -160,11 +160,28 @@ def coverage_profile(xp, rho, hardness):
     return xp.where(rho >= 1.0, 0.0, xp.where(rho <= hardness, 1.0, smooth))
 
 
-def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness):
-    """coverage * flow [n, k] of k tapered capsules at points x [n, 3]."""
+def capsule_t(xp, x, p0, p1):
+    """(t [n, k], w1 [n, k]): t = (x - p0) . (p1 - p0), summed x, y, z in
+    order (before capsule_geometry divides and clamps it), and
+    w1 = |x - p0|_1, for the tests of an open start (spec 8.3, 8.7)."""
+    d = p1 - p0
+    w = x[:, None, :] - p0[None, :, :]
+    t = w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
+    w1 = xp.abs(w[..., 0]) + xp.abs(w[..., 1]) + xp.abs(w[..., 2])
+    return t, w1
+
+
+def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness, open_start=None):
+    """coverage * flow [n, k] of k tapered capsules at points x [n, 3].
+    open_start [k] (bool, optional): a capsule with an open start covers
+    nothing where t < 0, behind its start plane (spec 8.3)."""
     dist, u, r = capsule_geometry(xp, x, p0, p1, r0, r1)
     flow = f0[None, :] + (f1 - f0)[None, :] * u
-    return coverage_profile(xp, dist / r, hardness) * flow
+    cov = coverage_profile(xp, dist / r, hardness) * flow
+    if open_start is not None:
+        t, _ = capsule_t(xp, x, p0, p1)
+        cov = xp.where(open_start[None, :] & (t < 0.0), 0.0, cov)
+    return cov
 
 
 def capsule_coverage_bounds(xp, x, h, p0, p1, r0, r1, f0, f1, hardness):

@@ -345,7 +345,9 @@ class Painting:
             for n0 in range(0, n, step):
                 x = x_all[n0 : n0 + step]
                 if b.shape == "sphere":
-                    cov = B.capsule_coverage(np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness)
+                    cov = B.capsule_coverage(
+                        np, x, arr["p0"], arr["p1"], arr["r0"], arr["r1"], arr["f0"], arr["f1"], b.hardness, arr["open"]
+                    )
                 else:
                     cov = B.stamp_coverage(
                         np,
@@ -485,8 +487,10 @@ class Painting:
         x0 = (o[:, 0] + half) * unit
         x1 = (o[:, 1] + half) * unit
         x2 = (o[:, 2] + half) * unit
+        w0, w1, w2 = x0 - p0[0], x1 - p0[1], x2 - p0[2]
+        t = w0 * d0 + w1 * d1 + w2 * d2
         if dd >= B.TINY:
-            u = ((x0 - p0[0]) * d0 + (x1 - p0[1]) * d1 + (x2 - p0[2]) * d2) / dd
+            u = t / dd
             np.clip(u, 0.0, 1.0, out=u)
         else:
             u = np.zeros(len(cells))
@@ -495,7 +499,15 @@ class Painting:
         e2 = x2 - (p0[2] + u * d2)
         r = r0 + (r1 - r0) * u
         slack = B.capsule_slack(p0, p1, r0, r1)
-        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= tree.reach_radius[depth] * slack
+        h = tree.reach_radius[depth]
+        reach = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) - r <= h * slack
+        if a["open"][0]:
+            # An open start (spec 8.3): a cell whose ball lies behind the
+            # start plane, with a margin far above the rounding of t, holds
+            # no point this capsule covers (spec 8.7).
+            dn = np.sqrt(dd)
+            wabs = np.abs(w0) + np.abs(w1) + np.abs(w2)
+            reach &= ~(t < -(h * dn + 1e-12 * (wabs + h) * dn))
         sel = want_needs & reach
         needs = np.zeros(len(cells), bool)
         if sel.any():

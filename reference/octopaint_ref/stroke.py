@@ -13,14 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .brush import RADIUS_PRESSURE_FLOOR, mirrored, nlerp, quat_to_matrix, stamp_extent
+from .brush import RADIUS_PRESSURE_FLOOR, TINY, mirrored, nlerp, quat_to_matrix, stamp_extent
 from .trace import Brush, Sample
 
 
 @dataclass
 class Prims:
     """k primitives of one shape. For capsules (shape "sphere"): p0, p1
-    [k, 3], r0, r1, f0, f1 [k]. For stamps: c [k, 3], r, f [k], rot [k, 3, 3].
+    [k, 3], r0, r1, f0, f1 [k], open [k] (bool: an open start, spec 8.3). For stamps: c [k, 3], r, f [k], rot [k, 3, 3].
     colour [k, 3] is the brush colour each primitive paints with; lo, hi
     [k, 3] bound the primitive (coverage is zero outside)."""
 
@@ -104,6 +104,7 @@ class StrokePath:
         self.brush = brush
         self.mask = mask
         self.prev = None  # (p, r, f, q) of the previous sample
+        self.last = None  # (r0, r1, f0, f1) of the last capsule (sphere brushes)
         self.carry = 0.0  # arc length from the previous sample to the next stamp
         self.extent = stamp_extent(brush.shape, brush.aspect)
         # Rows of each stamp's rotation negated on the mirrored axes: local
@@ -122,6 +123,13 @@ class StrokePath:
         self.prev = (p, r, f, q)
         if b.shape == "sphere":
             p0, r0, f0 = (p, r, f) if prev is None else prev[:3]
+            # The start is open (spec 8.3) when the capsule is a segment and
+            # the last one neither grows nor gains flow toward its end.
+            last = self.last
+            d = p - p0
+            dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+            is_open = last is not None and dd >= TINY and last[0] >= last[1] and last[2] >= last[3]
+            self.last = (r0, r, f0, f)
             lo = np.minimum(p0, p) - max(r0, r)
             hi = np.maximum(p0, p) + max(r0, r)
             arrays = {
@@ -131,6 +139,7 @@ class StrokePath:
                 "r1": np.array([r]),
                 "f0": np.array([f0]),
                 "f1": np.array([f]),
+                "open": np.array([is_open]),
             }
             return Prims("sphere", arrays, colour[None, :], lo[None, :], hi[None, :])
         stamps = []  # (c, r, f, q)

@@ -251,3 +251,43 @@ def test_capsule_coverage_bounds_hold_over_the_ball():
     one = np.ones(1)
     lo, hi = B.capsule_coverage_bounds(np, np.zeros((1, 3)), np.array([0.5]), np.zeros((1, 3)), np.zeros((1, 3)), 4 * one, 4 * one, one, one, 0.9)
     assert lo[0, 0] == hi[0, 0] == 1.0
+
+
+def test_open_starts_follow_capsules_that_do_not_grow():
+    """A sphere stroke's capsules after the first have open starts (spec 8.3)
+    while the radius and flow do not grow along the previous capsule; a
+    repeated sample (no segment) keeps its start."""
+    from octopaint_ref.stroke import StrokePath
+    from octopaint_ref.trace import Brush, Sample
+
+    path = StrokePath(Brush("sphere", "paint", 0.1, (1, 0, 0), 1.0, 0.5))
+    opens = []
+    for p, pressure in [((0.5, 0.5, 0.5), 1.0), ((0.52, 0.5, 0.5), 1.0), ((0.54, 0.5, 0.5), 0.8),
+                        ((0.56, 0.5, 0.5), 0.9), ((0.58, 0.5, 0.5), 0.9), ((0.58, 0.5, 0.5), 0.9)]:
+        opens.append(bool(path.segment(Sample(p, pressure), np.ones(3)).arrays["open"][0]))
+    # sphere; after the sphere; after a constant one; after a shrinking one;
+    # after a growing one; no segment.
+    assert opens == [False, True, True, True, False, False]
+
+
+def test_an_open_start_is_covered_by_the_capsule_before():
+    """Behind an open start the capsule covers nothing, and the capsule
+    before it covers those points at least as much as the closed capsule
+    would: the stroke maximum is the same but for the last bits."""
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        pa, pb, pc = rng.uniform(-4, 4, (3, 3))
+        ra, rb, rc = 1.0 + rng.uniform(), 0.5 + 0.5 * rng.uniform(), 0.5 + rng.uniform()
+        fa, fb, fc = 0.5 + 0.5 * rng.uniform(), 0.5 * rng.uniform(), rng.uniform()
+        p0, p1 = np.array([pa, pb]), np.array([pb, pc])
+        r0, r1, f0, f1 = np.array([ra, rb]), np.array([rb, rc]), np.array([fa, fb]), np.array([fb, fc])
+        x = pb + rng.uniform(-3, 3, (400, 3))
+        closed = B.capsule_coverage(np, x, p0, p1, r0, r1, f0, f1, 0.3)
+        opened = B.capsule_coverage(np, x, p0, p1, r0, r1, f0, f1, 0.3, np.array([False, True]))
+        t, _ = B.capsule_t(np, x, p0, p1)
+        behind = t[:, 1] < 0
+        assert behind.any() and (~behind).any()
+        assert np.all(opened[behind, 1] == 0.0)
+        assert np.array_equal(opened[~behind], closed[~behind])
+        assert np.all(closed[behind, 0] >= closed[behind, 1] - 1e-12)
+        np.testing.assert_allclose(opened.max(axis=1), closed.max(axis=1), rtol=0, atol=1e-12)

@@ -95,27 +95,48 @@ pub struct Capsule {
     pub r1: f64,
     pub f0: f64,
     pub f1: f64,
-    /// `p1 − p0`, its squared length, and the reach slack K (spec 8.7).
+    /// The start is open (spec 8.3): the previous capsule of the same
+    /// path covers every point behind the start plane at least as much,
+    /// so this one covers nothing there.
+    pub open: bool,
+    /// `p1 − p0`, its squared length and length, and the reach slack K
+    /// (spec 8.7).
     d: DVec3,
     dd: f64,
+    dn: f64,
     slack: f64,
 }
 
 /// The projection of a point on a capsule: distance to the axis point and
-/// the parameter `u` there.
+/// the parameter `u` there; `t = (x − p0)·(p1 − p0)` before the division
+/// and clamping, and `w1 = |x − p0|₁` (the open start's tests, spec 8.3,
+/// 8.7).
 #[derive(Clone, Copy, Debug)]
 pub struct CapsulePoint {
     pub dist: f64,
     pub u: f64,
     pub r: f64,
+    pub t: f64,
+    pub w1: f64,
 }
 
 impl Capsule {
     pub fn new(p0: DVec3, p1: DVec3, r0: f64, r1: f64, f0: f64, f1: f64) -> Self {
         let d = p1 - p0;
         let dd = d.dot(d);
-        let slack = if dd < TINY { 1.0 } else { 1.0 + (r1 - r0).abs() / dd.sqrt() };
-        Capsule { p0, p1, r0, r1, f0, f1, d, dd, slack }
+        let dn = dd.sqrt();
+        let slack = if dd < TINY { 1.0 } else { 1.0 + (r1 - r0).abs() / dn };
+        Capsule { p0, p1, r0, r1, f0, f1, open: false, d, dd, dn, slack }
+    }
+
+    /// The capsule that follows `prev` on a path, from its end (spec 8.3):
+    /// its start is open when it is a segment (`|d|² >= TINY`) and `prev`
+    /// neither grows nor gains flow toward its end, so that `prev`'s own
+    /// coverage is at least this one's behind the start plane.
+    pub fn after(prev: &Capsule, p1: DVec3, r1: f64, f1: f64) -> Self {
+        let mut c = Capsule::new(prev.p1, p1, prev.r1, r1, prev.f1, f1);
+        c.open = c.dd >= TINY && prev.r0 >= prev.r1 && prev.f0 >= prev.f1;
+        c
     }
 
     /// `capsule_geometry` of the reference for one point (exact f64; every
@@ -123,18 +144,29 @@ impl Capsule {
     /// x, y, z in order).
     #[inline]
     pub fn project(&self, x: DVec3) -> CapsulePoint {
-        let u = if self.dd >= TINY { ((x - self.p0).dot(self.d) / self.dd).clamp(0.0, 1.0) } else { 0.0 };
+        let w = x - self.p0;
+        let t = w.dot(self.d);
+        let u = if self.dd >= TINY { (t / self.dd).clamp(0.0, 1.0) } else { 0.0 };
         let e = x - (self.p0 + self.d * u);
         let s = e.dot(e);
         let dist = if s > 0.0 { s.sqrt() } else { 0.0 };
-        CapsulePoint { dist, u, r: self.r0 + (self.r1 - self.r0) * u }
+        let w1 = w.x.abs() + w.y.abs() + w.z.abs();
+        CapsulePoint { dist, u, r: self.r0 + (self.r1 - self.r0) * u, t, w1 }
+    }
+
+    /// The ball of radius `h` about a point that projects to `cp` lies
+    /// behind an open start, with a margin far above the rounding of `t`
+    /// (spec 8.7): every point of it has `t < 0`.
+    #[inline]
+    fn ball_behind(&self, cp: &CapsulePoint, h: f64) -> bool {
+        self.open && cp.t < -(h * self.dn + 1e-12 * (cp.w1 + h) * self.dn)
     }
 
     /// A cell with half-diagonal `h` whose centre projects to `cp` is within
     /// reach (spec 8.7).
     #[inline]
     pub fn within_reach(&self, cp: &CapsulePoint, h: f64) -> bool {
-        cp.dist - cp.r <= h * self.slack
+        cp.dist - cp.r <= h * self.slack && !self.ball_behind(cp, h)
     }
 
     /// Bounds of coverage·flow over the ball of radius `h` about a centre
@@ -155,6 +187,9 @@ impl Capsule {
     /// Coverage·flow at a point that projects to `cp` (spec 8.5).
     #[inline]
     pub fn coverage_at(&self, cp: &CapsulePoint, hardness: f64) -> f64 {
+        if self.open && cp.t < 0.0 {
+            return 0.0; // behind an open start (spec 8.3)
+        }
         let flow = self.f0 + (self.f1 - self.f0) * cp.u;
         coverage_profile(cp.dist / cp.r, hardness) * flow
     }
@@ -404,6 +439,67 @@ mod tests {
         let q = [0.0, 0.0, std::f64::consts::FRAC_1_SQRT_2, std::f64::consts::FRAC_1_SQRT_2];
         let turned = Stamp { rot: quat_to_matrix(q), ..st };
         assert!((turned.gauge(Shape::Box, asp, DVec3::new(0.0, 2.0, 0.0)) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_start_is_open_after_a_capsule_that_does_not_grow() {
+        let sphere = Capsule::new(DVec3::ZERO, DVec3::ZERO, 1.0, 1.0, 0.5, 0.5);
+        let a = Capsule::after(&sphere, DVec3::X, 1.0, 0.5);
+        assert!(a.open, "after the first sample's sphere");
+        assert!(Capsule::after(&a, DVec3::new(2.0, 0.0, 0.0), 1.5, 0.5).open, "this one may grow: the last did not");
+        let grows = Capsule::new(DVec3::ZERO, DVec3::X, 1.0, 1.2, 0.5, 0.5);
+        assert!(!Capsule::after(&grows, DVec3::new(2.0, 0.0, 0.0), 1.2, 0.5).open, "the last grew toward its end");
+        let gains = Capsule::new(DVec3::ZERO, DVec3::X, 1.0, 1.0, 0.5, 0.6);
+        assert!(!Capsule::after(&gains, DVec3::new(2.0, 0.0, 0.0), 1.0, 0.6).open, "the last gained flow");
+        assert!(!Capsule::after(&a, DVec3::X, 1.0, 0.5).open, "no segment: a sphere keeps its start");
+        let shrinks = Capsule::new(DVec3::ZERO, DVec3::X, 1.2, 1.0, 0.7, 0.5);
+        assert!(Capsule::after(&shrinks, DVec3::new(2.0, 0.0, 0.0), 1.0, 0.5).open);
+    }
+
+    /// Behind an open start the capsule covers nothing, the previous
+    /// capsule covers at least what the closed one would, and a ball
+    /// declared behind holds no point with `t >= 0`.
+    #[test]
+    fn an_open_start_is_covered_by_the_capsule_before() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut behind_balls = 0;
+        for _ in 0..200 {
+            let mut v = || DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * 8.0;
+            let (pa, pb, pc) = (v(), v(), v());
+            let (ra, rb) = (1.0 + unit(), 0.5 + unit() * 0.5);
+            let (fa, fb) = (0.5 + unit() * 0.5, unit() * 0.5);
+            let prev = Capsule::new(pa, pb, ra, rb, fa, fb);
+            let open = Capsule::after(&prev, pc, 0.5 + unit(), unit());
+            assert!(open.open);
+            let closed = Capsule { open: false, ..open };
+            for _ in 0..200 {
+                let x = pb + DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5) * 6.0;
+                let cp = open.project(x);
+                if cp.t < 0.0 {
+                    assert_eq!(open.coverage_at(&cp, 0.3), 0.0);
+                    let (was, prev_cov) = (closed.coverage(x, 0.3), prev.coverage(x, 0.3));
+                    assert!(prev_cov >= was - 1e-12, "{prev_cov} < {was} at {x}");
+                } else {
+                    assert_eq!(open.coverage_at(&cp, 0.3), closed.coverage_at(&cp, 0.3));
+                }
+                let h = unit() * 2.0;
+                if open.ball_behind(&cp, h) {
+                    behind_balls += 1;
+                    assert!(!open.within_reach(&cp, h));
+                    for _ in 0..20 {
+                        let y = x + DVec3::new(unit() - 0.5, unit() - 0.5, unit() - 0.5).normalize_or_zero() * h * unit();
+                        assert!(open.project(y).t < 0.0, "a point of a ball behind the start is not behind it");
+                    }
+                }
+            }
+        }
+        assert!(behind_balls > 1000, "the test saw {behind_balls} balls behind a start");
     }
 
     #[test]

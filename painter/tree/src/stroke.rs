@@ -69,6 +69,8 @@ pub fn mirrored(x: DVec3, mask: u8, centre: [f64; 3]) -> DVec3 {
 pub struct StrokePath {
     brush: Brush,
     prev: Option<Previous>,
+    /// The last capsule (sphere brushes).
+    last: Option<Capsule>,
     /// Arc length from the previous sample to the next stamp.
     carry: f64,
     extent: f64,
@@ -87,7 +89,7 @@ impl StrokePath {
     /// brush's mirror centre (0: the stroke itself).
     pub fn mirror(brush: Brush, mask: u8) -> Self {
         let flip = DVec3::from_array([0, 1, 2].map(|a| if mask >> a & 1 == 1 { -1.0 } else { 1.0 }));
-        StrokePath { brush, prev: None, carry: 0.0, extent: stamp_extent(brush.shape, brush.aspect), mask, flip }
+        StrokePath { brush, prev: None, last: None, carry: 0.0, extent: stamp_extent(brush.shape, brush.aspect), mask, flip }
     }
 
     /// The stroke and each of its mirrored copies, in the order they paint
@@ -109,8 +111,13 @@ impl StrokePath {
         let q = sample.q;
         let prev = self.prev.replace(Previous { p, r, f, q });
         if b.shape == Shape::Sphere {
-            let Previous { p: p0, r: r0, f: f0, .. } = prev.unwrap_or(Previous { p, r, f, q });
-            let cap = Capsule::new(p0, p, r0, r, f0, f);
+            // The first sample is a sphere; each capsule after starts where
+            // the last one ended (spec 8.3).
+            let cap = match &self.last {
+                Some(last) => Capsule::after(last, p, r, f),
+                None => Capsule::new(p, p, r, r, f, f),
+            };
+            self.last = Some(cap);
             let (lo, hi) = cap.bounds();
             out.push(Prim { geo: Geometry::Capsule(cap), colour, lo, hi });
             return;
