@@ -503,6 +503,16 @@ mod tests {
     }
 
     #[test]
+    fn a_stored_value_rounds_to_itself() {
+        for v in 0..=255u8 {
+            assert_eq!(quantize_rgb([f64::from(v) / 255.0; 3]), [v; 3]);
+        }
+        for s in [0.0f32, -0.0, 1e-45, 0.1, 3.5, 1e30, f32::MAX] {
+            assert_eq!(quantize_sigma(f64::from(s)).to_bits(), s.to_bits());
+        }
+    }
+
+    #[test]
     fn quantizing_clamps() {
         assert_eq!(quantize_rgb([-0.1, 0.5, 1.2]), [0, 128, 255]);
         assert_eq!(quantize_sigma(1e300), f32::MAX);

@@ -125,6 +125,12 @@ impl StrokeState {
     /// at stroke maximum `a` (spec 8.5, rounded by spec 5).
     #[inline]
     fn stored(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
+        if a == 0.0 && before_sigma.is_finite() {
+            // The blend keeps the cell, and rounding a stored value gives
+            // it back: `v / 255` to a byte is `v`, and a finite f32 through
+            // f64 is itself (half the new children lie outside the brush).
+            return (before_rgb, before_sigma);
+        }
         let before = [UNIT_RGB[before_rgb[0] as usize], UNIT_RGB[before_rgb[1] as usize], UNIT_RGB[before_rgb[2] as usize]];
         let b = &self.brush;
         let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), colour, self.sigma_b, self.alpha, a, b.mix_ratio);
