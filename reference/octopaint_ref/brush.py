@@ -51,10 +51,23 @@ def capsule_geometry(xp, x, p0, p1, r0, r1):
     parameter u, and the radius lerp(r0, r1, u) there. The brush's signed
     distance is dist - r.
     """
+    return capsule_projection(xp, x, p0, p1, r0, r1)[:3]
+
+
+def capsule_t(xp, x, p0, p1):
+    """t [n, k] = (x - p0) . (p1 - p0), summed x, y, z in order: the
+    projection before the division and clamping, whose sign an open start
+    tests (spec 8.3)."""
+    d = p1 - p0
+    w = x[:, None, :] - p0[None, :, :]
+    return w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
+
+
+def capsule_projection(xp, x, p0, p1, r0, r1):
+    """capsule_geometry with t of capsule_t: (dist, u, r, t), each [n, k]."""
     d = p1 - p0
     dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
-    w = x[:, None, :] - p0[None, :, :]
-    wd = w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
+    wd = capsule_t(xp, x, p0, p1)
     # A segment shorter than sqrt(TINY) is a sphere at p0 (spec 8.3).
     long = dd >= TINY
     safe_dd = xp.where(long, dd, 1.0)
@@ -64,7 +77,7 @@ def capsule_geometry(xp, x, p0, p1, r0, r1):
     s = e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1] + e[..., 2] * e[..., 2]
     dist = xp.where(s > 0, xp.sqrt(xp.where(s > 0, s, 1.0)), 0.0)
     r = r0[None, :] + (r1 - r0)[None, :] * u
-    return dist, u, r
+    return dist, u, r, wd
 
 
 def capsule_slack(p0, p1, r0, r1) -> float:
@@ -160,26 +173,14 @@ def coverage_profile(xp, rho, hardness):
     return xp.where(rho >= 1.0, 0.0, xp.where(rho <= hardness, 1.0, smooth))
 
 
-def capsule_t(xp, x, p0, p1):
-    """(t [n, k], w1 [n, k]): t = (x - p0) . (p1 - p0), summed x, y, z in
-    order (before capsule_geometry divides and clamps it), and
-    w1 = |x - p0|_1, for the tests of an open start (spec 8.3, 8.7)."""
-    d = p1 - p0
-    w = x[:, None, :] - p0[None, :, :]
-    t = w[..., 0] * d[None, :, 0] + w[..., 1] * d[None, :, 1] + w[..., 2] * d[None, :, 2]
-    w1 = xp.abs(w[..., 0]) + xp.abs(w[..., 1]) + xp.abs(w[..., 2])
-    return t, w1
-
-
 def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness, open_start=None):
     """coverage * flow [n, k] of k tapered capsules at points x [n, 3].
     open_start [k] (bool, optional): a capsule with an open start covers
     nothing where t < 0, behind its start plane (spec 8.3)."""
-    dist, u, r = capsule_geometry(xp, x, p0, p1, r0, r1)
+    dist, u, r, t = capsule_projection(xp, x, p0, p1, r0, r1)
     flow = f0[None, :] + (f1 - f0)[None, :] * u
     cov = coverage_profile(xp, dist / r, hardness) * flow
     if open_start is not None:
-        t, _ = capsule_t(xp, x, p0, p1)
         cov = xp.where(open_start[None, :] & (t < 0.0), 0.0, cov)
     return cov
 

@@ -284,7 +284,7 @@ def test_an_open_start_is_covered_by_the_capsule_before():
         x = pb + rng.uniform(-3, 3, (400, 3))
         closed = B.capsule_coverage(np, x, p0, p1, r0, r1, f0, f1, 0.3)
         opened = B.capsule_coverage(np, x, p0, p1, r0, r1, f0, f1, 0.3, np.array([False, True]))
-        t, _ = B.capsule_t(np, x, p0, p1)
+        t = B.capsule_t(np, x, p0, p1)
         behind = t[:, 1] < 0
         assert behind.any() and (~behind).any()
         assert np.all(opened[behind, 1] == 0.0)

@@ -13,6 +13,14 @@ use crate::pool::{NONE, Refusal, Tree, UNIT};
 /// The deepest a tree can be, plus one: bounds the climb of a neighbour search.
 const MAX_PATH: usize = 32;
 
+/// Face `f` of non-root cell `c` is inward: across it lies `c`'s sibling
+/// (its octant bit on the face's axis points into the parent).
+#[inline]
+fn faces_sibling(c: u32, f: usize) -> bool {
+    let (a, s) = FACES[f];
+    (s > 0) == ((c >> a) & 1 == 0)
+}
+
 impl Tree {
     /// The cell of greatest depth `<= depth(c)` across face `f` of live
     /// cell `c` (its same-depth-or-coarser face neighbour), or NONE at the
@@ -20,7 +28,7 @@ impl Tree {
     /// sibling (or the neighbouring root), then mirrors the climb back down
     /// while children exist: the g3 walk of spec 3.3, for any face.
     pub fn neighbour(&self, c: u32, f: usize) -> u32 {
-        let (a, s) = FACES[f];
+        let a = FACES[f].0;
         let mut path = [0u32; MAX_PATH];
         let mut n = 0;
         let mut x = c;
@@ -33,9 +41,7 @@ impl Tree {
                 }
                 break;
             }
-            let bit = (x >> a) & 1;
-            let inward = (s > 0 && bit == 0) || (s < 0 && bit == 1);
-            if inward {
+            if faces_sibling(x, f) {
                 y = x ^ (1 << a);
                 break;
             }
@@ -62,8 +68,7 @@ impl Tree {
         for f in 0..6 {
             // Across an inward face lies the sibling, as deep as `l`: only
             // the outward faces can hold a coarser leaf.
-            let (a, s) = FACES[f];
-            if d > 0 && (s > 0) == ((l >> a) & 1 == 0) {
+            if d > 0 && faces_sibling(l, f) {
                 continue;
             }
             let nb = self.neighbour(l, f);
