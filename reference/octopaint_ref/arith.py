@@ -31,6 +31,7 @@ per operation.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import jax
@@ -51,6 +52,9 @@ class Format:
     mantissa_bits: int
     min_subnormal_exp: int  # smallest subnormal is 2**min_subnormal_exp
     min_normal_exp: int
+    # Native: each operation computed in the format's own type by XLA on
+    # the device (whatever it fuses or flushes), not emulated; see NATIVE.
+    native: bool = False
 
     @property
     def eps(self) -> float:
@@ -68,6 +72,25 @@ F16 = Format("f16", 5, 10, -24, -14)
 F32 = Format("f32", 8, 23, -149, -126)
 F64 = Format("f64", 11, 52, -1074, -1022)
 FORMATS = {"f16": F16, "f32": F32, "f64": F64}
+
+# The same formats computed natively: operands converted to float16 or
+# float32, the operation done in that type by XLA on whatever device runs
+# it, the result widened back to the f64 carrier (exactly). This is what a
+# GPU's own f16/f32 arithmetic does to the walk: XLA may contract a product
+# and a sum into one fused multiply-add and the device may flush subnormals,
+# the two departures the emulation exists to avoid. The precision study runs
+# both and compares (docs/precision.md, "JAX on CUDA").
+NATIVE = {"f16": dataclasses.replace(F16, native=True), "f32": dataclasses.replace(F32, native=True)}
+
+
+def format_of(precision: str) -> Format:
+    """The format a ray caster's `precision` names: f16, f32, f64
+    (emulated per operation, f64 native), or f16-native, f32-native."""
+    if precision.endswith("-native") and precision[: -len("-native")] in NATIVE:
+        return NATIVE[precision[: -len("-native")]]
+    if precision not in FORMATS:
+        raise ValueError(f"unknown precision {precision!r}: f16, f32, f64, f16-native or f32-native")
+    return FORMATS[precision]
 
 
 def round_to(x, fmt: Format):
@@ -95,25 +118,45 @@ class Arith:
         self.guard = guard
 
     def rnd(self, x):
+        if self.fmt.native:
+            return jnp.asarray(x).astype(self._dtype).astype(jnp.float64)
         return round_to(x, self.fmt)
 
+    @property
+    def _dtype(self):
+        return jnp.float16 if self.fmt.name == "f16" else jnp.float32
+
+    def _native(self, op, *xs):
+        """op on the operands in the format's own type, widened back."""
+        return op(*(jnp.asarray(x).astype(self._dtype) for x in xs)).astype(jnp.float64)
+
     def _opaque(self, x):
-        if self.fmt.name != "f64":
+        if self.fmt.native or self.fmt.name != "f64":
             return self.rnd(x)
         bits = lax.bitcast_convert_type(x, jnp.uint64) ^ self.guard
         return lax.bitcast_convert_type(bits, jnp.float64)
 
     def add(self, a, b):
+        if self.fmt.native:
+            return self._native(lambda a, b: a + b, a, b)
         return self.rnd(a + b)
 
     def sub(self, a, b):
+        if self.fmt.native:
+            return self._native(lambda a, b: a - b, a, b)
         return self.rnd(a - b)
 
     def mul(self, a, b):
+        if self.fmt.native:
+            return self._native(lambda a, b: a * b, a, b)
         return self._opaque(a * b)
 
     def div(self, a, b):
+        if self.fmt.native:
+            return self._native(lambda a, b: a / b, a, b)
         return self.rnd(a / b)
 
     def sqrt(self, a):
+        if self.fmt.native:
+            return self._native(jnp.sqrt, a)
         return self.rnd(jnp.sqrt(a))

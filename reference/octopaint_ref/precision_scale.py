@@ -90,12 +90,12 @@ def directions(first: int, count: int) -> np.ndarray:
 class Tracer:
     """The study's scene on a mesh of this process's devices."""
 
-    def __init__(self, precision: str, frame: str, depth: int, capacity: int):
+    def __init__(self, precision: str, frame: str, depth: int, capacity: int, native: bool = False):
         import jax
         from jax.sharding import Mesh, PartitionSpec as P
 
         from . import precision as PR
-        from .arith import FORMATS
+        from .arith import FORMATS, format_of
         from .raycast import Ray, Setup, device_tree, trace_ray
 
         arrays = PR.build_scene(paint=False, depth=depth)
@@ -106,7 +106,7 @@ class Tracer:
         self.eps = FORMATS[precision].eps
         self.devices = jax.local_devices()
         mesh = Mesh(np.array(self.devices), ("rays",))
-        setup = Setup(self.canvas, FORMATS[precision], frame, int(capacity), 1)
+        setup = Setup(self.canvas, format_of(f"{precision}-native" if native else precision), frame, int(capacity), 1)
         self.setup = setup
 
         def local(tree, eye, frac, dirs):
@@ -159,7 +159,9 @@ def run(args) -> dict | None:
         jax.config.update("jax_cpu_collectives_implementation", "gloo")
         jax.distributed.initialize(args.coordinator, num_processes=args.processes, process_id=args.process_id)
     t0 = time.perf_counter()
-    tracer = Tracer(args.precision, args.frame, args.depth, args.capacity)
+    if args.arith == "native" and args.precision == "f64":
+        raise SystemExit("octopaint-ref: precision: --arith native is for f16 and f32 (f64 is native already)")
+    tracer = Tracer(args.precision, args.frame, args.depth, args.capacity, native=args.arith == "native")
     shards = [(k, k * args.shard, min(args.shard, args.rays - k * args.shard)) for k in range(-(-args.rays // args.shard))]
     mine = [sh for sh in shards if sh[0] % args.processes == args.process_id]
     if args.checkpoint:
@@ -206,6 +208,7 @@ def run(args) -> dict | None:
             total = merge(total, part)
     result = {
         "precision": args.precision,
+        "arith": args.arith,
         "frame": args.frame,
         "eye_depth": args.depth,
         "eps": tracer.eps,
@@ -230,6 +233,12 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--rays", type=int, required=True, help="number of rays (hashed directions 0 .. N-1)")
     ap.add_argument("--precision", choices=("f16", "f32", "f64"), default="f16")
     ap.add_argument("--frame", choices=("local", "world"), default="local")
+    ap.add_argument(
+        "--arith",
+        choices=("emulated", "native"),
+        default="emulated",
+        help="emulated: every operation rounded as IEEE says (the study); native: computed in the format's own type by XLA on the device",
+    )
     ap.add_argument("--depth", type=int, default=24, help="depth of the eye's leaf (4 .. 24)")
     ap.add_argument("--shard", type=int, default=4096, help="rays per shard (the unit of checkpointing)")
     ap.add_argument("--capacity", type=int, default=512, help="most cells a ray may cross")

@@ -31,7 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from .arith import FORMATS, Arith, Format
+from .arith import Arith, Format, format_of
 from .camera import pixel_directions, split_eye
 from .g3 import g3_from_links
 
@@ -598,7 +598,7 @@ def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="lo
     light: a trace.Light (spec 6.1); None or off: unlit."""
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = shading(tree, canvas, light) if lit else None
-    setup = Setup(canvas, FORMATS[precision], frame, int(max_steps), int(record), lit)
+    setup = Setup(canvas, format_of(precision), frame, int(max_steps), int(record), lit)
     bg = jnp.asarray(np.asarray(background, np.float64))
     parts = []
     for chunk, k in _tiles(rays, tile):
@@ -653,7 +653,7 @@ def _starts(tree: DeviceTree, setup: Setup, rays: Ray, guard):
 def start_points(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local"):
     """Where each ray starts: (hit, cell, depth, origin, p) as numpy [R, ...]
     (the position the traversal begins with, for measuring e0)."""
-    setup = Setup(canvas, FORMATS[precision], frame, 1, 0)
+    setup = Setup(canvas, format_of(precision), frame, 1, 0)
     out = _starts(tree, setup, Ray(*(np.asarray(a) for a in rays)), np.uint64(0))
     return tuple(np.asarray(a) for a in out)
 
@@ -811,7 +811,7 @@ def render_layers(layers: list, camera, precision="f64", max_steps=MAX_STEPS, ti
     lighting = jax.vmap(lambda t: shading(t, canvas, light))(trees) if lit else None
     if lighting is not None:
         lighting = lighting._replace(to_light=lighting.to_light[0])
-    setup = Setup(canvas, FORMATS[precision], "local", int(max_steps), 0, lit)
+    setup = Setup(canvas, format_of(precision), "local", int(max_steps), 0, lit)
     rays = camera_rays(camera, canvas)
     bg = jnp.asarray(np.asarray(camera.background, np.float64))
     parts = []

@@ -95,3 +95,44 @@ def test_rounding_holds_inside_a_vmapped_while_loop(name):
             p = (p + t * d) - (t * d) * d
     same = (got == p.astype(np.float64)) | (np.isnan(got) & np.isnan(p))
     assert same.all()
+
+
+@pytest.mark.parametrize("name", ["f16", "f32"])
+def test_native_arithmetic_computes_in_the_format_itself(name):
+    """NATIVE (the GPU campaign's comparison, docs/precision.md): every
+    result is a value of the format, a single operation on normal operands
+    is the correctly rounded one, and the chains the emulation protects are
+    left to XLA: on CPU a*b + c comes out rounded once (contracted, or
+    carried wider between the two operations), which the emulation never
+    does."""
+    from octopaint_ref.arith import NATIVE, format_of
+
+    fmt = NATIVE[name]
+    assert format_of(f"{name}-native") is fmt and format_of(name) is FORMATS[name]
+    with pytest.raises(ValueError):
+        format_of("f64-native")
+    dt = fmt.numpy_dtype
+    a = _operands(dt)
+    b = np.roll(_operands(dt), 3)[::-1].copy()
+    c = np.roll(a, 17)
+
+    def ops(a, b, c, guard):
+        m = Arith(fmt, guard)
+        e = Arith(FORMATS[name], guard)
+        return m.add(a, b), m.mul(a, b), m.div(a, b), m.add(m.mul(a, b), c), e.add(e.mul(a, b), c)
+
+    got = [np.asarray(g) for g in jax.jit(ops)(*(x.astype(np.float64) for x in (a, b, c)), np.uint64(0))]
+    for g in got:
+        assert g.dtype == np.float64
+        finite = np.isfinite(g)
+        assert (g[finite].astype(dt).astype(np.float64) == g[finite]).all()  # values of the format
+    with np.errstate(all="ignore"):
+        want = (a + b, a * b, a / b)
+        tiny = float(np.finfo(dt).tiny)
+        for g, w in zip(got[:3], want):
+            w = w.astype(np.float64)
+            normal = np.isfinite(w) & (np.abs(w) >= tiny) & (np.abs(a) >= tiny) & (np.abs(b) >= tiny)
+            assert (g[normal] == w[normal]).all()
+    # The fused chain differs from the emulated (twice rounded) one somewhere.
+    both = np.isfinite(got[3]) & np.isfinite(got[4])
+    assert (got[3][both] != got[4][both]).any()

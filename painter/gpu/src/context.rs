@@ -38,6 +38,15 @@ const ADAPTER_HELP: &str = "install or update the GPU vendor's driver (NVIDIA, A
 const ADAPTER_HELP: &str =
     "on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL";
 
+/// What [`Gpu::bandwidth`] measured.
+#[derive(Clone, Copy, Debug)]
+pub struct Bandwidth {
+    pub bytes: u64,
+    pub copy_seconds: f64,
+    pub write_seconds: f64,
+    pub empty_seconds: f64,
+}
+
 /// A device and its queue, with what the pipeline needs to know of the
 /// adapter.
 pub struct Gpu {
@@ -137,6 +146,51 @@ impl Gpu {
                 },
             ],
         })
+    }
+
+    /// The device's own bandwidth, for uploads to be judged against
+    /// (benchmarks): seconds of a copy of `bytes` between two buffers on
+    /// the GPU, of a `write_buffer` of `bytes` from the host, and of an
+    /// empty submit-and-wait; each the median of `runs` after a warm-up.
+    pub fn bandwidth(&self, bytes: u64, runs: usize) -> Bandwidth {
+        let make = |label| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (src, dst) = (make("bandwidth source"), make("bandwidth destination"));
+        let timed = |runs: usize, f: &dyn Fn()| {
+            f();
+            let mut v: Vec<f64> = (0..runs.max(1))
+                .map(|_| {
+                    let t = std::time::Instant::now();
+                    f();
+                    t.elapsed().as_secs_f64()
+                })
+                .collect();
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[v.len() / 2]
+        };
+        let copy_seconds = timed(runs, &|| {
+            let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bandwidth") });
+            enc.copy_buffer_to_buffer(&src, 0, &dst, 0, bytes);
+            self.queue.submit([enc.finish()]);
+            self.wait();
+        });
+        let host: Vec<u8> = (0..bytes).map(|i| (i.wrapping_mul(7) + 3) as u8).collect();
+        let write_seconds = timed(runs, &|| {
+            self.queue.write_buffer(&dst, 0, &host);
+            self.queue.submit([]);
+            self.wait();
+        });
+        let empty_seconds = timed(runs.max(20), &|| {
+            self.queue.submit([]);
+            self.wait();
+        });
+        Bandwidth { bytes, copy_seconds, write_seconds, empty_seconds }
     }
 
     /// Block until the GPU has done everything submitted so far.

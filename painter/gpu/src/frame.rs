@@ -130,6 +130,20 @@ impl Renderer {
         self.ray.read_image(&self.gpu, params.width, params.height)
     }
 
+    /// Cast one image per entry of `eyes` (a stereo frame: one per eye)
+    /// and wait for the GPU, without reading anything back: what a frame's
+    /// ray casting costs (benchmarks). Each cast is its own submission, so
+    /// each sees its own frame constants; they share the pixel buffer.
+    pub fn cast_and_wait(&mut self, eyes: &[RayParams], precision: Precision) -> Result<(), GpuError> {
+        for params in eyes {
+            let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast (timed)") });
+            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
+            self.gpu.queue.submit([enc.finish()]);
+        }
+        self.gpu.wait();
+        Ok(())
+    }
+
     /// The image `camera` sees of `tree` with everything uploaded.
     pub fn render(&mut self, tree: &mut Tree, camera: &Camera, precision: Precision) -> Result<Vec<u8>, GpuError> {
         self.sync(tree)?;

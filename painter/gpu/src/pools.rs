@@ -200,6 +200,12 @@ impl GpuPools {
         self.cells.len() as u64 * self.page_cells()
     }
 
+    /// Bytes of GPU memory the allocated pages take (16 bytes of cell and
+    /// 12 of g3 per cell of every page).
+    pub fn allocated_bytes(&self) -> u64 {
+        self.cells_held() * (16 + 12)
+    }
+
     /// Make sure the pages hold `n` cells, adding pages (every cell FREE,
     /// every g3 entry NONE) and rebuilding the bind groups. Returns whether
     /// pages were added.
