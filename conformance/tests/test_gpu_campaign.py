@@ -21,7 +21,7 @@ def test_the_campaign_runs_every_step_at_toy_sizes(tmp_path):
     steps = [ln.split() for ln in (out / "steps.txt").read_text().splitlines()]
     names = [s[0] for s in steps]
     assert names == ["scene", "realtime_48x27", "images", "jax_raycast", "precision_f16_emulated", "precision_f16_native",
-                     "precision_f32_emulated", "precision_f32_native", "big", "realtime_all"], names
+                     "precision_f32_emulated", "precision_f32_native", "gpu_probe", "big", "realtime_all"], names
     assert all(s[1] == "0" for s in steps), steps
 
     scene = json.loads((out / "gpu_scene.json").read_text())
@@ -58,7 +58,7 @@ def test_the_campaign_runs_every_step_at_toy_sizes(tmp_path):
 
     summary = (out / "summary.md").read_text()
     for heading in ("## The scene", "## The grown canvas", "## Painting under way", "## Table 1, Fig. 8, Fig. 9",
-                    "## The reference's ray caster", "## The precision study, emulated and native", "## Images against the reference's: 4 of 4"):
+                    "## The reference's ray caster", "## The painter's ray caster ray by ray", "## The precision study, emulated and native", "## Images against the reference's: 4 of 4"):
         assert heading in summary, heading
     assert "frame p99" in summary and "stroke-to-display p99" in summary
     assert not (out / "reference").exists()  # rendered for the comparison, then removed

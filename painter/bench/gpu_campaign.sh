@@ -16,7 +16,8 @@
 # rendered here.
 #
 # Each step has its own time limit, and with CAMPAIGN_SECONDS set no step
-# starts once that many seconds have passed; a step that fails or times out
+# starts once that many seconds have passed; CAMPAIGN_STEPS="scene big"
+# runs only the steps whose names start with one of those words; a step that fails or times out
 # is recorded in OUT/steps.txt and the summary, and the others still run.
 # Exit status: 0 when every step ran and every image was within tolerance.
 set -u
@@ -43,7 +44,14 @@ failed=0
 step() {
     local name=$1 limit=$2
     shift 2
-    local now left t0 rc
+    local now left t0 rc w
+    if [ -n "${CAMPAIGN_STEPS:-}" ]; then
+        for w in $CAMPAIGN_STEPS; do
+            case "$name" in "$w"*) break ;; esac
+            w=
+        done
+        [ -n "$w" ] || return 0
+    fi
     now=$(date +%s)
     if [ -n "${CAMPAIGN_SECONDS:-}" ]; then
         left=$((CAMPAIGN_SECONDS - (now - start)))
@@ -81,11 +89,11 @@ traces="traces/single_stamp.jsonl traces/shapes_modes.jsonl traces/scene.jsonl t
 if [ "$size" = --small ]; then
     mono="--width 64 --height 36"; heads="vive=40x44,quest3=48x52"; runs=2; grow=2000000
     rt_sizes="48x27"; rt_full="--quick --samples 40 --size 48x27"; rt_samples="--samples 60"
-    jax_size=24; jax_trace=traces/single_stamp.jsonl; rays=4096; traces="traces/single_stamp.jsonl traces/shapes_modes.jsonl"
+    jax_size=24; jax_trace=traces/single_stamp.jsonl; rays=4096; probe="--size 16 --exact-rays 4"; traces="traces/single_stamp.jsonl traces/shapes_modes.jsonl"
 else
     mono="--width 1280 --height 720"; heads="vive=1440x1600,quest3=2064x2208"; runs=5; grow=134400000
     rt_sizes="2880x1600 4128x2208"; rt_full="--samples 300 --size 2880x1600"; rt_samples=""
-    jax_size=256; jax_trace=traces/scene.jsonl; rays=262144
+    jax_size=256; jax_trace=traces/scene.jsonl; rays=262144; probe="--size 256 --exact-rays 64"
 fi
 
 # 0. With CAMPAIGN_ADAPTER set (e.g. NVIDIA), stop at once unless wgpu's
@@ -126,6 +134,9 @@ for p in f16 f32; do
             --quiet --out "$out/precision_${p}_$a.json"
     done
 done
+# The painter's own ray caster ray by ray on this GPU against the bound,
+# the emulation and mpmath (docs/precision.md, "The GPU ray by ray").
+step gpu_probe 240 "$py" -m octopaint_ref.cli gpu-probe --painter "$bin" --out "$out/gpu_probe" $probe
 # 5. The canvas grown to the paper's 2.15 GB of cells (16 bytes each).
 step big 330 "$bin" bench gpu traces/scene.jsonl $mono --runs 3 --short --grow $grow --headsets "$heads" \
     --trace-cameras 0,1 --json "$out/gpu_big.json"

@@ -157,6 +157,9 @@ def main(out: str) -> int:
             if d:
                 lines.append(f"| {p} | {a} | {d['rays']:,} | {d['within_pct']:.4f}% | {d['max_angle']:.3g} | {d['argmax']} |")
         lines.append("")
+    probe = os.path.join(out, "gpu_probe", "gpu_probe.md")
+    if os.path.exists(probe):
+        lines += ["## The painter's ray caster ray by ray (`octopaint-ref gpu-probe`)", "", open(probe).read().strip(), ""]
     d = load(out, "images.json")
     if d:
         ok = sum(r["ok"] for r in d["rows"])

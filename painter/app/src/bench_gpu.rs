@@ -69,9 +69,16 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-/// Seconds of `f`: the median of `runs` runs after one warm-up.
+/// Seconds of `f`: the median of `runs` runs after a warm-up of at least
+/// one run and 0.3 s. A GPU left idle (while the CPU staged a big tree, say)
+/// drops its clocks and takes a moment to raise them: on an H100 a first
+/// run at idle clocks took three times as long as the same cast warm.
 fn timed(runs: usize, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
+    let warm = Instant::now();
     f()?;
+    while warm.elapsed().as_secs_f64() < 0.3 {
+        f()?;
+    }
     let mut v = Vec::new();
     for _ in 0..runs.max(1) {
         let t = Instant::now();

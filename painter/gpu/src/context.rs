@@ -163,7 +163,12 @@ impl Gpu {
         };
         let (src, dst) = (make("bandwidth source"), make("bandwidth destination"));
         let timed = |runs: usize, f: &dyn Fn()| {
+            // At least 0.3 s of warm-up: an idle GPU's clocks come up slowly.
+            let warm = std::time::Instant::now();
             f();
+            while warm.elapsed().as_secs_f64() < 0.3 {
+                f();
+            }
             let mut v: Vec<f64> = (0..runs.max(1))
                 .map(|_| {
                     let t = std::time::Instant::now();

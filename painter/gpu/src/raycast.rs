@@ -143,6 +143,10 @@ pub struct RayCaster {
     params: wgpu::Buffer,
     layers: wgpu::Buffer,
     pixels: Option<(u64, wgpu::Buffer)>,
+    /// A mappable buffer images are read back through, kept between
+    /// reads (a frame captured at headset size every frame: making one
+    /// each time cost more than the copy).
+    readback: Option<(u64, wgpu::Buffer)>,
 }
 
 impl RayCaster {
@@ -198,7 +202,7 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None };
+        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None, readback: None };
         // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
             let _ = caster.pipeline(gpu, precision, 0, false);
@@ -332,10 +336,42 @@ impl RayCaster {
     }
 
     /// The last image cast, `width·height·3` bytes of sRGB, row 0 at the top.
-    pub fn read_image(&self, gpu: &Gpu, width: u32, height: u32) -> Result<Vec<u8>, GpuError> {
+    pub fn read_image(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<Vec<u8>, GpuError> {
         let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
-        let n = u64::from(width) * u64::from(height);
-        let raw = read_buffer(gpu, buf, n * 4)?;
-        Ok(raw.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]).collect())
+        let size = u64::from(width) * u64::from(height) * 4;
+        if size == 0 {
+            return Ok(Vec::new());
+        }
+        let staging = match &self.readback {
+            Some((s, b)) if *s >= size => b.clone(),
+            _ => {
+                let b = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("image read-back"),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                self.readback = Some((size, b.clone()));
+                b
+            }
+        };
+        let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("image read-back") });
+        enc.copy_buffer_to_buffer(buf, 0, &staging, 0, size);
+        gpu.queue.submit([enc.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
+            let _ = tx.send(r);
+        });
+        gpu.wait();
+        rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
+        let mut out = vec![0u8; (size / 4 * 3) as usize];
+        {
+            let view = staging.get_mapped_range(0..size).map_err(|e| GpuError::Readback(e.to_string()))?;
+            for (o, p) in out.chunks_exact_mut(3).zip(view.chunks_exact(4)) {
+                o.copy_from_slice(&p[..3]);
+            }
+        }
+        staging.unmap();
+        Ok(out)
     }
 }

@@ -29,6 +29,7 @@ use octopaint_tree::dirty::{BLOCK_CELLS, MASK_COLUMNS, MASK_ROWS, NeighbourMask,
 use octopaint_tree::lattice::Lattice;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::raycast::RayParams;
+use rayon::prelude::*;
 
 use crate::jobs::{Job, JobQueue, SubmitError, Ticket};
 use crate::ledger::Ledger;
@@ -374,15 +375,26 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
             let t0 = Instant::now();
             let taken = shared.pending.take_all_now();
             let covered = shared.ledger.lock().expect("ledger").last_pub;
+            // The groups are copied in parallel: a heavy sample dirties tens
+            // of blocks, and the lock is held until the last is copied (on
+            // an H100 host, 16 ms at p99 one after another).
+            let tree = &painting.tree;
+            let n_used = tree.n_used();
+            let staged: Vec<(u64, Vec<GpuCell>)> = taken
+                .par_iter()
+                .map(|t| {
+                    let (first, len) = group_range(settings.block, t.group, n_used);
+                    let mut cells = shared.staged.spare();
+                    stage_into(tree, first, len, &mut cells);
+                    (first, cells)
+                })
+                .collect();
+            drop(painting);
             let mut copies = Vec::with_capacity(taken.len());
-            for t in taken {
-                let (first, len) = group_range(settings.block, t.group, painting.tree.n_used());
-                let mut cells = Vec::new();
-                stage_into(&painting.tree, first, len, &mut cells);
+            for (t, (first, cells)) in taken.into_iter().zip(staged) {
                 version += 1;
                 copies.push(StagedCopy { group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t0 });
             }
-            drop(painting);
             let t1 = Instant::now();
             let cells: u64 = copies.iter().map(|c| c.cells.len() as u64).sum();
             records.push(StagingRecord { cells, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });

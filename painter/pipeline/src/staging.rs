@@ -204,6 +204,12 @@ impl StagedStack {
         }
     }
 
+    /// A free buffer if there is one, else a new one: never waits (grouped
+    /// staging takes its buffers while it holds the tree's lock).
+    pub fn spare(&self) -> Vec<GpuCell> {
+        self.inner.lock().expect("staged lock").free_buffers.pop().unwrap_or_default()
+    }
+
     /// Give a buffer back to the pool.
     pub fn give_back(&self, mut buf: Vec<GpuCell>) {
         buf.clear();

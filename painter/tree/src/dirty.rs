@@ -132,6 +132,35 @@ impl Tree {
             }
             ch.any_block = false;
         }
+        let size = region_cells(self.capacity);
+        let mut mask = NeighbourMask::default();
+        if std::mem::take(&mut ch.everything) {
+            // Every cell is dirty: what was recorded cell by cell is
+            // contained in that, and can be large (a whole painting made
+            // before a GPU attached: sorting it took a minute at 134 M
+            // cells). Every block and every cell in use, every region they
+            // lie in, and blocks past the used cells that were written (a
+            // pool that shrank: the GPU must see them free again).
+            ch.direct = Vec::new();
+            ch.topo_cells = Vec::new();
+            ch.topo_units = Vec::new();
+            let n = self.n_used();
+            let used_blocks = n.div_ceil(BLOCK_CELLS);
+            let beyond: Vec<u32> = blocks.into_iter().filter(|&b| b >= used_blocks).collect();
+            let mut regions = |first: u32, end: u32| {
+                if end > first {
+                    for region in (first / size) as usize..=((end - 1) / size) as usize {
+                        mask.set(region);
+                    }
+                }
+            };
+            regions(0, n);
+            for &b in &beyond {
+                regions(b * BLOCK_CELLS, (b + 1).saturating_mul(BLOCK_CELLS).min(self.capacity));
+            }
+            let blocks: Vec<u32> = (0..used_blocks).chain(beyond).collect();
+            return Publication { blocks, dirty_cells: (0..n).collect(), mask };
+        }
         let mut cells = std::mem::take(&mut ch.direct);
         for u in std::mem::take(&mut ch.topo_units) {
             cells.extend(u..u + UNIT);
@@ -150,17 +179,6 @@ impl Tree {
         }
         cells.sort_unstable();
         cells.dedup();
-        let size = region_cells(self.capacity);
-        let mut mask = NeighbourMask::default();
-        if std::mem::take(&mut self.changes.everything) {
-            let n = self.n_used();
-            blocks.extend(0..n.div_ceil(BLOCK_CELLS));
-            blocks.sort_unstable();
-            blocks.dedup();
-            cells.extend(0..n);
-            cells.sort_unstable();
-            cells.dedup();
-        }
         for &c in &cells {
             mask.set((c / size) as usize);
         }
