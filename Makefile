@@ -26,7 +26,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter paint test-vr test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export clean \
+.PHONY: demo test setup system painter paint test-vr test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows
 
 setup: system $(VENV)/.installed
@@ -141,6 +141,12 @@ test-windows: setup dist
 # ms per frame at 1280x720 on the scene trace (docs/benchmarks.md).
 bench-gpu: setup painter
 	$(PAINTER) bench gpu traces/scene.jsonl
+
+# Every GPU figure in one run (docs/benchmarks.md, "On a real GPU"):
+# out/gpu/summary.md and JSON; on a GPU machine about 7 minutes, on lavapipe
+# use painter/bench/gpu_campaign.sh out/gpu --small.
+gpu-campaign: setup painter
+	painter/bench/gpu_campaign.sh $(OUT)/gpu
 
 # The real-time pipeline's experiments (the paper's Table 1, Fig. 8, Fig. 9,
 # latency; about 7 minutes on 2 cores): out/realtime/results.json, then the
