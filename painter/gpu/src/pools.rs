@@ -18,6 +18,9 @@ use crate::context::{Gpu, GpuError};
 /// Pages per pool: one binding each (shared/pools.wgsl PAGES).
 pub const PAGES: usize = 4;
 
+/// The fewest cells a page is allocated with (16 blocks, 28 MiB with g3).
+pub const FIRST_PAGE_CELLS: u64 = 1 << 20;
+
 /// One cell as the GPU holds it, 16 bytes (shared/pools.wgsl `Cell`):
 ///
 /// ```text
@@ -84,6 +87,11 @@ pub struct GpuPools {
     pub page_shift: u32,
     cells: Vec<wgpu::Buffer>,
     g3: Vec<wgpu::Buffer>,
+    /// Cells each allocated page holds: every page but the last is whole;
+    /// the last grows by powers of two from [`FIRST_PAGE_CELLS`], so a
+    /// small painting does not pay for a whole page (2^26 cells, 1.9 GB,
+    /// on a GPU that binds 2 GiB).
+    held: Vec<u64>,
     /// Stand-ins for pages not allocated yet: one for the read-only cell
     /// slots, one per g3 slot (a buffer bound twice read-write in one
     /// dispatch would be a usage conflict).
@@ -159,6 +167,7 @@ impl GpuPools {
             page_shift,
             cells: Vec::new(),
             g3: Vec::new(),
+            held: Vec::new(),
             dummy_cells,
             dummy_g3,
             layout_cells,
@@ -195,33 +204,61 @@ impl GpuPools {
         1u64 << self.page_shift
     }
 
-    /// Cells the allocated pages hold.
+    /// Cells the allocated pages hold (the shaders' `cells_held`: every
+    /// page but the last is whole, so they are cells `0..cells_held`).
     pub fn cells_held(&self) -> u64 {
-        self.cells.len() as u64 * self.page_cells()
+        self.held.iter().sum()
     }
 
     /// Bytes of GPU memory the allocated pages take (16 bytes of cell and
-    /// 12 of g3 per cell of every page).
+    /// 12 of g3 per cell they hold).
     pub fn allocated_bytes(&self) -> u64 {
         self.cells_held() * (16 + 12)
     }
 
-    /// Make sure the pages hold `n` cells, adding pages (every cell FREE,
-    /// every g3 entry NONE) and rebuilding the bind groups. Returns whether
-    /// pages were added.
+    /// Make sure the pages hold `n` cells: pages are added (every cell
+    /// FREE, every g3 entry NONE), and the last page, allocated at a power
+    /// of two of cells, is replaced by a larger one holding a copy of it
+    /// (made on the GPU, after every upload queued so far); the bind groups
+    /// are rebuilt. Returns whether anything was allocated.
     pub fn ensure(&mut self, gpu: &Gpu, n: u64) -> Result<bool, GpuError> {
         let page = self.page_cells();
         let needed = n.div_ceil(page) as usize;
         if needed > PAGES {
             return Err(GpuError::Capacity { cells: n, max: PAGES as u64 * page, pages: PAGES as u32, page });
         }
-        if needed <= self.cells.len() {
+        if n <= self.cells_held() {
             return Ok(false);
         }
-        while self.cells.len() < needed {
-            let i = self.cells.len();
-            self.cells.push(filled_buffer(gpu, &format!("cells page {i}"), page * 16, bytemuck::bytes_of(&GpuCell::FREE)));
-            self.g3.push(filled_buffer(gpu, &format!("g3 page {i}"), page * 12, &[0xFF; 12]));
+        let mut copies = Vec::new();
+        for i in 0..needed {
+            // Cells page i must hold: whole pages below the last needed one.
+            let want = if i + 1 < needed { page } else { n - i as u64 * page };
+            let have = self.held.get(i).copied().unwrap_or(0);
+            if want <= have {
+                continue;
+            }
+            let size = want.next_power_of_two().clamp(FIRST_PAGE_CELLS.min(page), page);
+            let cells = filled_buffer(gpu, &format!("cells page {i}"), size * 16, bytemuck::bytes_of(&GpuCell::FREE));
+            let g3 = filled_buffer(gpu, &format!("g3 page {i}"), size * 12, &[0xFF; 12]);
+            if i < self.cells.len() {
+                let old_cells = std::mem::replace(&mut self.cells[i], cells);
+                let old_g3 = std::mem::replace(&mut self.g3[i], g3);
+                copies.push((i, have, old_cells, old_g3));
+                self.held[i] = size;
+            } else {
+                self.cells.push(cells);
+                self.g3.push(g3);
+                self.held.push(size);
+            }
+        }
+        if !copies.is_empty() {
+            let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("grow a page") });
+            for (i, have, old_cells, old_g3) in &copies {
+                enc.copy_buffer_to_buffer(old_cells, 0, &self.cells[*i], 0, have * 16);
+                enc.copy_buffer_to_buffer(old_g3, 0, &self.g3[*i], 0, have * 12);
+            }
+            gpu.queue.submit([enc.finish()]);
         }
         let (a, b, c) =
             Self::groups(gpu, &self.cells, &self.g3, &self.dummy_cells, &self.dummy_g3, &self.layout_cells, &self.layout_g3_rw, &self.layout_g3_ro);
@@ -275,7 +312,7 @@ impl GpuPools {
             if start >= n {
                 break;
             }
-            let bytes = read_buffer(gpu, buf, (n - start).min(page) * 16)?;
+            let bytes = read_buffer(gpu, buf, (n - start).min(self.held[i]) * 16)?;
             out.extend(bytemuck::cast_slice::<u8, GpuCell>(&bytes).iter().copied());
         }
         Ok(out)
@@ -290,7 +327,7 @@ impl GpuPools {
             if start >= n {
                 break;
             }
-            let count = (n - start).min(page);
+            let count = (n - start).min(self.held[i]);
             let bytes = read_buffer(gpu, buf, count * 12)?;
             out.extend(bytemuck::cast_slice::<u8, [u32; 3]>(&bytes).iter().copied());
         }
