@@ -23,9 +23,9 @@
 set -u
 out=${1:?usage: gpu_campaign.sh OUT [--small]}
 size=${2:-full}
-cd "$(dirname "$0")/../.."
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
+cd "$(dirname "$0")/../.."
 bin=${OCTOPAINT:-painter/target/release/octopaint}
 if [ -n "${PYTHON:-}" ]; then py=$PYTHON; elif [ -x .venv/bin/python ]; then py=.venv/bin/python; else py=python3; fi
 export NODEVICE_SELECT=1 PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false PYTHONPATH=$PWD/reference${PYTHONPATH:+:$PYTHONPATH}
@@ -83,6 +83,7 @@ cat "$out/env.txt"
 if command -v nvidia-smi >/dev/null; then
     nvidia-smi --query-gpu=timestamp,memory.used,utilization.gpu --format=csv,noheader -lms 250 >"$out/gpumem.csv" 2>/dev/null &
     sampler=$!
+    trap 'kill "$sampler" 2>/dev/null' EXIT
 fi
 
 traces="traces/single_stamp.jsonl traces/shapes_modes.jsonl traces/scene.jsonl traces/lit.jsonl traces/mirror.jsonl traces/layers.jsonl traces/imports.jsonl"

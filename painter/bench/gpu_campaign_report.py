@@ -35,7 +35,7 @@ def gpu_section(title: str, d: dict, lines: list[str]) -> None:
     t = d["tree"]
     lines.append(
         f"Tree: {t['cells']:,} cells (capacity {t['capacity']:,}); GPU pages {t['allocated_bytes'] / 1e6:,.1f} MB allocated, "
-        f"{t['bytes_per_cell']:.1f} B a cell (the layout is 28 B a cell; whole pages are allocated)."
+        f"{t['bytes_per_cell']:.1f} B a cell (the layout is 28 B a cell; pages are allocated whole but the last, which grows by powers of two)."
     )
     if "grow" in d:
         g = d["grow"]

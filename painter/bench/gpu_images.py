@@ -52,7 +52,13 @@ def main(argv=None) -> int:
                     print(f"gpu_images: no reference images for {name} in {args.reference}", file=sys.stderr)
                     return 2
                 ref = shutil.which("octopaint-ref") or os.path.join(REPO, ".venv", "bin", "octopaint-ref")
-                subprocess.run([ref, "replay", trace, "--out", ref_dir, "--quiet"], check=True)
+                partial = ref_dir + ".partial"
+                shutil.rmtree(partial, ignore_errors=True)
+                p = subprocess.run([ref, "replay", trace, "--out", partial, "--quiet"], capture_output=True)
+                if p.returncode != 0:
+                    print(f"gpu_images: {name}: the reference failed:\n{p.stderr.decode(errors='replace')[-2000:]}", file=sys.stderr)
+                    return 2
+                os.rename(partial, ref_dir)  # complete or absent, never half written
             pngs = sorted(f for f in os.listdir(ref_dir) if f.endswith(".png"))
             for prec in args.precisions.split(","):
                 out = os.path.join(work, name, prec)

@@ -169,7 +169,10 @@ def run(args) -> dict | None:
     total = empty_summary()
     done = computed = 0
     for k, first, count in mine:
-        path = os.path.join(args.checkpoint, f"shard_{k:07d}.json") if args.checkpoint else None
+        # Native shards are named apart: a checkpoint folder resumed with the
+        # other --arith never mixes the two.
+        prefix = "native_" if args.arith == "native" else ""
+        path = os.path.join(args.checkpoint, f"{prefix}shard_{k:07d}.json") if args.checkpoint else None
         if path and os.path.exists(path):
             with open(path) as f:
                 summary = json.load(f)

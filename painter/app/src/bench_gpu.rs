@@ -312,6 +312,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     );
 
     if !a.short {
+        // The biggest block staged below runs past the used cells: the
+        // pages must hold it (the last page grows with the tree).
+        r.pools.ensure(&r.gpu, n.div_ceil(1 << 21) << 21)?;
         println!();
         println!("| block (cells) | blocks | stage (ms) | upload (ms) | MB/s staged and uploaded |");
         println!("| ---: | ---: | ---: | ---: | ---: |");

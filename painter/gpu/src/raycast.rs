@@ -365,13 +365,17 @@ impl RayCaster {
         gpu.wait();
         rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
         let mut out = vec![0u8; (size / 4 * 3) as usize];
-        {
-            let view = staging.get_mapped_range(0..size).map_err(|e| GpuError::Readback(e.to_string()))?;
-            for (o, p) in out.chunks_exact_mut(3).zip(view.chunks_exact(4)) {
-                o.copy_from_slice(&p[..3]);
+        let read = match staging.get_mapped_range(0..size) {
+            Ok(view) => {
+                for (o, p) in out.chunks_exact_mut(3).zip(view.chunks_exact(4)) {
+                    o.copy_from_slice(&p[..3]);
+                }
+                Ok(())
             }
-        }
+            Err(e) => Err(GpuError::Readback(e.to_string())),
+        };
+        // Unmapped on every path: the buffer is kept for the next read.
         staging.unmap();
-        Ok(out)
+        read.map(|()| out)
     }
 }
