@@ -121,8 +121,11 @@ fn storage_layout(gpu: &Gpu, label: &str, read_only: bool) -> wgpu::BindGroupLay
     gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries: &entries })
 }
 
-/// A buffer whose every byte is `fill` (FREE cells, NONE g3 entries).
-fn filled_buffer(gpu: &Gpu, label: &str, size: u64, pattern: &[u8]) -> wgpu::Buffer {
+/// A buffer whose bytes from `from` on repeat `pattern` (FREE cells, NONE
+/// g3 entries; `from` a multiple of the pattern's length). Bytes before
+/// `from` are left zero: a page that replaces a smaller one gets them from
+/// the GPU's copy of it, and the CPU need not fill what is overwritten.
+fn filled_buffer(gpu: &Gpu, label: &str, size: u64, pattern: &[u8], from: u64) -> wgpu::Buffer {
     let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size,
@@ -135,7 +138,7 @@ fn filled_buffer(gpu: &Gpu, label: &str, size: u64, pattern: &[u8]) -> wgpu::Buf
         let block: Vec<u8> = pattern.iter().copied().cycle().take(reps * pattern.len()).collect();
         let mut view = buf.get_mapped_range_mut(..).expect("a buffer mapped at creation");
         let len = view.len();
-        let mut at = 0;
+        let mut at = from as usize;
         while at < len {
             let n = block.len().min(len - at);
             view.slice(at..at + n).copy_from_slice(&block[..n]);
@@ -156,8 +159,8 @@ impl GpuPools {
         }
         let page_shift = 63 - cells_fit.leading_zeros();
         let page_shift = page_shift.min(28);
-        let dummy_cells = filled_buffer(gpu, "unallocated cells page", 16, bytemuck::bytes_of(&GpuCell::FREE));
-        let dummy_g3: Vec<wgpu::Buffer> = (0..PAGES).map(|_| filled_buffer(gpu, "unallocated g3 page", 16, &[0xFF; 16])).collect();
+        let dummy_cells = filled_buffer(gpu, "unallocated cells page", 16, bytemuck::bytes_of(&GpuCell::FREE), 0);
+        let dummy_g3: Vec<wgpu::Buffer> = (0..PAGES).map(|_| filled_buffer(gpu, "unallocated g3 page", 16, &[0xFF; 16], 0)).collect();
         let layout_cells = storage_layout(gpu, "cells pages", true);
         let layout_g3_rw = storage_layout(gpu, "g3 pages (write)", false);
         let layout_g3_ro = storage_layout(gpu, "g3 pages (read)", true);
@@ -239,8 +242,9 @@ impl GpuPools {
                 continue;
             }
             let size = want.next_power_of_two().clamp(FIRST_PAGE_CELLS.min(page), page);
-            let cells = filled_buffer(gpu, &format!("cells page {i}"), size * 16, bytemuck::bytes_of(&GpuCell::FREE));
-            let g3 = filled_buffer(gpu, &format!("g3 page {i}"), size * 12, &[0xFF; 12]);
+            // The first `have` cells come from the GPU's copy of the old page.
+            let cells = filled_buffer(gpu, &format!("cells page {i}"), size * 16, bytemuck::bytes_of(&GpuCell::FREE), have * 16);
+            let g3 = filled_buffer(gpu, &format!("g3 page {i}"), size * 12, &[0xFF; 12], have * 12);
             if i < self.cells.len() {
                 let old_cells = std::mem::replace(&mut self.cells[i], cells);
                 let old_g3 = std::mem::replace(&mut self.g3[i], g3);
