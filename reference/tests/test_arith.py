@@ -39,13 +39,17 @@ def _operands(dtype, n=20000):
     return x
 
 
+def _three(dtype):
+    """Three operand arrays of `dtype`, each pairing differently."""
+    a = _operands(dtype)
+    return a, np.roll(_operands(dtype), 3)[::-1].copy(), np.roll(a, 17)
+
+
 @pytest.mark.parametrize("name", ["f16", "f32", "f64"])
 def test_every_operation_rounds_like_numpy(name):
     fmt = FORMATS[name]
     dt = fmt.numpy_dtype
-    a = _operands(dt)
-    b = np.roll(_operands(dt), 3)[::-1].copy()
-    c = np.roll(a, 17)
+    a, b, c = _three(dt)
 
     def ops(a, b, c, guard):
         m = Arith(fmt, guard)
@@ -112,9 +116,7 @@ def test_native_arithmetic_computes_in_the_format_itself(name):
     with pytest.raises(ValueError):
         format_of("f64-native")
     dt = fmt.numpy_dtype
-    a = _operands(dt)
-    b = np.roll(_operands(dt), 3)[::-1].copy()
-    c = np.roll(a, 17)
+    a, b, c = _three(dt)
 
     def ops(a, b, c, guard):
         m = Arith(fmt, guard)

@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use octopaint_gpu::pools::stage_range;
+use octopaint_gpu::context::warm_median;
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::raycast::RayParams;
@@ -67,25 +68,6 @@ pub struct Args {
 pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
-}
-
-/// Seconds of `f`: the median of `runs` runs after a warm-up of at least
-/// one run and 0.3 s. A GPU left idle (while the CPU staged a big tree, say)
-/// drops its clocks and takes a moment to raise them: on an H100 a first
-/// run at idle clocks took three times as long as the same cast warm.
-fn timed(runs: usize, mut f: impl FnMut() -> anyhow::Result<()>) -> anyhow::Result<f64> {
-    let warm = Instant::now();
-    f()?;
-    while warm.elapsed().as_secs_f64() < 0.3 {
-        f()?;
-    }
-    let mut v = Vec::new();
-    for _ in 0..runs.max(1) {
-        let t = Instant::now();
-        f()?;
-        v.push(t.elapsed().as_secs_f64());
-    }
-    Ok(median(v))
 }
 
 /// `v` rotated by the unit quaternion `q` (x, y, z, w).
@@ -420,7 +402,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 continue;
             }
             let params: Vec<RayParams> = eyes.iter().map(|e| RayParams::new(&painting.tree.lat, e).with_light(light)).collect();
-            let s = timed(a.runs, || Ok(r.cast_and_wait(&params, precision)?))?;
+            let s = warm_median(a.runs, || r.cast_and_wait(&params, precision))?;
             let rays = f64::from(w) * f64::from(h) * eyes.len() as f64;
             let size = if eyes.len() == 2 { format!("2×{w}×{h}") } else { format!("{w}×{h}") };
             println!("| {name} | {what} {size} | {precision:?} | {light_name} | {:.2} | {:.1} M |", s * 1e3, rays / s / 1e6);

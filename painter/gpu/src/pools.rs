@@ -350,16 +350,23 @@ pub fn read_buffer(gpu: &Gpu, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, 
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
+    read_through(gpu, buf, size, &staging, <[u8]>::to_vec)
+}
+
+/// `f` of the first `size` bytes of `buf`, copied into `staging` (a
+/// MAP_READ buffer of at least `size` bytes, which a caller may keep for
+/// the next read) and mapped; `staging` is unmapped again on every path.
+pub fn read_through<T>(gpu: &Gpu, buf: &wgpu::Buffer, size: u64, staging: &wgpu::Buffer, f: impl FnOnce(&[u8]) -> T) -> Result<T, GpuError> {
     let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("read-back") });
-    enc.copy_buffer_to_buffer(buf, 0, &staging, 0, size);
+    enc.copy_buffer_to_buffer(buf, 0, staging, 0, size);
     gpu.queue.submit([enc.finish()]);
     let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+    staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
         let _ = tx.send(r);
     });
     gpu.wait();
     rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
-    let data = staging.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?.to_vec();
+    let out = staging.get_mapped_range(0..size).map(|view| f(&view)).map_err(|e| GpuError::Readback(e.to_string()));
     staging.unmap();
-    Ok(data)
+    out
 }

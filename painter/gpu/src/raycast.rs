@@ -7,7 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use octopaint_tree::raycast::RayParams;
 
 use crate::context::{Gpu, GpuError};
-use crate::pools::{GpuPools, read_buffer};
+use crate::pools::{GpuPools, read_buffer, read_through};
 use crate::shaders::{Precision, raycast_source};
 
 /// shaders/raycast.wgsl `RayParams`, as uploaded (a layout test compares
@@ -355,27 +355,12 @@ impl RayCaster {
                 b
             }
         };
-        let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("image read-back") });
-        enc.copy_buffer_to_buffer(buf, 0, &staging, 0, size);
-        gpu.queue.submit([enc.finish()]);
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
-            let _ = tx.send(r);
-        });
-        gpu.wait();
-        rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
-        let mut out = vec![0u8; (size / 4 * 3) as usize];
-        let read = match staging.get_mapped_range(0..size) {
-            Ok(view) => {
-                for (o, p) in out.chunks_exact_mut(3).zip(view.chunks_exact(4)) {
-                    o.copy_from_slice(&p[..3]);
-                }
-                Ok(())
+        read_through(gpu, buf, size, &staging, |raw| {
+            let mut out = vec![0u8; raw.len() / 4 * 3];
+            for (o, p) in out.chunks_exact_mut(3).zip(raw.chunks_exact(4)) {
+                o.copy_from_slice(&p[..3]);
             }
-            Err(e) => Err(GpuError::Readback(e.to_string())),
-        };
-        // Unmapped on every path: the buffer is kept for the next read.
-        staging.unmap();
-        read.map(|()| out)
+            out
+        })
     }
 }
