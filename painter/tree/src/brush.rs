@@ -379,11 +379,16 @@ pub fn blend(
 /// Store a colour in [0, 1] as u8: `floor(v·255 + 0.5)`, clamped (spec 5).
 #[inline]
 pub fn quantize_rgb(v: [f64; 3]) -> [u8; 3] {
-    #[inline(always)]
-    fn q(x: f64) -> u8 {
-        (x * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8
-    }
-    [q(v[0]), q(v[1]), q(v[2])]
+    [quantize_unit(v[0]), quantize_unit(v[1]), quantize_unit(v[2])]
+}
+
+/// One channel of [`quantize_rgb`]: `floor(v·255 + 0.5)` clamped to
+/// [0, 255]. Rust's float-to-int cast truncates toward zero and saturates
+/// (NaN to 0), which is that exactly: truncation is the floor at or above
+/// 0, and everything below 0 (or NaN) gives 0 either way.
+#[inline(always)]
+pub fn quantize_unit(x: f64) -> u8 {
+    (x * 255.0 + 0.5) as u8
 }
 
 /// Store a density: the nearest f32, at most the largest finite f32 (spec 5).
@@ -515,6 +520,18 @@ mod tests {
     #[test]
     fn quantizing_clamps() {
         assert_eq!(quantize_rgb([-0.1, 0.5, 1.2]), [0, 128, 255]);
+        // The cast is floor-and-clamp (spec 5) everywhere: halves, the
+        // edges, values far outside, infinities, NaN, and a dense sweep.
+        let spec = |x: f64| (x * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8;
+        let mut xs = vec![0.0, -0.0, 1.0, -1.0, 0.5, 1e300, -1e300, f64::INFINITY, f64::NEG_INFINITY, f64::NAN, f64::MIN_POSITIVE, -f64::MIN_POSITIVE];
+        for v in 0..=256u32 {
+            let h = (f64::from(v) - 0.5) / 255.0; // rounds to v exactly at the half
+            xs.extend([h, f64::from_bits(h.to_bits() + 1), f64::from_bits(h.to_bits() - 1), f64::from(v) / 255.0]);
+        }
+        xs.extend((0..200_000).map(|i| -0.1 + 1.2 * f64::from(i) / 200_000.0));
+        for x in xs {
+            assert_eq!(quantize_unit(x), spec(x), "{x:e}");
+        }
         assert_eq!(quantize_sigma(1e300), f32::MAX);
         assert_eq!(quantize_sigma(0.1), 0.1f32);
     }

@@ -123,7 +123,7 @@ pub struct PaintCounters {
 impl StrokeState {
     /// What a cell with `before` stores after blending the colour `colour`
     /// at stroke maximum `a` (spec 8.5, rounded by spec 5).
-    #[inline]
+    #[inline(always)]
     fn stored(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
         if a == 0.0 && before_sigma.is_finite() {
             // The blend keeps the cell, and rounding a stored value gives
@@ -131,6 +131,24 @@ impl StrokeState {
             // f64 is itself (half the new children lie outside the brush).
             return (before_rgb, before_sigma);
         }
+        if a != 0.0 && matches!(self.brush.mode, Mode::Paint | Mode::Pickup) {
+            // The paint blend of `brush::blend` channel by channel, with
+            // the same operations in the same order (so the same bits):
+            // no arrays through memory, which the general form moves.
+            let bs = f64::from(before_sigma);
+            let fresh = bs == 0.0;
+            let channel = |i: usize| {
+                let base = if fresh { colour[i] } else { UNIT_RGB[before_rgb[i] as usize] };
+                brush::quantize_unit(base + (colour[i] - base) * a)
+            };
+            return ([channel(0), channel(1), channel(2)], quantize_sigma(bs + (self.sigma_b - bs) * a));
+        }
+        self.stored_general(before_rgb, before_sigma, colour, a)
+    }
+
+    /// [`StrokeState::stored`] for every mode, through `brush::blend`.
+    #[inline(never)]
+    fn stored_general(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
         let before = [UNIT_RGB[before_rgb[0] as usize], UNIT_RGB[before_rgb[1] as usize], UNIT_RGB[before_rgb[2] as usize]];
         let b = &self.brush;
         let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), colour, self.sigma_b, self.alpha, a, b.mix_ratio);
@@ -630,30 +648,18 @@ impl Painting {
                 cells.push((unit + k, self.tree.lat.centre(co, d + 1), d + 1));
             }
         }
-        self.paint_new_cells(&cells);
+        let next = self.paint_new_cells(&cells, first);
         if refusal.is_some() {
             return None;
         }
         let st = self.stroke.as_ref().expect("stroke");
-        let seg = &st.prims[first..];
-        let lat = &self.tree.lat;
-        let caps = if st.settles {
-            capsules_near(&st.prims, cells.iter().map(|&(_, x, d)| (x, lat.reach_radius[d as usize])))
+        let next = if st.settles {
+            let lat = &self.tree.lat;
+            let caps = capsules_near(&st.prims, cells.iter().map(|&(_, x, d)| (x, lat.reach_radius[d as usize])));
+            self.unsettled(next, &caps)
         } else {
-            Vec::new()
+            next.into_iter().map(|(c, _, _)| c).collect()
         };
-        let settles = st.settles;
-        let tree = &self.tree;
-        let next: Vec<(u32, DVec3, f64)> = par::map(&cells, |&(c, x, d)| {
-            let h = lat.reach_radius[d as usize];
-            let (reach, needs) = segment_reach(tree, st, seg, x, d, h, true);
-            let empty = !(tree.sigma[c as usize] > 0.0);
-            (reach && needs && !(empty && matches!(st.brush.mode, Mode::Erase | Mode::Recolor))).then_some((c, x, h))
-        })
-        .into_iter()
-        .flatten()
-        .collect();
-        let next = if settles { self.unsettled(next, &caps) } else { next.into_iter().map(|(c, _, _)| c).collect() };
         Some((consumed, next))
     }
 
@@ -661,24 +667,40 @@ impl Painting {
     /// maximum over every primitive of the stroke so far (spec 8.8), and are
     /// always written: one outside the brush returns to its before-value.
     /// Values are decided in parallel for large rounds, written in order.
-    fn paint_new_cells(&mut self, cells: &[(u32, DVec3, u32)]) {
+    ///
+    /// The same pass tests each new cell for the next round (within reach
+    /// of the segment `prims[first..]`, coarser than a target depth there,
+    /// and not an empty cell an erase or recolour leaves alone): those are
+    /// returned, in order, with their centres and reach radii.
+    fn paint_new_cells(&mut self, cells: &[(u32, DVec3, u32)], first: usize) -> Vec<(u32, DVec3, f64)> {
         let st = self.stroke.as_ref().expect("stroke");
         let (lo, hi) = centre_bounds(cells.iter().map(|&(_, x, _)| x));
         // Only primitives whose box meets the new centres can cover them.
         let near: Vec<Prim> = st.prims.iter().filter(|p| p.overlaps(lo, hi)).copied().collect();
-        let values = par::map(cells, |&(c, x, _)| {
+        let seg = &st.prims[first..];
+        let lat = &self.tree.lat;
+        let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
+        let values = par::map(cells, |&(c, x, d)| {
             let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
             let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
             // A new slot's maximum is 0 and its colour black until `a`
             // rises above it (as `apply` with `force` would do).
             let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
-            FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }
+            let h = lat.reach_radius[d as usize];
+            let (reach, needs) = segment_reach(&self.tree, st, seg, x, d, h, true);
+            let next = reach && needs && !(sigma_gate && !(sigma > 0.0));
+            (FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }, next.then_some(h))
         });
         self.counters.cells_written += values.len() as u64;
-        for v in &values {
-            self.first_write(v);
+        let mut next = Vec::new();
+        for (v, &(_, x, _)) in values.iter().zip(cells) {
+            self.first_write(&v.0);
+            if let Some(h) = v.1 {
+                next.push((v.0.c, x, h));
+            }
         }
+        next
     }
 
     /// A cell's first write in the stroke, decided already: its slot with
@@ -742,6 +764,9 @@ impl Painting {
         }
         if a_lo < TINY {
             return (false, bounds); // 0 and a > 0 may differ at any a
+        }
+        if a_lo == a_hi {
+            return (true, bounds); // one maximum everywhere (often full coverage)
         }
         let (before_rgb, before_sigma) = self.before_value(c);
         let value = |a: f64| {
@@ -1051,4 +1076,41 @@ fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
         }
     }
     if best < TINY { (0.0, k) } else { (best, k) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::noise::hash32;
+
+    /// The paint and pickup blend of `StrokeState::stored`, computed channel
+    /// by channel, stores the same bytes and f32 as the general form through
+    /// `brush::blend` for every kind of input: empty and filled cells, any
+    /// stored colour, maxima from tiny to 1, and the edges.
+    #[test]
+    fn the_paint_blend_stores_what_the_general_blend_stores() {
+        let unit = |i: u32| f64::from(hash32(i)) / 4294967296.0;
+        for mode in [Mode::Paint, Mode::Pickup] {
+            for i in 0..2000u32 {
+                let colour = [unit(7 * i), unit(7 * i + 1), unit(7 * i + 2)];
+                let opacity = [1.0, 0.5, unit(7 * i + 3)][i as usize % 3];
+                let brush = Brush::new(Shape::Sphere, mode, 0.01 + unit(7 * i + 4), colour, opacity, 0.5);
+                let mut painting = Painting::new(&Canvas { roots: [1, 1, 1], max_depth: 4, root_size: 1.0, capacity: 64 });
+                painting.begin_stroke(&brush);
+                let st = painting.stroke.as_ref().expect("stroke");
+                let before_rgb = [hash32(i) as u8, (hash32(i) >> 8) as u8, (hash32(i) >> 16) as u8];
+                let sigmas = [0.0f32, 1e-30, 0.25, 3.0e5, f32::MAX, unit(i + 11) as f32 * 100.0];
+                let maxima = [TINY, 1e-6, 0.5, 1.0, unit(i + 13), unit(i + 17) * 1e-3];
+                for &before_sigma in &sigmas {
+                    for &a in &maxima {
+                        assert_eq!(
+                            st.stored(before_rgb, before_sigma, colour, a),
+                            st.stored_general(before_rgb, before_sigma, colour, a),
+                            "{mode:?} {before_rgb:?} {before_sigma} {colour:?} {a}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
