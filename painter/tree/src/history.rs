@@ -33,6 +33,13 @@ impl Journal {
         w >= self.saved.len() || self.saved[w] >> (c % 64) & 1 == 0
     }
 
+    /// Every cell of the unit at `unit` was free when the stroke began
+    /// (past its used length): none needs a save.
+    #[inline]
+    pub fn unit_is_new(&self, unit: u32) -> bool {
+        unit >= self.n_before
+    }
+
     /// The journal with nothing saved, its vectors kept: the saved bits are
     /// cleared word by word from the saved cells, not the whole bitset.
     fn emptied(mut self) -> Journal {
@@ -89,8 +96,7 @@ impl UndoStep {
     /// Add a cell that changed from `before` to `after` (each cell once).
     pub fn push(&mut self, c: u32, before: CellRecord, after: CellRecord) {
         if before.same_bits(&CellRecord::FREE) {
-            self.born_cells.push(c);
-            self.born.push(after);
+            self.push_born(c, after);
         } else if after.same_bits(&CellRecord::FREE) {
             self.freed_cells.push(c);
             self.freed.push(before);
@@ -104,6 +110,14 @@ impl UndoStep {
             self.other_cells.push(c);
             self.other.push([before, after]);
         }
+    }
+
+    /// Add a cell that was free before the stroke and is `after` now (what
+    /// `push` does with a free `before`).
+    #[inline]
+    pub fn push_born(&mut self, c: u32, after: CellRecord) {
+        self.born_cells.push(c);
+        self.born.push(after);
     }
 
     /// Steps built in parts, one after another, as one step (the parts'
@@ -248,7 +262,7 @@ impl Tree {
             for c in cells {
                 let now = tree.record(c);
                 if !now.same_bits(&CellRecord::FREE) {
-                    part.push(c, CellRecord::FREE, now);
+                    part.push_born(c, now);
                 }
             }
         };

@@ -573,7 +573,7 @@ impl Painting {
             }
             self.counters.cells_written += run.written + run.fresh.len() as u64;
             for f in &run.fresh {
-                self.first_write(f);
+                self.first_write(f, false);
             }
             self.counters.leaves_visited += run.visited;
             self.counters.leaves_hit += run.hit;
@@ -640,9 +640,26 @@ impl Painting {
         self.counters.cells_created += units.len() as u64 * u64::from(UNIT);
         // New cells with their centres and depth (children of one parent share it).
         let mut cells: Vec<(u32, DVec3, u32)> = Vec::with_capacity(units.len() * UNIT as usize);
+        // A parent's origin is its own parent's plus its octant's offset;
+        // consecutive parents often share that grandparent, whose origin
+        // (a walk up the parent chain) is then found once.
+        let mut grand: Option<(u32, [u32; 3])> = None;
         for &(parent, unit) in &units {
-            let o = self.tree.origin(parent);
             let d = u32::from(self.tree.depth[parent as usize]);
+            let o = if d == 0 {
+                self.tree.origin(parent)
+            } else {
+                let g = self.tree.parent[parent as usize];
+                let og = match grand {
+                    Some((c, o)) if c == g => o,
+                    _ => {
+                        let o = self.tree.origin(g);
+                        grand = Some((g, o));
+                        o
+                    }
+                };
+                self.tree.child_origin(og, d - 1, parent % UNIT)
+            };
             for k in 0..UNIT {
                 let co = self.tree.child_origin(o, d, k);
                 cells.push((unit + k, self.tree.lat.centre(co, d + 1), d + 1));
@@ -680,22 +697,39 @@ impl Painting {
         let seg = &st.prims[first..];
         let lat = &self.tree.lat;
         let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
+        // A segment of one capsule (every sphere stroke) is the stroke's
+        // last primitive, and the last of `near` when its box meets the new
+        // centres: each centre is projected on it once, for its coverage
+        // and for the next round's reach test.
+        let seg_cap = match seg {
+            [Prim { geo: Geometry::Capsule(cap), .. }] => Some(*cap),
+            _ => None,
+        };
+        let seg_is_last_near = seg_cap.is_some() && seg[0].overlaps(lo, hi);
         let values = par::map(cells, |&(c, x, d)| {
             let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
-            let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum(st, &near, x) };
+            let cp = seg_cap.map(|cap| cap.project(x));
+            let last = if seg_is_last_near { cp.as_ref() } else { None };
+            let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };
             // A new slot's maximum is 0 and its colour black until `a`
             // rises above it (as `apply` with `force` would do).
             let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
             let h = lat.reach_radius[d as usize];
-            let (reach, needs) = segment_reach(&self.tree, st, seg, x, d, h, true);
+            let (reach, needs) = match (&seg_cap, &cp) {
+                (Some(cap), Some(cp)) => {
+                    let reach = cap.within_reach(cp, h);
+                    (reach, reach && lat.coarser_than_target(d, cp.r))
+                }
+                _ => segment_reach(&self.tree, st, seg, x, d, h, true),
+            };
             let next = reach && needs && !(sigma_gate && !(sigma > 0.0));
             (FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }, next.then_some(h))
         });
         self.counters.cells_written += values.len() as u64;
         let mut next = Vec::new();
         for (v, &(_, x, _)) in values.iter().zip(cells) {
-            self.first_write(&v.0);
+            self.first_write(&v.0, true);
             if let Some(h) = v.1 {
                 next.push((v.0.c, x, h));
             }
@@ -706,14 +740,21 @@ impl Painting {
     /// A cell's first write in the stroke, decided already: its slot with
     /// its before-value, its maximum and colour when `a` rose above 0 (as
     /// [`Painting::apply`] would set them), and the stored value.
-    fn first_write(&mut self, w: &FirstWrite) {
+    ///
+    /// `new_child`: `c` was made by `make_children` in this step, so it is
+    /// journalled and marked dirty already.
+    fn first_write(&mut self, w: &FirstWrite, new_child: bool) {
         let slot = self.record(w.c, w.before_rgb, w.before_sigma) as usize;
         if w.a > 0.0 {
             let st = self.stroke.as_mut().expect("stroke");
             st.slot_a[slot] = w.a;
             st.slots[slot].colour = w.colour;
         }
-        self.tree.set_value(w.c, w.rgb, w.sigma);
+        if new_child {
+            self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
+        } else {
+            self.tree.set_value(w.c, w.rgb, w.sigma);
+        }
     }
 
     /// A leaf whose refinement could not change a value (spec 8.7): over
@@ -1042,6 +1083,13 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
 /// the maximum to 0 (as the reference's max does).
 #[inline]
 fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
+    stroke_maximum_with(st, prims, x, None)
+}
+
+/// [`stroke_maximum`], given the projection of `x` on the last primitive of
+/// `prims` when that one is a capsule (the caller has it already).
+#[inline]
+fn stroke_maximum_with(st: &StrokeState, prims: &[Prim], x: DVec3, last: Option<&CapsulePoint>) -> (f64, usize) {
     let b = &st.brush;
     // Noise per mirror copy, each at x mirrored by it (spec 8.11), computed
     // when a stamp of that copy first needs it.
@@ -1061,7 +1109,10 @@ fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
             continue; // covers nothing here (spec 8.5)
         }
         let cov = match &p.geo {
-            Geometry::Capsule(cap) => cap.coverage(x, b.hardness),
+            Geometry::Capsule(cap) => match last {
+                Some(cp) if i + 1 == prims.len() => cap.coverage_at(cp, b.hardness),
+                _ => cap.coverage(x, b.hardness),
+            },
             Geometry::Stamp(s) => {
                 let c = brush::coverage_profile(s.gauge(b.shape, b.aspect, x), b.hardness) * s.f;
                 if b.shape == Shape::Noise { c * noise_at(s.mirror) } else { c }

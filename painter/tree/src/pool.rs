@@ -307,6 +307,16 @@ impl Tree {
         self.sigma[c as usize] = sigma;
     }
 
+    /// Write the value of a cell that `make_children` made in this step:
+    /// its journal entry and dirty block are in place already, and no
+    /// publication has been taken since.
+    #[inline]
+    pub(crate) fn set_new_child_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
+        debug_assert!(self.journal.as_ref().is_none_or(|j| !j.needs_save(c)));
+        self.rgb[c as usize] = rgb;
+        self.sigma[c as usize] = sigma;
+    }
+
     /// Overwrite a whole cell (undo/redo).
     pub(crate) fn write_record(&mut self, c: u32, r: CellRecord) {
         self.touch(c);
@@ -363,15 +373,22 @@ impl Tree {
         let li = l as usize;
         let d = self.depth[li] + 1;
         let (rgb, sigma) = (self.rgb[li], self.sigma[li]);
-        for c in unit..unit + UNIT {
-            self.touch(c);
-            let i = c as usize;
-            self.parent[i] = l;
-            self.first_child[i] = NONE;
-            self.depth[i] = d;
-            self.rgb[i] = rgb;
-            self.sigma[i] = sigma;
+        if self.journal.as_ref().is_none_or(|j| j.unit_is_new(unit)) {
+            // Nothing to save, and a unit lies in one dirty block (blocks
+            // hold a whole number of units).
+            const { assert!(crate::dirty::BLOCK_CELLS % UNIT == 0) };
+            self.changes.mark_block(unit);
+        } else {
+            for c in unit..unit + UNIT {
+                self.touch(c);
+            }
         }
+        let r = unit as usize..(unit + UNIT) as usize;
+        self.parent[r.clone()].fill(l);
+        self.first_child[r.clone()].fill(NONE);
+        self.depth[r.clone()].fill(d);
+        self.rgb[r.clone()].fill(rgb);
+        self.sigma[r].fill(sigma);
         self.touch(l);
         self.first_child[li] = unit;
         self.changes.topology(l, unit);
