@@ -27,8 +27,7 @@ pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
         // Siblings are touched together: dropping their repeated parent
         // first leaves far less to sort.
         work.dedup();
-        work.sort_unstable();
-        work.dedup();
+        par::sort_dedup(&mut work);
         // Decided in parallel (reads only), collapsed in order.
         let view = &*tree;
         let done: Vec<u32> = par::filter(&work, |&p| {
@@ -42,8 +41,7 @@ pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
         }
         collapses += done.len();
         let mut parents: Vec<u32> = done.iter().map(|&p| tree.parent[p as usize]).filter(|&p| p != NONE).collect();
-        parents.sort_unstable();
-        parents.dedup();
+        par::sort_dedup(&mut parents);
         work.clear();
         for &p in &parents {
             work.push(p);

@@ -20,7 +20,7 @@
 //! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
 //! | [`clean`] | topology cleaning | clean.py |
 //! | [`history`] | undo and redo | history.py |
-//! | [`par`] | parallel passes, the same bytes on any pool | — |
+//! | [`par`] | parallel passes, the same bytes on any pool; a radix sort of cell lists | — |
 //! | [`layers`] | documents of layers, merge down, document dumps | layers.py, layer_rules.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
 //! | [`trace`] | the event model and the trace reader | trace.py |

@@ -281,8 +281,7 @@ impl Painting {
         let more = match std::mem::replace(&mut work.stage, Stage::PaintPass) {
             Stage::PaintPass => {
                 let mut candidates = self.paint_pass(work.first);
-                candidates.sort_unstable();
-                candidates.dedup();
+                par::sort_dedup(&mut candidates);
                 let more = !candidates.is_empty();
                 work.stage = Stage::Round { candidates, at: 0, next: Vec::new() };
                 self.counters.paint_pass_ns += t0.elapsed().as_nanos() as u64;
@@ -300,8 +299,7 @@ impl Painting {
                         } else if next.is_empty() {
                             false
                         } else {
-                            next.sort_unstable();
-                            next.dedup();
+                            par::sort_dedup(&mut next);
                             work.stage = Stage::Round { candidates: next, at: 0, next: Vec::new() };
                             true
                         }
