@@ -46,6 +46,10 @@ pub struct Args {
     /// what it saves on the same strokes.
     #[arg(long)]
     no_settling: bool,
+    /// Value a unit's children one at a time instead of in vector lanes
+    /// (tree/src/lanes.rs): the same tree, for timing the kernels.
+    #[arg(long)]
+    no_lanes: bool,
     /// Write the stroke set here (text: `stroke R hardness opacity r g b`,
     /// then one `x y z` line per sample).
     #[arg(long)]
@@ -172,6 +176,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let canvas = Canvas { roots: [1, 1, 1], max_depth: DEPTH, root_size: SIDE, capacity: 0xFFFF_FFF8 };
     let mut painting = Painting::new(&canvas);
     painting.set_settling(!a.no_settling);
+    octopaint_tree::lanes::set_enabled(!a.no_lanes);
     anyhow::ensure!(a.threads.is_none_or(|n| (1..=1024).contains(&n)), "--threads must be in [1, 1024]");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build().context("cannot start the thread pool")?;
     let threads = pool.current_num_threads();
@@ -198,7 +203,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         concat!(
             "{{\"impl\": \"octopaint\", \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
-            "\"hardness\": {}, \"settling\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
+            "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, ",
             "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"tree_digest\": \"{:016x}\"}}"
@@ -213,6 +218,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         c.paint_pass_ns as f64 * 1e-9,
         a.hardness,
         !a.no_settling,
+        octopaint_tree::lanes::available(),
         c.leaves_settled,
         c.cells_created,
         per_s(c.cells_created, c.refine_ns),

@@ -101,10 +101,10 @@ pub struct Capsule {
     pub open: bool,
     /// `p1 − p0`, its squared length and length, and the reach slack K
     /// (spec 8.7).
-    d: DVec3,
-    dd: f64,
-    dn: f64,
-    slack: f64,
+    pub(crate) d: DVec3,
+    pub(crate) dd: f64,
+    pub(crate) dn: f64,
+    pub(crate) slack: f64,
 }
 
 /// The projection of a point on a capsule: distance to the axis point and

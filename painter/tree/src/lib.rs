@@ -20,6 +20,7 @@
 //! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
 //! | [`clean`] | topology cleaning | clean.py |
 //! | [`history`] | undo and redo | history.py |
+//! | [`lanes`] | a unit's 8 children against capsules in vector registers | — |
 //! | [`par`] | parallel passes, the same bytes on any pool; a radix sort of cell lists | — |
 //! | [`layers`] | documents of layers, merge down, document dumps | layers.py, layer_rules.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
@@ -36,6 +37,7 @@ pub mod dump;
 pub mod fuzz_harness;
 pub mod g3;
 pub mod history;
+pub mod lanes;
 pub mod lattice;
 pub mod layers;
 pub mod noise;

@@ -14,6 +14,7 @@ use glam::DVec3;
 use crate::brush::{self, Capsule, CapsulePoint, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::clean::clean;
 use crate::history::History;
+use crate::lanes::{self, LANES};
 use crate::noise::permutation;
 use crate::par;
 use crate::pool::{NONE, Tree, UNIT};
@@ -462,8 +463,9 @@ impl Painting {
     /// The paint pass of a segment that is one capsule (every sphere
     /// stroke): the same traversal and decisions as the general pass, with
     /// the projection of each cell centre on the capsule computed once for
-    /// reach, refinement and coverage, a unit of 8 leaves at a time, and
-    /// on the current rayon pool when the capsule reaches enough leaves.
+    /// reach, refinement and coverage, a unit of 8 leaves at a time (in
+    /// vector lanes, [`crate::lanes`]), and on the current rayon pool when
+    /// the capsule reaches enough leaves.
     /// Same result and same order of every list on any pool:
     ///
     /// 1. On more than one thread, the traversal stack is expanded top-down
@@ -704,26 +706,57 @@ impl Painting {
             _ => None,
         };
         let seg_is_last_near = seg_cap.is_some() && seg[0].overlaps(lo, hi);
-        let values = par::map(cells, |&(c, x, d)| {
-            let (before_rgb, before_sigma) = self.before_value(self.tree.parent[c as usize]);
-            let cp = seg_cap.map(|cap| cap.project(x));
-            let last = if seg_is_last_near { cp.as_ref() } else { None };
-            let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };
+        let hardness = st.brush.hardness;
+        // What a new cell stores and whether the next round refines it,
+        // given its stroke maximum `a` (0 or at least TINY), the primitive
+        // `k` of `near` attaining it, and, for a segment of one capsule,
+        // whether the cell is within its reach and the capsule's radius at
+        // the cell's projection.
+        let decide = |c: u32, x: DVec3, d: u32, before: ([u8; 3], f32), a: f64, k: usize, seg_reach: Option<(bool, f64)>| {
+            let (before_rgb, before_sigma) = before;
             // A new slot's maximum is 0 and its colour black until `a`
             // rises above it (as `apply` with `force` would do).
             let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
             let h = lat.reach_radius[d as usize];
-            let (reach, needs) = match (&seg_cap, &cp) {
-                (Some(cap), Some(cp)) => {
-                    let reach = cap.within_reach(cp, h);
-                    (reach, reach && lat.coarser_than_target(d, cp.r))
-                }
-                _ => segment_reach(&self.tree, st, seg, x, d, h, true),
+            let (reach, needs) = match seg_reach {
+                Some((reach, r)) => (reach, reach && lat.coarser_than_target(d, r)),
+                None => segment_reach(&self.tree, st, seg, x, d, h, true),
             };
             let next = reach && needs && !(sigma_gate && !(sigma > 0.0));
             (FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }, next.then_some(h))
-        });
+        };
+        let (per_unit, per_cell);
+        let values: &[(FirstWrite, Option<f64>)] = match seg_cap {
+            Some(cap) if lanes::available() && cells.len().is_multiple_of(LANES) && near.iter().all(|p| matches!(p.geo, Geometry::Capsule(_))) => {
+                // Every primitive near is a capsule (every sphere stroke): a
+                // unit's 8 children at once in vector lanes, and their
+                // parent's before-value found once.
+                per_unit = par::map_groups(cells, LANES, |u| {
+                    let (c0, _, d) = u[0];
+                    let before = self.before_value(self.tree.parent[c0 as usize]);
+                    let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
+                    let h = lat.reach_radius[d as usize];
+                    let m = lanes::unit_maximum(&near, hardness, &cap, seg_is_last_near, &xs, h).expect("lanes available");
+                    let out: [(FirstWrite, Option<f64>); LANES] = std::array::from_fn(|l| {
+                        decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])))
+                    });
+                    out
+                });
+                per_unit.as_flattened()
+            }
+            _ => {
+                per_cell = par::map(cells, |&(c, x, d)| {
+                    let before = self.before_value(self.tree.parent[c as usize]);
+                    let cp = seg_cap.map(|cap| cap.project(x));
+                    let last = if seg_is_last_near { cp.as_ref() } else { None };
+                    let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };
+                    let seg_reach = cp.map(|cp| (seg_cap.expect("a capsule").within_reach(&cp, lat.reach_radius[d as usize]), cp.r));
+                    decide(c, x, d, before, a, k, seg_reach)
+                });
+                &per_cell
+            }
+        };
         self.counters.cells_written += values.len() as u64;
         let mut next = Vec::new();
         for (v, &(_, x, _)) in values.iter().zip(cells) {
@@ -934,7 +967,8 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
         }
         let fc = tree.first_child[c as usize];
         if fc == NONE {
-            leaf(ctx, &mut out, c, d, x, &cp, h);
+            let a = if ctx.prim.holds(x) { cap.coverage_at(&cp, ctx.hardness) } else { 0.0 };
+            leaf(ctx, &mut out, c, d, x, cp.r, h, a);
             continue;
         }
         let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
@@ -946,11 +980,20 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
         }
         let d1 = d + 1;
         let h1 = lat.reach_radius[d1 as usize];
-        let xs: [DVec3; UNIT as usize] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
-        let cps: [CapsulePoint; UNIT as usize] = std::array::from_fn(|k| cap.project(xs[k]));
-        for k in (0..UNIT as usize).rev() {
+        let xs: [DVec3; LANES] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
+        if let Some(u) = lanes::unit_coverage(cap, ctx.prim, ctx.hardness, &xs, h1) {
+            for k in (0..LANES).rev() {
+                if u.reach[k] {
+                    leaf(ctx, &mut out, fc + k as u32, d1, xs[k], u.r[k], h1, u.a[k]);
+                }
+            }
+            continue;
+        }
+        let cps: [CapsulePoint; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
+        for k in (0..LANES).rev() {
             if cap.within_reach(&cps[k], h1) {
-                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], &cps[k], h1);
+                let a = if ctx.prim.holds(xs[k]) { cap.coverage_at(&cps[k], ctx.hardness) } else { 0.0 };
+                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cps[k].r, h1, a);
             }
         }
     }
@@ -958,18 +1001,19 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
     out
 }
 
-/// A leaf within reach of the capsule: its coverage, its write (in place
-/// when its slot exists, else kept for the serial part) and whether it is a
-/// candidate for refinement.
+/// A leaf within reach of the capsule, with coverage·flow `a` there (0
+/// outside the primitive's box) and the capsule's radius `r` at its
+/// projection: its write (in place when its slot exists, else kept for the
+/// serial part) and whether it is a candidate for refinement.
 #[inline]
-fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, cp: &CapsulePoint, h: f64) {
+#[allow(clippy::too_many_arguments)]
+fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
     out.visited += 1;
     // SAFETY (every `Disjoint` access here): `c` is a live cell of this
     // run's subtrees, which no other run holds, and its slot is its own;
     // the vectors do not change length while the runs go on.
     let before_sigma = unsafe { *ctx.sigma.at(c as usize) };
-    let needs = ctx.tree.lat.coarser_than_target(d, cp.r) && !(ctx.sigma_gate && !(before_sigma > 0.0));
-    let a = if ctx.prim.holds(x) { ctx.cap.coverage_at(cp, ctx.hardness) } else { 0.0 };
+    let needs = ctx.tree.lat.coarser_than_target(d, r) && !(ctx.sigma_gate && !(before_sigma > 0.0));
     if a >= TINY {
         out.hit += 1;
         let colour = ctx.prim.colour;

@@ -51,6 +51,17 @@ pub fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> 
     items.par_iter().with_min_len(chunk_len(items.len())).map(f).collect()
 }
 
+/// `f` over consecutive groups of `n` items (`items.len()` a multiple of
+/// `n`), the results in order: a unit's 8 children at a time.
+pub fn map_groups<T: Sync, U: Send>(items: &[T], n: usize, f: impl Fn(&[T]) -> U + Sync + Send) -> Vec<U> {
+    assert!(n > 0 && items.len().is_multiple_of(n), "{} items are not groups of {n}", items.len());
+    if !worth(items.len()) {
+        return items.chunks_exact(n).map(f).collect();
+    }
+    let groups = items.len() / n;
+    items.par_chunks_exact(n).with_min_len(chunk_len(groups)).map(f).collect()
+}
+
 /// The items for which `keep` holds, in their order.
 pub fn filter<T: Sync + Send + Copy>(items: &[T], keep: impl Fn(&T) -> bool + Sync + Send) -> Vec<T> {
     if !worth(items.len()) {
@@ -152,14 +163,15 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let (m, f, c, r) = pool.install(|| {
                 (
-                    map(&items, |x| x * 3),
+                    (map(&items, |x| x * 3), map_groups(&items, 8, |g| g[0] + g[7])),
                     filter(&items, |x| x % 7 == 3),
                     chunks(&items, |at, c| (at, c.len())),
                     ranges(5, 9_999, |r| r.collect::<Vec<u32>>()),
                 )
             });
             assert_eq!(r.concat(), (5..9_999).collect::<Vec<u32>>());
-            assert_eq!(m, items.iter().map(|x| x * 3).collect::<Vec<_>>());
+            assert_eq!(m.0, items.iter().map(|x| x * 3).collect::<Vec<_>>());
+            assert_eq!(m.1, items.chunks_exact(8).map(|g| g[0] + g[7]).collect::<Vec<_>>());
             assert_eq!(f, items.iter().copied().filter(|x| x % 7 == 3).collect::<Vec<_>>());
             let mut next = 0;
             for (at, len) in c {

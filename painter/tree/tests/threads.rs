@@ -7,50 +7,8 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-
-use octopaint_tree::layers::Document;
+use common::{Outcome, replay_on, traces};
 use octopaint_tree::par;
-use octopaint_tree::replay::replay_document;
-use octopaint_tree::read_trace;
-
-/// Everything a replay leaves that the thread count must not change.
-#[derive(PartialEq, Eq)]
-struct Outcome {
-    files: Vec<(String, Vec<u8>)>,
-    document: Vec<u8>,
-    history: Vec<Vec<u8>>,
-    warnings: Vec<String>,
-}
-
-fn document_history(doc: &Document) -> Vec<Vec<u8>> {
-    doc.layers().map(|l| common::history_bytes(&l.painting)).collect()
-}
-
-fn replay_on(threads: usize, trace: &Path) -> Outcome {
-    let t = read_trace(trace).unwrap_or_else(|e| panic!("{}: {e}", trace.display()));
-    let out = tempfile::tempdir().expect("temp dir");
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
-    let (stats, doc) = pool.install(|| replay_document(&t, Some(out.path()), &mut ())).expect("replay");
-    let mut files: Vec<(String, Vec<u8>)> = stats
-        .written
-        .iter()
-        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(p).expect("dump")))
-        .collect();
-    files.sort();
-    Outcome { files, document: doc.dump_bytes(), history: document_history(&doc), warnings: stats.warnings }
-}
-
-fn traces() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../traces");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .expect("traces/")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|e| e == "jsonl"))
-        .collect();
-    v.sort();
-    v
-}
 
 #[test]
 fn every_trace_gives_the_same_bytes_on_1_2_and_7_threads() {

@@ -1,6 +1,13 @@
-//! What the thread-count tests (threads.rs, threads_grain.rs) share.
+//! What the determinism tests (threads.rs, threads_grain.rs, lanes.rs)
+//! share. Each test binary uses part of it.
+#![allow(dead_code)]
 
+use std::path::{Path, PathBuf};
+
+use octopaint_tree::layers::Document;
 use octopaint_tree::paint::Painting;
+use octopaint_tree::read_trace;
+use octopaint_tree::replay::replay_document;
 
 /// A painting's undo and redo steps as bytes, record by record in their
 /// order (a tag tells done from undone): equal bytes, equal histories.
@@ -24,4 +31,45 @@ pub fn history_bytes(p: &Painting) -> Vec<u8> {
         }
     }
     out
+}
+
+/// Everything a replay leaves that the thread count (or the vector
+/// kernels) must not change.
+#[derive(PartialEq, Eq)]
+pub struct Outcome {
+    pub files: Vec<(String, Vec<u8>)>,
+    pub document: Vec<u8>,
+    pub history: Vec<Vec<u8>>,
+    pub warnings: Vec<String>,
+}
+
+fn document_history(doc: &Document) -> Vec<Vec<u8>> {
+    doc.layers().map(|l| history_bytes(&l.painting)).collect()
+}
+
+/// Replay `trace` on a pool of `threads`, dumps in a temporary folder.
+pub fn replay_on(threads: usize, trace: &Path) -> Outcome {
+    let t = read_trace(trace).unwrap_or_else(|e| panic!("{}: {e}", trace.display()));
+    let out = tempfile::tempdir().expect("temp dir");
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+    let (stats, doc) = pool.install(|| replay_document(&t, Some(out.path()), &mut ())).expect("replay");
+    let mut files: Vec<(String, Vec<u8>)> = stats
+        .written
+        .iter()
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(p).expect("dump")))
+        .collect();
+    files.sort();
+    Outcome { files, document: doc.dump_bytes(), history: document_history(&doc), warnings: stats.warnings }
+}
+
+/// The checked-in traces, sorted.
+pub fn traces() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../traces");
+    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("traces/")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "jsonl"))
+        .collect();
+    v.sort();
+    v
 }

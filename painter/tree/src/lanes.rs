@@ -1,0 +1,443 @@
+//! The 8 children of a unit against capsules, 4 points a vector register
+//! (AVX): the paint pass's projection, reach test and coverage of a unit
+//! whose children are all leaves, and the stroke maximum of a unit's new
+//! children. Every lane goes through the IEEE operations of the scalar
+//! forms in [`crate::brush`] in the same order (a division is a division,
+//! a square root a square root, nothing fused), so each lane holds the bits
+//! the scalar form gives: the tests below compare them on random and
+//! degenerate inputs. Processors without AVX, and other architectures, get
+//! `None` and the callers take their per-cell path.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use glam::DVec3;
+
+use crate::brush::Capsule;
+use crate::stroke::Prim;
+
+/// Points a kernel takes: a unit's children.
+pub const LANES: usize = 8;
+
+/// A capsule at a unit's 8 children (the paint pass): per lane, the local
+/// radius `r(u)` at the projection, whether a cell of half-diagonal `h`
+/// there is within reach ([`Capsule::within_reach`]), and its coverage·flow
+/// `a` ([`Capsule::coverage_at`], 0 outside the primitive's box).
+#[derive(Clone, Copy, Debug)]
+pub struct UnitCoverage {
+    pub r: [f64; LANES],
+    pub reach: [bool; LANES],
+    pub a: [f64; LANES],
+}
+
+/// The stroke maximum at a unit's 8 new children: per lane what
+/// `stroke_maximum_with` gives (`a`, 0 or at least TINY, and the first
+/// primitive `k` attaining it, any when `a` is 0), and for the segment's
+/// capsule the local radius and reach, as in [`UnitCoverage`].
+#[derive(Clone, Copy, Debug)]
+pub struct UnitMaximum {
+    pub a: [f64; LANES],
+    pub k: [u32; LANES],
+    pub seg_r: [f64; LANES],
+    pub seg_reach: [bool; LANES],
+}
+
+static ENABLED: AtomicBool = AtomicBool::new(true);
+
+/// Switch the kernels off (or on again): the callers then take their
+/// per-cell path, which must give the same bytes (tests/lanes.rs checks
+/// it on every trace; `octopaint bench tree --no-lanes` times it).
+pub fn set_enabled(on: bool) {
+    ENABLED.store(on, Ordering::Relaxed);
+}
+
+/// Whether the kernels run here (else they return `None`): switched on and
+/// an x86-64 processor with AVX.
+#[inline]
+pub fn available() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        ENABLED.load(Ordering::Relaxed) && std::arch::is_x86_feature_detected!("avx")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// The paint pass's [`UnitCoverage`] of `cap` (the primitive `prim`) at
+/// the centres `xs`, for cells of half-diagonal `h`.
+#[inline]
+pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<UnitCoverage> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if available() {
+            // SAFETY: the processor has AVX.
+            return Some(unsafe { avx::unit_coverage(cap, prim, hardness, xs, h) });
+        }
+    }
+    let _ = (cap, prim, hardness, xs, h);
+    None
+}
+
+/// The [`UnitMaximum`] over `prims` (capsules, in stroke order; a stamp
+/// panics) at the centres `xs` of new cells of half-diagonal `h`; `seg` is
+/// the segment's capsule, and `seg_is_last` says it is the last of `prims`
+/// too (its projection then serves both).
+#[inline]
+pub fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> Option<UnitMaximum> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if available() {
+            // SAFETY: the processor has AVX.
+            return Some(unsafe { avx::unit_maximum(prims, hardness, seg, seg_is_last, xs, h) });
+        }
+    }
+    let _ = (prims, hardness, seg, seg_is_last, xs, h);
+    None
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx {
+    use std::arch::x86_64::*;
+
+    use glam::DVec3;
+
+    use super::{LANES, UnitCoverage, UnitMaximum};
+    use crate::brush::{Capsule, TINY};
+    use crate::stroke::{Geometry, Prim};
+
+    /// `Capsule::project` of 4 points.
+    struct Projection {
+        dist: __m256d,
+        u: __m256d,
+        r: __m256d,
+        t: __m256d,
+        w1: __m256d,
+    }
+
+    /// The lanes' coordinates, 4 points a register.
+    struct Points {
+        x: [__m256d; 2],
+        y: [__m256d; 2],
+        z: [__m256d; 2],
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn splat(v: f64) -> __m256d {
+        _mm256_set1_pd(v)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn points(xs: &[DVec3; LANES]) -> Points {
+        let half = |i: usize, f: fn(&DVec3) -> f64| _mm256_set_pd(f(&xs[i + 3]), f(&xs[i + 2]), f(&xs[i + 1]), f(&xs[i]));
+        Points {
+            x: [half(0, |p| p.x), half(4, |p| p.x)],
+            y: [half(0, |p| p.y), half(4, |p| p.y)],
+            z: [half(0, |p| p.z), half(4, |p| p.z)],
+        }
+    }
+
+    /// `v.clamp(0.0, 1.0)` as Rust computes it: below 0 gives 0, above 1
+    /// gives 1, NaN stays NaN.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn clamp01(v: __m256d) -> __m256d {
+        let v = _mm256_blendv_pd(v, _mm256_setzero_pd(), _mm256_cmp_pd::<_CMP_LT_OQ>(v, _mm256_setzero_pd()));
+        _mm256_blendv_pd(v, splat(1.0), _mm256_cmp_pd::<_CMP_GT_OQ>(v, splat(1.0)))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn abs(v: __m256d) -> __m256d {
+        _mm256_and_pd(v, _mm256_castsi256_pd(_mm256_set1_epi64x(i64::MAX)))
+    }
+
+    /// `Capsule::project`, operation for operation.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn project(c: &Capsule, x: __m256d, y: __m256d, z: __m256d) -> Projection {
+        let (p0, d) = (c.p0, c.d);
+        let wx = _mm256_sub_pd(x, splat(p0.x));
+        let wy = _mm256_sub_pd(y, splat(p0.y));
+        let wz = _mm256_sub_pd(z, splat(p0.z));
+        let t = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(wx, splat(d.x)), _mm256_mul_pd(wy, splat(d.y))), _mm256_mul_pd(wz, splat(d.z)));
+        let u = if c.dd >= TINY { clamp01(_mm256_div_pd(t, splat(c.dd))) } else { _mm256_setzero_pd() };
+        let ex = _mm256_sub_pd(x, _mm256_add_pd(splat(p0.x), _mm256_mul_pd(splat(d.x), u)));
+        let ey = _mm256_sub_pd(y, _mm256_add_pd(splat(p0.y), _mm256_mul_pd(splat(d.y), u)));
+        let ez = _mm256_sub_pd(z, _mm256_add_pd(splat(p0.z), _mm256_mul_pd(splat(d.z), u)));
+        let s = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ex, ex), _mm256_mul_pd(ey, ey)), _mm256_mul_pd(ez, ez));
+        // sqrt where s > 0, else +0 (and for a NaN s).
+        let dist = _mm256_and_pd(_mm256_sqrt_pd(s), _mm256_cmp_pd::<_CMP_GT_OQ>(s, _mm256_setzero_pd()));
+        let r = _mm256_add_pd(splat(c.r0), _mm256_mul_pd(splat(c.r1 - c.r0), u));
+        let w1 = _mm256_add_pd(_mm256_add_pd(abs(wx), abs(wy)), abs(wz));
+        Projection { dist, u, r, t, w1 }
+    }
+
+    /// `Capsule::coverage_at` (with `coverage_profile`), as selects.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn coverage(c: &Capsule, p: &Projection, hardness: f64) -> __m256d {
+        let flow = _mm256_add_pd(splat(c.f0), _mm256_mul_pd(splat(c.f1 - c.f0), p.u));
+        let rho = _mm256_div_pd(p.dist, p.r);
+        let span = 1.0 - hardness;
+        let safe = if span > 0.0 { span } else { 1.0 };
+        let t = clamp01(_mm256_div_pd(_mm256_sub_pd(splat(1.0), rho), splat(safe)));
+        let smooth = _mm256_mul_pd(_mm256_mul_pd(t, t), _mm256_sub_pd(splat(3.0), _mm256_mul_pd(splat(2.0), t)));
+        let profile = _mm256_blendv_pd(smooth, splat(1.0), _mm256_cmp_pd::<_CMP_LE_OQ>(rho, splat(hardness)));
+        let profile = _mm256_blendv_pd(profile, _mm256_setzero_pd(), _mm256_cmp_pd::<_CMP_GE_OQ>(rho, splat(1.0)));
+        let cov = _mm256_mul_pd(profile, flow);
+        if c.open {
+            // Behind an open start: exactly 0 (spec 8.3).
+            _mm256_blendv_pd(cov, _mm256_setzero_pd(), _mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_setzero_pd()))
+        } else {
+            cov
+        }
+    }
+
+    /// `Capsule::within_reach` for cells of half-diagonal `h`: a mask.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn within_reach(c: &Capsule, p: &Projection, h: f64) -> __m256d {
+        let near = _mm256_cmp_pd::<_CMP_LE_OQ>(_mm256_sub_pd(p.dist, p.r), splat(h * c.slack));
+        if !c.open {
+            return near;
+        }
+        // -(h·dn + 1e-12·(w1 + h)·dn); the negation flips the sign bit.
+        let margin = _mm256_add_pd(splat(h * c.dn), _mm256_mul_pd(_mm256_mul_pd(splat(1e-12), _mm256_add_pd(p.w1, splat(h))), splat(c.dn)));
+        let behind = _mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_xor_pd(margin, splat(-0.0)));
+        _mm256_andnot_pd(behind, near)
+    }
+
+    /// `Prim::holds` of 4 points: a mask.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn holds(p: &Prim, x: __m256d, y: __m256d, z: __m256d) -> __m256d {
+        let le = |a: __m256d, b: __m256d| _mm256_cmp_pd::<_CMP_LE_OQ>(a, b);
+        let lo = _mm256_and_pd(_mm256_and_pd(le(splat(p.lo.x), x), le(splat(p.lo.y), y)), le(splat(p.lo.z), z));
+        let hi = _mm256_and_pd(_mm256_and_pd(le(x, splat(p.hi.x)), le(y, splat(p.hi.y))), le(z, splat(p.hi.z)));
+        _mm256_and_pd(lo, hi)
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn store(out: &mut [f64; LANES], half: usize, v: __m256d) {
+        // SAFETY: 4 lanes at 4·half of an array of 8.
+        unsafe { _mm256_storeu_pd(out.as_mut_ptr().add(4 * half), v) }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn store_mask(out: &mut [bool; LANES], half: usize, m: __m256d) {
+        let bits = _mm256_movemask_pd(m);
+        for l in 0..4 {
+            out[4 * half + l] = bits >> l & 1 == 1;
+        }
+    }
+
+    #[target_feature(enable = "avx")]
+    pub(super) fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> UnitCoverage {
+        let pts = points(xs);
+        let mut o = UnitCoverage { r: [0.0; LANES], reach: [false; LANES], a: [0.0; LANES] };
+        for i in 0..2 {
+            let (x, y, z) = (pts.x[i], pts.y[i], pts.z[i]);
+            let p = project(cap, x, y, z);
+            store(&mut o.r, i, p.r);
+            store_mask(&mut o.reach, i, within_reach(cap, &p, h));
+            // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
+            store(&mut o.a, i, _mm256_and_pd(coverage(cap, &p, hardness), holds(prim, x, y, z)));
+        }
+        o
+    }
+
+    #[target_feature(enable = "avx")]
+    pub(super) fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> UnitMaximum {
+        let pts = points(xs);
+        // The centres' box, NaN coordinates left out (f64::min, unlike
+        // glam's, ignores a NaN): a NaN centre holds nothing anyway.
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for x in xs {
+            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
+            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
+        }
+        let mut o = UnitMaximum { a: [0.0; LANES], k: [0; LANES], seg_r: [0.0; LANES], seg_reach: [false; LANES] };
+        let mut k = [0.0; LANES];
+        for half in 0..2 {
+            let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
+            let sp = project(seg, x, y, z);
+            store(&mut o.seg_r, half, sp.r);
+            store_mask(&mut o.seg_reach, half, within_reach(seg, &sp, h));
+            let mut best = _mm256_setzero_pd();
+            let mut best_k = _mm256_setzero_pd();
+            let mut nan = _mm256_setzero_pd();
+            for (i, p) in prims.iter().enumerate() {
+                if !p.overlaps(lo, hi) {
+                    continue; // its box holds none of the 8 centres
+                }
+                let Geometry::Capsule(cap) = &p.geo else { panic!("unit_maximum takes capsules only") };
+                let own;
+                let pr = if seg_is_last && i + 1 == prims.len() {
+                    &sp
+                } else {
+                    own = project(cap, x, y, z);
+                    &own
+                };
+                let cov = coverage(cap, pr, hardness);
+                let inside = holds(p, x, y, z);
+                // A NaN coverage poisons the lane; the first primitive
+                // attaining the maximum keeps it (a later one must exceed it).
+                nan = _mm256_or_pd(nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
+                let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, best));
+                best = _mm256_blendv_pd(best, cov, up);
+                best_k = _mm256_blendv_pd(best_k, splat(i as f64), up);
+            }
+            let zero = _mm256_or_pd(nan, _mm256_cmp_pd::<_CMP_LT_OQ>(best, splat(TINY)));
+            store(&mut o.a, half, _mm256_andnot_pd(zero, best));
+            store(&mut k, half, best_k);
+        }
+        o.k = k.map(|v| v as u32);
+        o
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brush::TINY;
+    use crate::noise::hash32;
+    use crate::stroke::Geometry;
+
+    fn unit(seed: &mut u32) -> f64 {
+        *seed = hash32(*seed);
+        f64::from(*seed) / 4294967296.0
+    }
+
+    /// A point in the cube [-0.5, 0.5]³.
+    fn jitter(seed: &mut u32) -> DVec3 {
+        let x = unit(seed);
+        let y = unit(seed);
+        DVec3::new(x - 0.5, y - 0.5, unit(seed) - 0.5)
+    }
+
+    /// Random capsules: chains with open starts, points, zero and huge
+    /// radii, NaN and infinite flows now and then.
+    fn capsules(seed: &mut u32, n: usize) -> Vec<Prim> {
+        let mut out: Vec<Prim> = Vec::new();
+        let mut p = DVec3::new(10.0, 10.0, 10.0);
+        let (mut r, mut f) = (3.0, 0.8);
+        for i in 0..n {
+            let kind = unit(seed);
+            let q = if kind < 0.1 { p } else { p + jitter(seed) * 8.0 };
+            let r1 = if kind > 0.97 { 0.0 } else { 0.5 + 5.0 * unit(seed) };
+            let f1 = match (unit(seed) * 40.0) as u32 {
+                0 => f64::NAN,
+                1 => f64::INFINITY,
+                2 => 0.0,
+                _ => unit(seed),
+            };
+            let cap = match out.last() {
+                Some(Prim { geo: Geometry::Capsule(prev), .. }) if i % 3 != 0 => Capsule::after(prev, q, r1, f1),
+                _ => Capsule::new(p, q, r, r1, f, f1),
+            };
+            let (lo, hi) = cap.bounds();
+            out.push(Prim { geo: Geometry::Capsule(cap), colour: [unit(seed), 0.5, 0.25], lo, hi });
+            (p, r, f) = (q, r1, f1);
+        }
+        out
+    }
+
+    /// A unit's 8 centres near `at`, cell size `s`; some on box edges.
+    fn centres(seed: &mut u32, at: DVec3, s: f64) -> [DVec3; LANES] {
+        std::array::from_fn(|k| {
+            let o = DVec3::new((k & 1) as f64, (k >> 1 & 1) as f64, (k >> 2 & 1) as f64) * s;
+            at + o + DVec3::splat(0.5 * s)
+        })
+        .map(|x| if unit(seed) < 0.02 { DVec3::new(f64::NAN, x.y, x.z) } else { x })
+    }
+
+    #[test]
+    fn the_kernels_run_on_this_machine() {
+        // CI and development machines are x86-64 with AVX: the tests below
+        // must compare the vector lanes, not find them missing.
+        assert_eq!(available(), cfg!(target_arch = "x86_64"), "AVX kernels expected on x86-64");
+    }
+
+    #[test]
+    fn unit_coverage_is_the_scalar_projection_reach_and_coverage() {
+        let mut seed = 7;
+        let mut compared = 0;
+        for _ in 0..400 {
+            let prims = capsules(&mut seed, 6);
+            let hardness = [0.0, 0.5, 0.9, 1.0][(unit(&mut seed) * 4.0) as usize];
+            for p in &prims {
+                let Geometry::Capsule(cap) = &p.geo else { unreachable!() };
+                for _ in 0..8 {
+                    let s = [0.25, 1.0, 4.0][(unit(&mut seed) * 3.0) as usize];
+                    let at = cap.p0 + jitter(&mut seed) * 16.0;
+                    let xs = centres(&mut seed, at, s);
+                    let h = s * 0.8660254037844386;
+                    let Some(u) = unit_coverage(cap, p, hardness, &xs, h) else { return assert!(!available()) };
+                    for (l, x) in xs.iter().enumerate() {
+                        let cp = cap.project(*x);
+                        let a = if p.holds(*x) { cap.coverage_at(&cp, hardness) } else { 0.0 };
+                        assert_eq!(u.r[l].to_bits(), cp.r.to_bits(), "r {l} {x:?}");
+                        assert_eq!(u.reach[l], cap.within_reach(&cp, h), "reach {l} {x:?}");
+                        assert_eq!(u.a[l].to_bits(), a.to_bits(), "a {l} {x:?}: {} {}", u.a[l], a);
+                        compared += 1;
+                    }
+                }
+            }
+        }
+        assert!(compared > 100_000);
+    }
+
+    #[test]
+    fn unit_maximum_is_the_scalar_stroke_maximum() {
+        let mut seed = 99;
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let n = 1 + (unit(&mut seed) * 7.0) as usize;
+            let prims = capsules(&mut seed, n);
+            let hardness = [0.0, 0.5, 1.0][(unit(&mut seed) * 3.0) as usize];
+            let Geometry::Capsule(seg) = prims.last().unwrap().geo else { unreachable!() };
+            let s = [0.5, 2.0][(unit(&mut seed) * 2.0) as usize];
+            let at = seg.p0 + jitter(&mut seed) * 12.0;
+            let xs = centres(&mut seed, at, s);
+            let h = s * 0.8660254037844386;
+            // The segment is the last primitive, or (first case) not among them.
+            for (near, seg_is_last) in [(&prims[..prims.len() - 1], false), (&prims[..], true)] {
+                let Some(m) = unit_maximum(near, hardness, &seg, seg_is_last, &xs, h) else { return assert!(!available()) };
+                for (l, &x) in xs.iter().enumerate() {
+                    // The scalar stroke maximum (paint.rs's, for capsules).
+                    let (mut best, mut k) = (0.0, 0);
+                    let mut poisoned = false;
+                    for (i, p) in near.iter().enumerate() {
+                        let Geometry::Capsule(cap) = &p.geo else { unreachable!() };
+                        if !p.holds(x) {
+                            continue;
+                        }
+                        let c = cap.coverage(x, hardness);
+                        if c.is_nan() {
+                            poisoned = true;
+                            break;
+                        }
+                        if c > best {
+                            (best, k) = (c, i);
+                        }
+                    }
+                    let a = if poisoned || best < TINY { 0.0 } else { best };
+                    assert_eq!(m.a[l].to_bits(), a.to_bits(), "lane {l} at {x:?}: {} against {}", m.a[l], a);
+                    if a > 0.0 {
+                        assert_eq!(m.k[l] as usize, k);
+                        hits += 1;
+                    }
+                    let cp = seg.project(x);
+                    assert_eq!(m.seg_r[l].to_bits(), cp.r.to_bits());
+                    assert_eq!(m.seg_reach[l], seg.within_reach(&cp, h));
+                }
+            }
+        }
+        assert!(hits > 2000, "{hits} lanes covered");
+    }
+}
