@@ -732,18 +732,19 @@ impl Painting {
                 // Every primitive near is a capsule (every sphere stroke): a
                 // unit's 8 children at once in vector lanes, and their
                 // parent's before-value found once.
-                per_unit = par::map_groups(cells, LANES, |u| {
+                let mut out = vec![(FirstWrite::NONE, None); cells.len()];
+                par::for_groups(cells, &mut out, LANES, |u, out| {
                     let (c0, _, d) = u[0];
                     let before = self.before_value(self.tree.parent[c0 as usize]);
                     let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
                     let h = lat.reach_radius[d as usize];
                     let m = lanes::unit_maximum(&near, hardness, &cap, seg_is_last_near, &xs, h).expect("lanes available");
-                    let out: [(FirstWrite, Option<f64>); LANES] = std::array::from_fn(|l| {
-                        decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])))
-                    });
-                    out
+                    for (l, o) in out.iter_mut().enumerate() {
+                        *o = decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])));
+                    }
                 });
-                per_unit.as_flattened()
+                per_unit = out;
+                &per_unit
             }
             _ => {
                 per_cell = par::map(cells, |&(c, x, d)| {
@@ -1051,6 +1052,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
 /// A cell's first write in the stroke (a new child, or a leaf a paint-pass
 /// run touched for the first time), decided before any is written: its
 /// before-value, its stroke maximum and colour, and what it stores now.
+#[derive(Clone, Copy)]
 struct FirstWrite {
     c: u32,
     before_rgb: [u8; 3],
@@ -1059,6 +1061,11 @@ struct FirstWrite {
     colour: [f64; 3],
     rgb: [u8; 3],
     sigma: f32,
+}
+
+impl FirstWrite {
+    /// A placeholder, overwritten before use.
+    const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, colour: [0.0; 3], rgb: [0; 3], sigma: 0.0 };
 }
 
 /// What one run of the parallel paint pass leaves for the serial part.

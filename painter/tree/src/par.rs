@@ -52,14 +52,17 @@ pub fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> 
 }
 
 /// `f` over consecutive groups of `n` items (`items.len()` a multiple of
-/// `n`), the results in order: a unit's 8 children at a time.
-pub fn map_groups<T: Sync, U: Send>(items: &[T], n: usize, f: impl Fn(&[T]) -> U + Sync + Send) -> Vec<U> {
-    assert!(n > 0 && items.len().is_multiple_of(n), "{} items are not groups of {n}", items.len());
+/// `n`: a unit's 8 children at a time) and the same groups of `out`, which
+/// is as long as `items`: results written in place, in parallel when worth
+/// it.
+pub fn for_groups<T: Sync, U: Send>(items: &[T], out: &mut [U], n: usize, f: impl Fn(&[T], &mut [U]) + Sync + Send) {
+    assert!(n > 0 && items.len().is_multiple_of(n) && out.len() == items.len(), "{} items, {} results, groups of {n}", items.len(), out.len());
     if !worth(items.len()) {
-        return items.chunks_exact(n).map(f).collect();
+        items.chunks_exact(n).zip(out.chunks_exact_mut(n)).for_each(|(g, o)| f(g, o));
+        return;
     }
     let groups = items.len() / n;
-    items.par_chunks_exact(n).with_min_len(chunk_len(groups)).map(f).collect()
+    items.par_chunks_exact(n).zip(out.par_chunks_exact_mut(n)).with_min_len(chunk_len(groups)).for_each(|(g, o)| f(g, o));
 }
 
 /// The items for which `keep` holds, in their order.
@@ -163,7 +166,11 @@ mod tests {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let (m, f, c, r) = pool.install(|| {
                 (
-                    (map(&items, |x| x * 3), map_groups(&items, 8, |g| g[0] + g[7])),
+                    (map(&items, |x| x * 3), {
+                        let mut out = vec![0; items.len()];
+                        for_groups(&items, &mut out, 8, |g, o| o.iter_mut().zip(g).for_each(|(o, x)| *o = x * 5 + g[0]));
+                        out
+                    }),
                     filter(&items, |x| x % 7 == 3),
                     chunks(&items, |at, c| (at, c.len())),
                     ranges(5, 9_999, |r| r.collect::<Vec<u32>>()),
@@ -171,7 +178,7 @@ mod tests {
             });
             assert_eq!(r.concat(), (5..9_999).collect::<Vec<u32>>());
             assert_eq!(m.0, items.iter().map(|x| x * 3).collect::<Vec<_>>());
-            assert_eq!(m.1, items.chunks_exact(8).map(|g| g[0] + g[7]).collect::<Vec<_>>());
+            assert_eq!(m.1, items.iter().map(|x| x * 5 + x / 8 * 8).collect::<Vec<_>>());
             assert_eq!(f, items.iter().copied().filter(|x| x % 7 == 3).collect::<Vec<_>>());
             let mut next = 0;
             for (at, len) in c {
