@@ -36,14 +36,14 @@ static UNIT_RGB: [f64; 256] = {
 
 /// A touched cell's stroke state (spec 8.8), but for its stroke maximum
 /// `a`, which lives in its own array: the paint pass reads it for every
-/// leaf and rarely needs the rest.
+/// leaf and rarely needs the rest. The colour K of the primitive that
+/// attained `a` is not kept: a cell is blended only when its maximum rises,
+/// with the colour of the primitive that raised it (32 bytes a slot).
 #[derive(Clone, Copy, Debug)]
 struct Slot {
     cell: u32,
     before_rgb: [u8; 3],
     before_sigma: f32,
-    /// The colour K of the primitive that attained `a`.
-    colour: [f64; 3],
     /// The settled test's bounds `[a_lo, a_hi]` over the stroke's first
     /// `bounds_upto` primitives (0: not computed yet; NaN: a NaN bound).
     /// Both are maxima over primitives, so a later test folds in only the
@@ -448,7 +448,7 @@ impl Painting {
             if a > 0.0 {
                 hit += 1;
                 let colour = seg[k].colour;
-                self.apply(c, a, colour, false);
+                self.apply(c, a, colour);
             }
             if needs {
                 candidates.push(c);
@@ -724,7 +724,7 @@ impl Painting {
                 None => segment_reach(&self.tree, st, seg, x, d, h, true),
             };
             let next = reach && needs && !(sigma_gate && !(sigma > 0.0));
-            (FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma }, next.then_some(h))
+            (FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma }, next.then_some(h))
         };
         let (per_unit, per_cell);
         let values: &[(FirstWrite, Option<f64>)] = match seg_cap {
@@ -770,8 +770,8 @@ impl Painting {
     }
 
     /// A cell's first write in the stroke, decided already: its slot with
-    /// its before-value, its maximum and colour when `a` rose above 0 (as
-    /// [`Painting::apply`] would set them), and the stored value.
+    /// its before-value, its maximum when `a` rose above 0 (as
+    /// [`Painting::apply`] would set it), and the stored value.
     ///
     /// `new_child`: `c` was made by `make_children` in this step, so it is
     /// journalled and marked dirty already.
@@ -780,7 +780,6 @@ impl Painting {
         if w.a > 0.0 {
             let st = self.stroke.as_mut().expect("stroke");
             st.slot_a[slot] = w.a;
-            st.slots[slot].colour = w.colour;
         }
         if new_child {
             self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
@@ -868,15 +867,15 @@ impl Painting {
             self.slot_of.resize(self.tree.n_used() as usize, NONE);
         }
         let slot = st.slots.len() as u32;
-        st.slots.push(Slot { cell: c, before_rgb, before_sigma, colour: [0.0; 3], bounds: [0.0; 2], bounds_upto: 0 });
+        st.slots.push(Slot { cell: c, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0 });
         st.slot_a.push(0.0);
         self.slot_of[c as usize] = slot;
         slot
     }
 
-    /// Raise `c`'s stroke maximum to `a` if larger and write
-    /// `blend(before, K, a)` when it rose (always when `force`).
-    fn apply(&mut self, c: u32, a: f64, colour: [f64; 3], force: bool) {
+    /// Raise `c`'s stroke maximum to `a` if larger, and then write
+    /// `blend(before, K, a)` with the colour K of the primitive that raised it.
+    fn apply(&mut self, c: u32, a: f64, colour: [f64; 3]) {
         let existing = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
         let slot = if existing == NONE {
             let (rgb, sigma) = (self.tree.rgb[c as usize], self.tree.sigma[c as usize]);
@@ -886,17 +885,12 @@ impl Painting {
         };
         let st = self.stroke.as_mut().expect("stroke");
         let slot_a = &mut st.slot_a[slot as usize];
-        let up = a > *slot_a;
-        if !(up || force) {
+        if !(a > *slot_a) {
             return;
         }
-        if up {
-            *slot_a = a;
-            st.slots[slot as usize].colour = colour;
-        }
-        let a = st.slot_a[slot as usize];
+        *slot_a = a;
         let s = &st.slots[slot as usize];
-        let (rgb, sigma) = st.stored(s.before_rgb, s.before_sigma, s.colour, a);
+        let (rgb, sigma) = st.stored(s.before_rgb, s.before_sigma, colour, a);
         self.tree.set_value(c, rgb, sigma);
         self.counters.cells_written += 1;
     }
@@ -1022,7 +1016,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
             NONE => {
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
-                out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, colour, rgb, sigma });
+                out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma });
             }
             s => unsafe {
                 // Touched before in this stroke, so written and journalled.
@@ -1030,8 +1024,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
                 let sa = &mut *ctx.slot_a.at(s as usize);
                 if a > *sa {
                     *sa = a;
-                    let slot = &mut *ctx.slots.at(s as usize);
-                    slot.colour = colour;
+                    let slot = &*ctx.slots.at(s as usize);
                     let (rgb, sigma) = ctx.st.stored(slot.before_rgb, slot.before_sigma, colour, a);
                     *ctx.rgb.at(c as usize) = rgb;
                     *ctx.sigma.at(c as usize) = sigma;
@@ -1051,21 +1044,20 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
 
 /// A cell's first write in the stroke (a new child, or a leaf a paint-pass
 /// run touched for the first time), decided before any is written: its
-/// before-value, its stroke maximum and colour, and what it stores now.
+/// before-value, its stroke maximum, and what it stores now.
 #[derive(Clone, Copy)]
 struct FirstWrite {
     c: u32,
     before_rgb: [u8; 3],
     before_sigma: f32,
     a: f64,
-    colour: [f64; 3],
     rgb: [u8; 3],
     sigma: f32,
 }
 
 impl FirstWrite {
     /// A placeholder, overwritten before use.
-    const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, colour: [0.0; 3], rgb: [0; 3], sigma: 0.0 };
+    const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, rgb: [0; 3], sigma: 0.0 };
 }
 
 /// What one run of the parallel paint pass leaves for the serial part.
