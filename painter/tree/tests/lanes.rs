@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{Outcome, replay_on, traces};
+use common::{replay_on, traces};
 use octopaint_tree::lanes;
 
 #[test]
@@ -21,14 +21,7 @@ fn every_trace_gives_the_same_bytes_with_and_without_the_vector_kernels() {
         assert!(!lanes::available());
         let off = replay_on(1, trace);
         assert!(!on.files.is_empty(), "{} wrote no dumps", trace.display());
-        let names = |o: &Outcome| o.files.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
-        assert_eq!(names(&on), names(&off), "{}", trace.display());
-        for ((name, a), (_, b)) in on.files.iter().zip(&off.files) {
-            assert!(a == b, "{}: {name} differs without the vector kernels", trace.display());
-        }
-        assert!(on.document == off.document, "{}: document dump differs", trace.display());
-        assert!(on.history == off.history, "{}: undo steps differ", trace.display());
-        assert_eq!(on.warnings, off.warnings, "{}: warnings differ", trace.display());
+        common::assert_same(&on, &off, &format!("{}, without the vector kernels", trace.display()));
     }
     lanes::set_enabled(true);
 }

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{Outcome, replay_on, traces};
+use common::{replay_on, traces};
 use octopaint_tree::par;
 
 #[test]
@@ -19,15 +19,7 @@ fn every_trace_gives_the_same_bytes_on_1_2_and_7_threads() {
         let one = replay_on(1, trace);
         assert!(!one.files.is_empty(), "{} wrote no dumps", trace.display());
         for threads in [2, 7] {
-            let other = replay_on(threads, trace);
-            let names = |o: &Outcome| o.files.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
-            assert_eq!(names(&one), names(&other), "{}: other dumps on {threads} threads", trace.display());
-            for ((name, a), (_, b)) in one.files.iter().zip(&other.files) {
-                assert!(a == b, "{}: {name} differs on {threads} threads", trace.display());
-            }
-            assert!(one.document == other.document, "{}: document dump differs on {threads} threads", trace.display());
-            assert!(one.history == other.history, "{}: undo steps differ on {threads} threads", trace.display());
-            assert_eq!(one.warnings, other.warnings, "{}: warnings differ on {threads} threads", trace.display());
+            common::assert_same(&one, &replay_on(threads, trace), &format!("{}, on {threads} threads", trace.display()));
         }
     }
 }

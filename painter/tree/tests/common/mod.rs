@@ -73,3 +73,16 @@ pub fn traces() -> Vec<PathBuf> {
     v.sort();
     v
 }
+
+/// Two replays left the same dumps, document, undo steps and warnings;
+/// `what` names the second in the messages.
+pub fn assert_same(one: &Outcome, other: &Outcome, what: &str) {
+    let names = |o: &Outcome| o.files.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+    assert_eq!(names(one), names(other), "{what}: other dumps");
+    for ((name, a), (_, b)) in one.files.iter().zip(&other.files) {
+        assert!(a == b, "{what}: {name} differs");
+    }
+    assert!(one.document == other.document, "{what}: the document dump differs");
+    assert!(one.history == other.history, "{what}: the undo steps differ");
+    assert_eq!(one.warnings, other.warnings, "{what}: the warnings differ");
+}
