@@ -52,6 +52,8 @@ struct Slot {
     bounds_upto: u32,
 }
 
+const _: () = assert!(std::mem::size_of::<Slot>() == 32);
+
 /// The stroke in progress.
 #[derive(Clone)]
 struct StrokeState {
@@ -714,8 +716,8 @@ impl Painting {
         // the cell's projection.
         let decide = |c: u32, x: DVec3, d: u32, before: ([u8; 3], f32), a: f64, k: usize, seg_reach: Option<(bool, f64)>| {
             let (before_rgb, before_sigma) = before;
-            // A new slot's maximum is 0 and its colour black until `a`
-            // rises above it (as `apply` with `force` would do).
+            // At a = 0 the blend keeps the before-value whatever the
+            // colour (`k` then names no primitive).
             let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
             let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
             let h = lat.reach_radius[d as usize];
@@ -752,7 +754,7 @@ impl Painting {
                     let cp = seg_cap.map(|cap| cap.project(x));
                     let last = if seg_is_last_near { cp.as_ref() } else { None };
                     let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };
-                    let seg_reach = cp.map(|cp| (seg_cap.expect("a capsule").within_reach(&cp, lat.reach_radius[d as usize]), cp.r));
+                    let seg_reach = seg_cap.zip(cp).map(|(cap, cp)| (cap.within_reach(&cp, lat.reach_radius[d as usize]), cp.r));
                     decide(c, x, d, before, a, k, seg_reach)
                 });
                 &per_cell
@@ -943,6 +945,16 @@ struct RunContext<'a> {
     slots: Disjoint<Slot>,
 }
 
+impl RunContext<'_> {
+    /// The capsule's coverage·flow at `x`, which projects to `cp`: 0
+    /// outside the primitive's box (spec 8.5). [`lanes::unit_coverage`]
+    /// computes the same for a unit's 8 children.
+    #[inline]
+    fn coverage(&self, x: DVec3, cp: &CapsulePoint) -> f64 {
+        if self.prim.holds(x) { self.cap.coverage_at(cp, self.hardness) } else { 0.0 }
+    }
+}
+
 /// Walk a run of the paint pass as the serial pass does: `stack` holds its
 /// subtrees, the next to visit last. A unit whose 8
 /// children are all leaves is done at once: the serial pass would pop
@@ -962,8 +974,7 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
         }
         let fc = tree.first_child[c as usize];
         if fc == NONE {
-            let a = if ctx.prim.holds(x) { cap.coverage_at(&cp, ctx.hardness) } else { 0.0 };
-            leaf(ctx, &mut out, c, d, x, cp.r, h, a);
+            leaf(ctx, &mut out, c, d, x, cp.r, h, ctx.coverage(x, &cp));
             continue;
         }
         let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
@@ -987,8 +998,7 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
         let cps: [CapsulePoint; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
         for k in (0..LANES).rev() {
             if cap.within_reach(&cps[k], h1) {
-                let a = if ctx.prim.holds(xs[k]) { cap.coverage_at(&cps[k], ctx.hardness) } else { 0.0 };
-                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cps[k].r, h1, a);
+                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cps[k].r, h1, ctx.coverage(xs[k], &cps[k]));
             }
         }
     }
