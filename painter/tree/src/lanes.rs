@@ -79,6 +79,22 @@ pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LAN
     None
 }
 
+/// [`Capsule::within_reach`] of `cap` at the centres `xs` of cells of
+/// half-diagonal `h`, as a mask (bit k: lane k within reach): the paint
+/// pass's test of a unit's children that are not all leaves.
+#[inline]
+pub fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> Option<u8> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if available() {
+            // SAFETY: the processor has AVX.
+            return Some(unsafe { avx::unit_reach(cap, xs, h) });
+        }
+    }
+    let _ = (cap, xs, h);
+    None
+}
+
 /// The [`UnitMaximum`] over `prims` (capsules, in stroke order; a stamp
 /// panics) at the centres `xs` of new cells of half-diagonal `h`; `seg` is
 /// the segment's capsule, and `seg_is_last` says it is the last of `prims`
@@ -262,6 +278,17 @@ mod avx {
     }
 
     #[target_feature(enable = "avx")]
+    pub(super) fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> u8 {
+        let pts = points(xs);
+        let mut bits = 0;
+        for i in 0..2 {
+            let p = project(cap, pts.x[i], pts.y[i], pts.z[i]);
+            bits |= (_mm256_movemask_pd(within_reach(cap, &p, h)) as u8) << (4 * i);
+        }
+        bits
+    }
+
+    #[target_feature(enable = "avx")]
     pub(super) fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> UnitMaximum {
         let pts = points(xs);
         // The centres' box, NaN coordinates left out (f64::min, unlike
@@ -374,7 +401,7 @@ mod tests {
     }
 
     #[test]
-    fn unit_coverage_is_the_scalar_projection_reach_and_coverage() {
+    fn unit_coverage_and_unit_reach_are_the_scalar_projection_reach_and_coverage() {
         let mut seed = 7;
         let mut compared = 0;
         for _ in 0..400 {
@@ -388,11 +415,13 @@ mod tests {
                     let xs = centres(&mut seed, at, s);
                     let h = s * 0.8660254037844386;
                     let Some(u) = unit_coverage(cap, p, hardness, &xs, h) else { return assert!(!available()) };
+                    let reach = unit_reach(cap, &xs, h).expect("both kernels or neither");
                     for (l, x) in xs.iter().enumerate() {
                         let cp = cap.project(*x);
                         let a = if p.holds(*x) { cap.coverage_at(&cp, hardness) } else { 0.0 };
                         assert_eq!(u.r[l].to_bits(), cp.r.to_bits(), "r {l} {x:?}");
                         assert_eq!(u.reach[l], cap.within_reach(&cp, h), "reach {l} {x:?}");
+                        assert_eq!(reach >> l & 1 == 1, u.reach[l], "unit_reach {l} {x:?}");
                         assert_eq!(u.a[l].to_bits(), a.to_bits(), "a {l} {x:?}: {} {}", u.a[l], a);
                         compared += 1;
                     }

@@ -175,6 +175,8 @@ pub struct Painting {
     spare_slots: Vec<Slot>,
     spare_slot_a: Vec<f64>,
     spare_stack: Vec<(u32, [u32; 3])>,
+    /// The serial paint pass's lists, emptied (their capacity kept).
+    spare_run: Run,
     /// Settled leaves are left unrefined (spec 8.7); off only to measure
     /// what the rule saves and to test that it changes no value.
     settling: bool,
@@ -199,6 +201,7 @@ impl Painting {
             spare_slots: Vec::new(),
             spare_slot_a: Vec::new(),
             spare_stack: Vec::new(),
+            spare_run: Run::default(),
             settling: true,
         }
     }
@@ -561,16 +564,17 @@ impl Painting {
         };
         let runs: Vec<Run> = if parallel {
             // Each run's stack pops its subtrees in visiting order.
-            bounds.par_windows(2).map(|w| walk_run(&ctx, front[w[0]..w[1]].iter().rev().copied().collect())).collect()
+            bounds.par_windows(2).map(|w| walk_run(&ctx, Run { stack: front[w[0]..w[1]].iter().rev().copied().collect(), ..Run::default() })).collect()
         } else {
-            // One run: the traversal's stack itself, kept between passes.
-            vec![walk_run(&ctx, std::mem::take(&mut stack))]
+            // One run: the traversal's stack itself, and the lists of the
+            // last serial pass, kept between passes.
+            vec![walk_run(&ctx, Run { stack: std::mem::take(&mut stack), ..std::mem::take(&mut self.spare_run) })]
         };
         // 3. In order, serially.
         let settles = st.settles;
         let mut maybe = Vec::new();
         for mut run in runs {
-            for b in run.blocks {
+            for &b in &run.blocks {
                 self.tree.changes.mark_block(b * crate::dirty::BLOCK_CELLS);
             }
             self.counters.cells_written += run.written + run.fresh.len() as u64;
@@ -586,6 +590,12 @@ impl Painting {
             }
             if run.stack.capacity() > stack.capacity() {
                 stack = std::mem::take(&mut run.stack);
+            }
+            if !parallel {
+                run.fresh.clear();
+                run.needs.clear();
+                run.blocks.clear();
+                self.spare_run = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, ..Run::default() };
             }
         }
         if !maybe.is_empty() {
@@ -955,38 +965,52 @@ impl RunContext<'_> {
     }
 }
 
-/// Walk a run of the paint pass as the serial pass does: `stack` holds its
-/// subtrees, the next to visit last. A unit whose 8
-/// children are all leaves is done at once: the serial pass would pop
-/// them next, 7 to 0, with nothing between, and their projections are
-/// independent, so the processor overlaps their divisions and square roots.
-fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
+/// Walk a run of the paint pass as the serial pass does: `out.stack` holds
+/// its subtrees, the next to visit last, and its lists are empty. A cell's children are tested for reach
+/// together, in vector lanes, before they are pushed, so the stack above
+/// the run's own subtrees holds only cells within reach (the serial pass
+/// would pop the others and skip them, so the order of the rest is the
+/// same). A unit whose 8 children are all leaves is done at once: the
+/// serial pass would pop them next, 7 to 0, with nothing between, and
+/// their projections are independent, so the processor overlaps their
+/// divisions and square roots.
+fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
     let (tree, cap) = (ctx.tree, ctx.cap);
     let lat = &tree.lat;
-    let mut out = Run::default();
+    let mut stack = std::mem::take(&mut out.stack);
+    // Entries below `untested` are the run's subtrees, not tested yet.
+    let mut untested = stack.len();
     while let Some((c, o)) = stack.pop() {
         let d = u32::from(tree.depth[c as usize]);
-        let x = lat.centre(o, d);
-        let cp = cap.project(x);
-        let h = lat.reach_radius[d as usize];
-        if !cap.within_reach(&cp, h) {
-            continue;
-        }
         let fc = tree.first_child[c as usize];
-        if fc == NONE {
-            leaf(ctx, &mut out, c, d, x, cp.r, h, ctx.coverage(x, &cp));
-            continue;
-        }
-        let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
-        if unit.iter().any(|&g| g != NONE) {
-            for k in 0..UNIT {
-                stack.push((fc + k, tree.child_origin(o, d, k)));
+        let tested = stack.len() >= untested;
+        if !tested || fc == NONE {
+            untested = untested.min(stack.len());
+            let x = lat.centre(o, d);
+            let cp = cap.project(x);
+            let h = lat.reach_radius[d as usize];
+            if !tested && !cap.within_reach(&cp, h) {
+                continue;
             }
-            continue;
+            if fc == NONE {
+                leaf(ctx, &mut out, c, d, x, cp.r, h, ctx.coverage(x, &cp));
+                continue;
+            }
         }
         let d1 = d + 1;
         let h1 = lat.reach_radius[d1 as usize];
         let xs: [DVec3; LANES] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
+        let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
+        if unit.iter().any(|&g| g != NONE) {
+            let reach = lanes::unit_reach(cap, &xs, h1)
+                .unwrap_or_else(|| (0..LANES).fold(0, |m, k| m | u8::from(cap.within_reach(&cap.project(xs[k]), h1)) << k));
+            for k in 0..UNIT {
+                if reach >> k & 1 == 1 {
+                    stack.push((fc + k, tree.child_origin(o, d, k)));
+                }
+            }
+            continue;
+        }
         if let Some(u) = lanes::unit_coverage(cap, ctx.prim, ctx.hardness, &xs, h1) {
             for k in (0..LANES).rev() {
                 if u.reach[k] {
@@ -1010,7 +1034,7 @@ fn walk_run(ctx: &RunContext, mut stack: Vec<(u32, [u32; 3])>) -> Run {
 /// outside the primitive's box) and the capsule's radius `r` at its
 /// projection: its write (in place when its slot exists, else kept for the
 /// serial part) and whether it is a candidate for refinement.
-#[inline]
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
     out.visited += 1;
@@ -1071,7 +1095,7 @@ impl FirstWrite {
 }
 
 /// What one run of the parallel paint pass leaves for the serial part.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Run {
     fresh: Vec<FirstWrite>,
     /// Leaves coarser than their target depth: (cell, centre, reach radius).
