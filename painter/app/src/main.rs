@@ -513,7 +513,8 @@ fn main() -> ExitCode {
     };
     match command {
         Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
-            cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
+            // The painting runs on a worker of the core's thread pool (par::on_pool).
+            octopaint_tree::par::on_pool(|| cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision }))
         }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),

@@ -95,6 +95,20 @@ pub fn ranges<U: Send>(lo: u32, hi: u32, f: impl Fn(std::ops::Range<u32>) -> U +
     starts.par_iter().map(|&s| f(s..(s + n).min(hi))).collect()
 }
 
+/// Run `f` on a worker thread of the current rayon pool, the caller
+/// waiting: for long jobs that paint many samples (a replay, an export).
+/// A parallel batch started outside the pool is injected into it and the
+/// caller sleeps until the workers finish it, so every batch costs two
+/// wake-ups; started on a worker, the batch is split between that worker
+/// and the others, and only an idle helper has to wake. Nothing is
+/// handed off on one thread, or when already on a worker.
+pub fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_num_threads() <= 1 || rayon::current_thread_index().is_some() {
+        return f();
+    }
+    rayon::scope(|_| f())
+}
+
 /// Sort a list of cell indices ascending and drop repeats: the same list as
 /// `sort_unstable` then `dedup`. Long lists go through a radix sort (11
 /// bits a pass, as many passes as the largest index needs), which is
@@ -137,6 +151,20 @@ pub fn sort_dedup(v: &mut Vec<u32>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn on_pool_runs_on_a_worker_of_a_pool_of_several_threads() {
+        // The test thread belongs to no pool: on_pool takes the global one.
+        assert_eq!(rayon::current_thread_index(), None);
+        assert_eq!(on_pool(rayon::current_thread_index).is_some(), rayon::current_num_threads() > 1);
+        // On a worker already, or on one thread: in place.
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (me, there) = pool.install(|| (rayon::current_thread_index(), on_pool(rayon::current_thread_index)));
+            assert!(me.is_some());
+            assert_eq!(there, me, "{threads} threads");
+        }
+    }
 
     #[test]
     fn sort_dedup_is_sort_then_dedup() {
