@@ -719,32 +719,14 @@ impl Painting {
         };
         let seg_is_last_near = seg_cap.is_some() && seg[0].overlaps(lo, hi);
         let hardness = st.brush.hardness;
-        // What a new cell stores and whether the next round refines it,
-        // given its stroke maximum `a` (0 or at least TINY), the primitive
-        // `k` of `near` attaining it, and, for a segment of one capsule,
-        // whether the cell is within its reach and the capsule's radius at
-        // the cell's projection.
-        let decide = |c: u32, x: DVec3, d: u32, before: ([u8; 3], f32), a: f64, k: usize, seg_reach: Option<(bool, f64)>| {
-            let (before_rgb, before_sigma) = before;
-            // At a = 0 the blend keeps the before-value whatever the
-            // colour (`k` then names no primitive).
-            let colour = if a > 0.0 { near[k].colour } else { [0.0; 3] };
-            let (rgb, sigma) = st.stored(before_rgb, before_sigma, colour, a);
-            let h = lat.reach_radius[d as usize];
-            let (reach, needs) = match seg_reach {
-                Some((reach, r)) => (reach, reach && lat.coarser_than_target(d, r)),
-                None => segment_reach(&self.tree, st, seg, x, d, h, true),
-            };
-            let next = reach && needs && !(sigma_gate && !(sigma > 0.0));
-            (FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma }, next.then_some(h))
-        };
+        let nc = NewCells { tree: &self.tree, st, near: &near, seg, sigma_gate };
         let (per_unit, per_cell);
-        let values: &[(FirstWrite, Option<f64>)] = match seg_cap {
+        let values: &[FirstWrite] = match seg_cap {
             Some(cap) if lanes::available() && cells.len().is_multiple_of(LANES) && near.iter().all(|p| matches!(p.geo, Geometry::Capsule(_))) => {
                 // Every primitive near is a capsule (every sphere stroke): a
                 // unit's 8 children at once in vector lanes, and their
                 // parent's before-value found once.
-                let mut out = vec![(FirstWrite::NONE, None); cells.len()];
+                let mut out = vec![FirstWrite::NONE; cells.len()];
                 par::for_groups(cells, &mut out, LANES, |u, out| {
                     let (c0, _, d) = u[0];
                     let before = self.before_value(self.tree.parent[c0 as usize]);
@@ -752,7 +734,7 @@ impl Painting {
                     let h = lat.reach_radius[d as usize];
                     let m = lanes::unit_maximum(&near, hardness, &cap, seg_is_last_near, &xs, h).expect("lanes available");
                     for (l, o) in out.iter_mut().enumerate() {
-                        *o = decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])));
+                        *o = nc.decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])));
                     }
                 });
                 per_unit = out;
@@ -765,17 +747,17 @@ impl Painting {
                     let last = if seg_is_last_near { cp.as_ref() } else { None };
                     let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };
                     let seg_reach = seg_cap.zip(cp).map(|(cap, cp)| (cap.within_reach(&cp, lat.reach_radius[d as usize]), cp.r));
-                    decide(c, x, d, before, a, k, seg_reach)
+                    nc.decide(c, x, d, before, a, k, seg_reach)
                 });
                 &per_cell
             }
         };
         self.counters.cells_written += values.len() as u64;
         let mut next = Vec::new();
-        for (v, &(_, x, _)) in values.iter().zip(cells) {
-            self.first_write(&v.0, true);
-            if let Some(h) = v.1 {
-                next.push((v.0.c, x, h));
+        for (v, &(_, x, d)) in values.iter().zip(cells) {
+            self.first_write(v, true);
+            if v.next {
+                next.push((v.c, x, self.tree.lat.reach_radius[d as usize]));
             }
         }
         next
@@ -1050,7 +1032,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
             NONE => {
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
-                out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma });
+                out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma, next: false });
             }
             s => unsafe {
                 // Touched before in this stroke, so written and journalled.
@@ -1076,9 +1058,47 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
     }
 }
 
+/// What the pass over a round's new children reads
+/// ([`Painting::paint_new_cells`]).
+struct NewCells<'a> {
+    tree: &'a Tree,
+    st: &'a StrokeState,
+    /// The stroke's primitives whose boxes meet the new centres.
+    near: &'a [Prim],
+    /// The segment's primitives.
+    seg: &'a [Prim],
+    sigma_gate: bool,
+}
+
+impl NewCells<'_> {
+    /// What new cell `c` (centre `x`, depth `d`) stores and whether the next
+    /// round refines it, given its parent's before-value, its stroke maximum
+    /// `a` (0 or at least TINY), the primitive `k` of `near` attaining it,
+    /// and, for a segment of one capsule, whether the cell is within its
+    /// reach and the capsule's radius at the cell's projection.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn decide(&self, c: u32, x: DVec3, d: u32, before: ([u8; 3], f32), a: f64, k: usize, seg_reach: Option<(bool, f64)>) -> FirstWrite {
+        let (before_rgb, before_sigma) = before;
+        let lat = &self.tree.lat;
+        // At a = 0 the blend keeps the before-value whatever the colour
+        // (`k` then names no primitive).
+        let colour = if a > 0.0 { self.near[k].colour } else { [0.0; 3] };
+        let (rgb, sigma) = self.st.stored(before_rgb, before_sigma, colour, a);
+        let (reach, needs) = match seg_reach {
+            Some((reach, r)) => (reach, reach && lat.coarser_than_target(d, r)),
+            None => segment_reach(self.tree, self.st, self.seg, x, d, lat.reach_radius[d as usize], true),
+        };
+        let next = reach && needs && !(self.sigma_gate && !(sigma > 0.0));
+        FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma, next }
+    }
+}
+
 /// A cell's first write in the stroke (a new child, or a leaf a paint-pass
 /// run touched for the first time), decided before any is written: its
-/// before-value, its stroke maximum, and what it stores now.
+/// before-value, its stroke maximum, what it stores now, and (new children)
+/// whether the next round refines it. 32 bytes: a round's new children
+/// are decided into a list of these before any is written.
 #[derive(Clone, Copy)]
 struct FirstWrite {
     c: u32,
@@ -1087,11 +1107,14 @@ struct FirstWrite {
     a: f64,
     rgb: [u8; 3],
     sigma: f32,
+    next: bool,
 }
+
+const _: () = assert!(std::mem::size_of::<FirstWrite>() == 32);
 
 impl FirstWrite {
     /// A placeholder, overwritten before use.
-    const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, rgb: [0; 3], sigma: 0.0 };
+    const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, rgb: [0; 3], sigma: 0.0, next: false };
 }
 
 /// What one run of the parallel paint pass leaves for the serial part.
