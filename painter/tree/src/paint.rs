@@ -948,11 +948,11 @@ impl RunContext<'_> {
 }
 
 /// Walk a run of the paint pass as the serial pass does: `out.stack` holds
-/// its subtrees, the next to visit last, and its lists are empty. A cell's children are tested for reach
-/// together, in vector lanes, before they are pushed, so the stack above
-/// the run's own subtrees holds only cells within reach (the serial pass
-/// would pop the others and skip them, so the order of the rest is the
-/// same). A unit whose 8 children are all leaves is done at once: the
+/// its subtrees, the next to visit last, and its lists are empty. A cell's
+/// children are tested for reach together, in vector lanes, before they
+/// are pushed, so the stack above the run's own subtrees holds only cells
+/// within reach (the serial pass would pop the others and skip them, so
+/// the order of the rest is the same). A unit whose 8 children are all leaves is done at once: the
 /// serial pass would pop them next, 7 to 0, with nothing between, and
 /// their projections are independent, so the processor overlaps their
 /// divisions and square roots.
@@ -966,8 +966,10 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
         let d = u32::from(tree.depth[c as usize]);
         let fc = tree.first_child[c as usize];
         let tested = stack.len() >= untested;
+        if !tested {
+            untested = stack.len(); // what this cell pushes is tested
+        }
         if !tested || fc == NONE {
-            untested = untested.min(stack.len());
             let x = lat.centre(o, d);
             let cp = cap.project(x);
             let h = lat.reach_radius[d as usize];
