@@ -3,11 +3,12 @@
 #               tree dumps) and with the painter (tree dumps), compare them,
 #               export the scene's detail to OpenVDB and glTF (out/export)
 #   make test   set up, run every test: the painter's (cargo), the
-#               reference's and the conformance driver's (pytest), then
-#               conformance on every trace, then the VR session against
-#               Monado's simulated headset (test-vr), then the Windows
-#               build under Wine and the release packages (test-windows),
-#               and the macOS type-check (check-macos)
+#               reference's and the conformance driver's (pytest),
+#               conformance on every trace, the VR session against
+#               Monado's simulated headset (test-vr), the Windows build
+#               under Wine and the release packages (test-windows), and
+#               the macOS type-check (check-macos); in two lanes at once
+#               (see "Two lanes" below)
 #   make dist   the release packages: dist/octopaint-VERSION-linux-x86_64.tar.gz
 #               and dist/octopaint-VERSION-windows-x86_64.zip (docs/windows.md)
 # Setup is Mesa's CPU drivers for Vulkan and GL (lavapipe, llvmpipe: the GPU
@@ -23,11 +24,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 OUT := out
 PAINTER := painter/target/release/octopaint
-CARGO := cargo
+# Cargo keeps its own count of jobs (all cores), not make's job server.
+CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test setup system painter paint test-vr test-painter test-reference conformance precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
-	system-windows painter-windows check-macos tools dist test-windows
+.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
+	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
 
@@ -58,7 +60,7 @@ $(VENV)/.installed: reference/pyproject.toml
 
 # Cargo decides what to rebuild; --locked keeps the dependency versions of Cargo.lock.
 painter:
-	@command -v $(CARGO) >/dev/null || { echo "cargo is missing: install Rust (https://rustup.rs)"; exit 1; }
+	@command -v cargo >/dev/null || { echo "cargo is missing: install Rust (https://rustup.rs)"; exit 1; }
 	$(CARGO) build --release --locked --manifest-path painter/Cargo.toml
 
 demo: setup painter
@@ -79,8 +81,11 @@ DETAIL := 19999.6,19999.7,19999.5,20000.6,20000.5,20000.3
 test-painter: system
 	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml
 
-test-reference: setup painter
+# The reference's own tests need no painter.
+test-reference: setup
 	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider tests
+
+test-conformance: setup painter
 	$(PY) -m pytest -q -p no:cacheprovider conformance/tests
 
 conformance: setup painter
@@ -92,7 +97,37 @@ conformance: setup painter
 test-vr: setup painter
 	painter/xr/monado/test.sh $(PY)
 
-test: setup painter test-painter test-reference conformance test-vr test-windows check-macos
+test:
+	@$(MAKE) --no-print-directory -j2 --output-sync=target test-lanes
+
+# Two lanes: `make test` runs two chains of targets at once, one a core on
+# CI's two. The cargo lane (the builds and the crates' tests share
+# painter/target and its lock, so they go one after another) and the
+# Python lane (the reference's pytest during the Linux build; once the
+# painter is built, the conformance pytest, the driver and the VR session;
+# once the Windows build is done, the packages and their tests under
+# Wine). The order-only prerequisites below exist only for `make test`:
+# they keep each lane in order, and apt-get (system, system-windows, the
+# Monado chroot's debootstrap) to one at a time. The cargo lane: painter,
+# painter-windows, test-painter, check-macos, test-windows-crates. The
+# Python lane: test-reference, test-conformance, conformance, test-vr,
+# tools, dist, test-windows-package. Each target's output is
+# printed whole when it ends; a failure stops both lanes after their
+# current target. Cargo runs outside make's job server (CARGO above), so a
+# build takes both cores whenever the other lane is idle.
+test-lanes: test-painter test-reference test-conformance conformance test-vr test-windows check-macos
+ifneq ($(filter test-lanes,$(MAKECMDGOALS)),)
+system-windows: | system
+painter: | system-windows
+painter-windows: | painter
+test-painter: | painter-windows
+check-macos: | test-painter
+test-windows-crates: | check-macos
+test-conformance: | test-reference
+conformance: | test-conformance
+test-vr: | conformance
+tools: | test-vr
+endif
 
 # Windows, cross-built here (docs/windows.md): MinGW links it, Wine runs it
 # for the tests, zip packs it. The Windows build shares the Linux build's
@@ -132,8 +167,12 @@ dist: system system-windows painter painter-windows tools
 # unpacked into empty folders (conformance/windows/), then the platform
 # and document crates' own tests run under Wine (durable saves through
 # MoveFileExW, journals, crash recovery).
-test-windows: setup dist
+test-windows: test-windows-package test-windows-crates
+
+test-windows-package: setup dist
 	$(PY) -m pytest -q -p no:cacheprovider conformance/windows
+
+test-windows-crates: system-windows
 	CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER=$(CURDIR)/painter/packaging/wine/run.sh \
 	  $(CARGO) test --release --locked --target $(WINDOWS_TARGET) --manifest-path painter/Cargo.toml -p octopaint-platform -p octopaint-doc
 
