@@ -952,10 +952,10 @@ impl RunContext<'_> {
 /// children are tested for reach together, in vector lanes, before they
 /// are pushed, so the stack above the run's own subtrees holds only cells
 /// within reach (the serial pass would pop the others and skip them, so
-/// the order of the rest is the same). A unit whose 8 children are all leaves is done at once: the
-/// serial pass would pop them next, 7 to 0, with nothing between, and
-/// their projections are independent, so the processor overlaps their
-/// divisions and square roots.
+/// the order of the rest is the same). A unit whose 8 children are all
+/// leaves is done at once: the serial pass would pop them next, 7 to 0,
+/// with nothing between, and their projections are independent, so the
+/// processor overlaps their divisions and square roots.
 fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
     let (tree, cap) = (ctx.tree, ctx.cap);
     let lat = &tree.lat;
