@@ -3,7 +3,7 @@
 //! Reference twin: reference/octopaint_ref/check.py.
 
 use crate::dump::origins;
-use crate::g3::{g3_brute_force, g3_table};
+use crate::g3::{g3_brute_force, g3_table, g3_table_per_cell};
 use crate::lattice::FACES;
 use crate::pool::{FREE, NONE, Tree, UNIT};
 
@@ -78,8 +78,12 @@ pub fn check_tree(t: &Tree) -> Vec<String> {
     if o.iter().enumerate().any(|(c, o)| (t.depth[c] == FREE) != (o[0] == NONE)) {
         p.push("some live cell is not reachable from a root".into());
     }
-    if g3_table(t) != g3_brute_force(t) {
+    let per_cell = g3_table_per_cell(t);
+    if per_cell != g3_brute_force(t) {
         p.push("g3 from links differs from the lattice g3".into());
+    }
+    if g3_table(t) != per_cell {
+        p.push("g3 top down differs from g3 cell by cell".into());
     }
     p
 }

@@ -2,10 +2,13 @@
 //! the CPU port of the GPU pass. One stage, one name: shaders/g3.wgsl is the
 //! GPU twin and reference/octopaint_ref/g3.py the reference.
 //!
-//! The port stays shader-shaped so the two can be read side by side: a pure
-//! function of the pools (`parent`, `first_child`, `depth`) and the root
-//! array, one cell and axis per invocation, fixed-size loops, no recursion,
-//! no allocation.
+//! The port ([`g3_cell`], [`g3_row`]) stays shader-shaped so the two can be
+//! read side by side: a pure function of the pools (`parent`,
+//! `first_child`, `depth`) and the root array, one cell and axis per
+//! invocation, fixed-size loops, no recursion, no allocation. Whole tables
+//! for dumps and CPU renders come from [`g3_table`], which computes the
+//! same rows top down, each child's from its parent's; the tests hold it
+//! to the port cell by cell.
 
 use crate::lattice::Lattice;
 use crate::pool::{FREE, NONE, Tree};
@@ -103,10 +106,80 @@ pub fn g3_row(inp: &G3Input, c: u32) -> [u32; 3] {
     [g3_cell(inp, c, 0), g3_cell(inp, c, 1), g3_cell(inp, c, 2)]
 }
 
-/// g3 of every cell of the tree (tree dumps, tests).
-pub fn g3_table(tree: &Tree) -> Vec<[u32; 3]> {
+/// g3 of every cell of the tree, cell by cell with [`g3_row`]: the
+/// shader's pass on the CPU (tests hold [`g3_table`] to it).
+pub fn g3_table_per_cell(tree: &Tree) -> Vec<[u32; 3]> {
     let inp = G3Input::of(tree);
     (0..tree.n_used()).map(|c| g3_row(&inp, c)).collect()
+}
+
+/// g3 of every cell of the tree (tree dumps, renders on the CPU), top
+/// down from the roots: a child's row follows from its parent's in a few
+/// operations, where [`g3_row`] climbs from each cell towards the root and
+/// back (about a tenth of the instructions on the scene trace's trees).
+///
+/// Child `c` of `p` in octant `k`, axis `a`, outward side `s = k>>a & 1`:
+/// the `p`-sized region beyond `p`'s face on side `s` is covered by
+/// `g3[p][a]` when `s` is `p`'s own outward side, else by `p`'s sibling
+/// across its inward face (roots: the neighbouring root, or none at the
+/// canvas boundary). That cell, `y`, is a leaf or of `p`'s depth; in the
+/// second case its child facing `c` (octant `k ^ 1<<a`) covers the
+/// `c`-sized region, and it exists when `y` has children. This is the
+/// climb of [`g3_cell`] taken one level at a time. Cells reached only
+/// through their parent's `first_child` (a consistent tree, which dumps
+/// and renders hold); free cells and roots keep NONE.
+pub fn g3_table(tree: &Tree) -> Vec<[u32; 3]> {
+    let n = tree.n_used() as usize;
+    let mut g3 = vec![[NONE; 3]; n];
+    let lat = &tree.lat;
+    let mut stack: Vec<u32> = Vec::new();
+    for r in 0..lat.n_roots {
+        if tree.first_child[r as usize] != NONE {
+            stack.push(r);
+        }
+    }
+    while let Some(p) = stack.pop() {
+        let pi = p as usize;
+        let fc = tree.first_child[pi];
+        if fc == NONE || fc as usize + 8 > n {
+            continue;
+        }
+        let d = tree.depth[pi];
+        let row = g3[pi];
+        // The cell beyond p's face on side s of axis a.
+        let beyond = |a: usize, s: u32| -> u32 {
+            if d == 0 {
+                lat.root_neighbour(p, 2 * a + s as usize).unwrap_or(NONE)
+            } else if s == (p >> a) & 1 {
+                row[a]
+            } else {
+                p ^ (1 << a)
+            }
+        };
+        let ys = [[beyond(0, 0), beyond(0, 1)], [beyond(1, 0), beyond(1, 1)], [beyond(2, 0), beyond(2, 1)]];
+        let fcs = ys.map(|pair| pair.map(|y| if y == NONE { NONE } else { tree.first_child[y as usize] }));
+        for k in 0..8u32 {
+            let c = fc + k;
+            if tree.parent[c as usize] != p || u32::from(tree.depth[c as usize]) != u32::from(d) + 1 {
+                continue; // not a consistent tree: left NONE
+            }
+            g3[c as usize] = std::array::from_fn(|a| {
+                let s = ((k >> a) & 1) as usize;
+                let (y, fy) = (ys[a][s], fcs[a][s]);
+                if y == NONE {
+                    NONE
+                } else if fy == NONE {
+                    y
+                } else {
+                    fy + (k ^ (1 << a))
+                }
+            });
+            if tree.first_child[c as usize] != NONE {
+                stack.push(c);
+            }
+        }
+    }
+    g3
 }
 
 /// g3 from lattice geometry (tests): for each outward face, descend from
