@@ -157,7 +157,7 @@ pub fn g3_table(tree: &Tree) -> Vec<[u32; 3]> {
             }
         };
         let ys = [[beyond(0, 0), beyond(0, 1)], [beyond(1, 0), beyond(1, 1)], [beyond(2, 0), beyond(2, 1)]];
-        let fcs = ys.map(|pair| pair.map(|y| if y == NONE { NONE } else { tree.first_child[y as usize] }));
+        let fcs = ys.map(|pair| pair.map(|y| tree.first_child.get(y as usize).copied().unwrap_or(NONE)));
         for k in 0..8u32 {
             let c = fc + k;
             if tree.parent[c as usize] != p || u32::from(tree.depth[c as usize]) != u32::from(d) + 1 {
