@@ -125,9 +125,10 @@ pub fn g3_table_per_cell(tree: &Tree) -> Vec<[u32; 3]> {
 /// canvas boundary). That cell, `y`, is a leaf or of `p`'s depth; in the
 /// second case its child facing `c` (octant `k ^ 1<<a`) covers the
 /// `c`-sized region, and it exists when `y` has children. This is the
-/// climb of [`g3_cell`] taken one level at a time. Cells reached only
-/// through their parent's `first_child` (a consistent tree, which dumps
-/// and renders hold); free cells and roots keep NONE.
+/// climb of [`g3_cell`] taken one level at a time. A cell gets a row only
+/// when it is reached through its parent's `first_child` and points back
+/// (a consistent tree, which dumps and renders hold); free cells, roots and
+/// anything unreachable keep NONE.
 pub fn g3_table(tree: &Tree) -> Vec<[u32; 3]> {
     let n = tree.n_used() as usize;
     let mut g3 = vec![[NONE; 3]; n];
