@@ -10,7 +10,7 @@
 //! the after-records.
 
 use crate::par;
-use crate::pool::{CellRecord, NONE, Tree};
+use crate::pool::{CellRecord, NONE, Tree, UNIT};
 
 #[derive(Clone, Default)]
 pub(crate) struct Journal {
@@ -69,6 +69,10 @@ impl Journal {
 ///   (a painted leaf): the cell, its parent and depth, both values, 23
 ///   bytes;
 /// - *born*: free before (a new cell), only the after-record, 20 bytes;
+///   the cells past the used length at the stroke's start (its *tail*,
+///   where most new cells are) keep their after-records in runs of
+///   consecutive cells as the pools hold them, 16 bytes a cell, freed ones
+///   included;
 /// - *freed*: free after (a collapse), only the before-record, 20 bytes;
 /// - *other*: both records (a refined leaf, a parent), 36 bytes.
 #[derive(Clone, Debug, Default)]
@@ -82,11 +86,87 @@ pub struct UndoStep {
     value_sigma: Vec<[f32; 2]>,
     born_cells: Vec<u32>,
     born: Vec<CellRecord>,
+    /// The tail: runs of consecutive cells from `n_before` on, ascending,
+    /// one vector a field as in the pools (at commit one run, copied from
+    /// them). A cell whose record is `CellRecord::FREE` here is no entry.
+    tail: Vec<Run>,
+    /// How many tail records are not free (entries).
+    tail_born: usize,
     freed_cells: Vec<u32>,
     freed: Vec<CellRecord>,
     other_cells: Vec<u32>,
     other: Vec<[CellRecord; 2]>,
 }
+
+/// Cell records one vector a field, as the pools hold them.
+#[derive(Clone, Debug, Default)]
+struct Columns {
+    parent: Vec<u32>,
+    first_child: Vec<u32>,
+    depth: Vec<u8>,
+    rgb: Vec<[u8; 3]>,
+    sigma: Vec<f32>,
+}
+
+impl Columns {
+    fn len(&self) -> usize {
+        self.parent.len()
+    }
+
+    fn get(&self, i: usize) -> CellRecord {
+        CellRecord { parent: self.parent[i], first_child: self.first_child[i], depth: self.depth[i], rgb: self.rgb[i], sigma: self.sigma[i] }
+    }
+
+    fn set(&mut self, i: usize, r: CellRecord) {
+        (self.parent[i], self.first_child[i], self.depth[i], self.rgb[i], self.sigma[i]) = (r.parent, r.first_child, r.depth, r.rgb, r.sigma);
+    }
+
+    fn push(&mut self, r: CellRecord) {
+        self.parent.push(r.parent);
+        self.first_child.push(r.first_child);
+        self.depth.push(r.depth);
+        self.rgb.push(r.rgb);
+        self.sigma.push(r.sigma);
+    }
+
+    /// The pools' records of `cells`, copied slice by slice.
+    fn from_pools(tree: &Tree, cells: std::ops::Range<usize>) -> Columns {
+        Columns {
+            parent: tree.parent[cells.clone()].to_vec(),
+            first_child: tree.first_child[cells.clone()].to_vec(),
+            depth: tree.depth[cells.clone()].to_vec(),
+            rgb: tree.rgb[cells.clone()].to_vec(),
+            sigma: tree.sigma[cells].to_vec(),
+        }
+    }
+
+    fn shrink(&mut self) {
+        self.parent.shrink_to_fit();
+        self.first_child.shrink_to_fit();
+        self.depth.shrink_to_fit();
+        self.rgb.shrink_to_fit();
+        self.sigma.shrink_to_fit();
+    }
+}
+
+/// Consecutive cells of a step's tail: the first and their records.
+#[derive(Clone, Debug)]
+struct Run {
+    first: u32,
+    cols: Columns,
+}
+
+impl Run {
+    fn end(&self) -> u32 {
+        self.first + self.cols.len() as u32
+    }
+}
+
+/// How many free records a born cell may add to a step's tail to reach
+/// its place (a step read from a document, whose born cells come one by
+/// one): a unit's worth, so a document cannot make a step much bigger
+/// than itself. Cells further on go to the list of born cells.
+const TAIL_GAP: usize = UNIT as usize;
 
 impl UndoStep {
     pub fn new(n_before: u32, n_after: u32) -> Self {
@@ -116,8 +196,61 @@ impl UndoStep {
     /// `push` does with a free `before`).
     #[inline]
     pub fn push_born(&mut self, c: u32, after: CellRecord) {
+        // In the tail when its place is there (free so far) or past the
+        // last run's end (a unit on at most, else a new run); a free
+        // after-record goes to the list, where it stays an entry.
+        if c >= self.n_before && c < self.n_after && !after.same_bits(&CellRecord::FREE) {
+            // The last run starting at or before `c`.
+            let at = self.tail.partition_point(|run| run.first <= c);
+            let past_all = at == self.tail.len();
+            match self.tail[..at].last_mut() {
+                Some(run) if c < run.end() => {
+                    let i = (c - run.first) as usize;
+                    if run.cols.get(i).same_bits(&CellRecord::FREE) {
+                        run.cols.set(i, after);
+                        self.tail_born += 1;
+                        return;
+                    }
+                }
+                Some(run) if past_all && (c - run.end()) as usize <= TAIL_GAP => {
+                    while run.end() < c {
+                        run.cols.push(CellRecord::FREE);
+                    }
+                    run.cols.push(after);
+                    self.tail_born += 1;
+                    return;
+                }
+                _ if past_all => {
+                    let mut cols = Columns::default();
+                    cols.push(after);
+                    self.tail.push(Run { first: c, cols });
+                    self.tail_born += 1;
+                    return;
+                }
+                _ => {} // before the last run, in no run or taken
+            }
+        }
         self.born_cells.push(c);
         self.born.push(after);
+    }
+
+    /// The tail of a step that has none yet: the pools' records of the
+    /// cells from `n_before` to the used length, as one run.
+    fn take_tail(&mut self, tree: &Tree) {
+        debug_assert!(self.tail.is_empty());
+        // None when the pools ended shorter than they began.
+        let (from, to) = (self.n_before as usize, tree.n_used() as usize);
+        if from >= to {
+            return;
+        }
+        let t = Columns::from_pools(tree, from..to);
+        // Not free: the record differs from CellRecord::FREE in some field.
+        self.tail_born = (0..t.len())
+            .filter(|&i| {
+                t.depth[i] != crate::pool::FREE || t.parent[i] != NONE || t.first_child[i] != NONE || t.rgb[i] != [0; 3] || t.sigma[i].to_bits() != 0
+            })
+            .count();
+        self.tail = vec![Run { first: self.n_before, cols: t }];
     }
 
     /// Steps built in parts, one after another, as one step (the parts'
@@ -145,6 +278,8 @@ impl UndoStep {
             value_sigma: join(&parts, |p| &p.value_sigma),
             born_cells: join(&parts, |p| &p.born_cells),
             born: join(&parts, |p| &p.born),
+            tail: Vec::new(),
+            tail_born: 0,
             freed_cells: join(&parts, |p| &p.freed_cells),
             freed: join(&parts, |p| &p.freed),
             other_cells: join(&parts, |p| &p.other_cells),
@@ -162,6 +297,10 @@ impl UndoStep {
         self.value_sigma.shrink_to_fit();
         self.born_cells.shrink_to_fit();
         self.born.shrink_to_fit();
+        for run in &mut self.tail {
+            run.cols.shrink();
+        }
+        self.tail.shrink_to_fit();
         self.freed_cells.shrink_to_fit();
         self.freed.shrink_to_fit();
         self.other_cells.shrink_to_fit();
@@ -170,7 +309,7 @@ impl UndoStep {
 
     /// How many cells the stroke changed.
     pub fn len(&self) -> usize {
-        self.value_cells.len() + self.born_cells.len() + self.freed_cells.len() + self.other_cells.len()
+        self.value_cells.len() + self.born_cells.len() + self.tail_born + self.freed_cells.len() + self.other_cells.len()
     }
 
     pub fn is_empty(&self) -> bool {
@@ -178,7 +317,8 @@ impl UndoStep {
     }
 
     /// Every changed cell with its records before and after the stroke
-    /// (values first, then born, freed and other cells).
+    /// (values first, then born (the list, then the tail in index order),
+    /// freed and other cells).
     pub fn entries(&self) -> impl Iterator<Item = (u32, CellRecord, CellRecord)> + '_ {
         let values = (0..self.value_cells.len()).map(|i| {
             let (parent, depth) = (self.value_parent[i], self.value_depth[i]);
@@ -186,14 +326,21 @@ impl UndoStep {
             (self.value_cells[i], rec(0), rec(1))
         });
         let born = self.born_cells.iter().zip(&self.born).map(|(&c, r)| (c, CellRecord::FREE, *r));
+        let tail = self.tail.iter().flat_map(|run| {
+            (0..run.cols.len()).filter_map(move |i| {
+                let r = run.cols.get(i);
+                (!r.same_bits(&CellRecord::FREE)).then_some((run.first + i as u32, CellRecord::FREE, r))
+            })
+        });
         let freed = self.freed_cells.iter().zip(&self.freed).map(|(&c, r)| (c, *r, CellRecord::FREE));
         let other = self.other_cells.iter().zip(&self.other).map(|(&c, r)| (c, r[0], r[1]));
-        values.chain(born).chain(freed).chain(other)
+        values.chain(born).chain(tail).chain(freed).chain(other)
     }
 
     pub fn bytes(&self) -> usize {
         self.value_cells.len() * (4 + 4 + 1 + 2 * 3 + 2 * 4)
             + (self.born_cells.len() + self.freed_cells.len()) * (4 + std::mem::size_of::<CellRecord>())
+            + self.tail.iter().map(|run| run.cols.len()).sum::<usize>() * std::mem::size_of::<CellRecord>()
             + self.other_cells.len() * (4 + 2 * std::mem::size_of::<CellRecord>())
     }
 }
@@ -258,36 +405,26 @@ impl Tree {
                 }
             }
         };
-        let born = |part: &mut UndoStep, cells: std::ops::Range<u32>| {
-            for c in cells {
-                let now = tree.record(c);
-                if !now.same_bits(&CellRecord::FREE) {
-                    part.push_born(c, now);
-                }
-            }
-        };
-        let mut step = if par::worth(j.cells.len() + n_used.saturating_sub(j.n_before) as usize) {
+        let mut step = if par::worth(j.cells.len()) {
             // Built in parallel chunks, joined in order: the same step as
-            // one pass over the saved cells and then the new ones.
-            let mut parts = par::chunks(&j.cells, |at, cells| {
+            // one pass over the saved cells.
+            let parts = par::chunks(&j.cells, |at, cells| {
                 let mut part = UndoStep::default();
                 saved(&mut part, at, cells);
                 part
             });
-            parts.extend(par::ranges(j.n_before, n_used, |cells| {
-                let mut part = UndoStep::default();
-                born(&mut part, cells);
-                part
-            }));
             UndoStep::joined(parts)
         } else {
             let mut step = UndoStep::default();
             saved(&mut step, 0, &j.cells);
-            born(&mut step, j.n_before..n_used.max(j.n_before));
             step.shrink();
             step
         };
         (step.n_before, step.n_after) = (j.n_before, n_used);
+        // The cells past the old used length, all free before: their
+        // records copied from the pools as they are (16 bytes a cell; the
+        // ones cleaning freed again are no entries).
+        step.take_tail(tree);
         self.spare_journal = j.emptied();
         step
     }
@@ -342,6 +479,40 @@ mod tests {
         for ((c, b, a), (d, e, f)) in cases.iter().zip(&got) {
             assert_eq!(c, d);
             assert!(b.same_bits(e) && a.same_bits(f), "cell {c} came back changed");
+        }
+    }
+
+    #[test]
+    fn born_cells_from_the_old_length_on_go_to_the_tail_in_place() {
+        let leaf = |v| rec(0, NONE, 3, [v; 3], 1.0);
+        let free = CellRecord::FREE;
+        // Born cells one by one, as a document's step gives them; the old
+        // used length is 16, so the tail starts at cell 16.
+        let pushes = [
+            (8, leaf(1)),  // below the old length (a reused free unit): the list
+            (17, leaf(2)), // the tail's first run starts here
+            (16, leaf(3)), // before that run: the list
+            (18, free),    // free after: the list, where it stays an entry
+            (19, leaf(4)), // one past the run's end: a free record, then it
+            (28, leaf(5)), // 8 past it: 8 free records, then it
+            (40, leaf(6)), // 11 past it: a second run
+            (41, leaf(7)), // right at its end
+            (20, leaf(8)), // the free place in the first run
+            (39, leaf(9)), // before the last run: the list
+        ];
+        let mut step = UndoStep::new(16, 64);
+        for (c, a) in pushes {
+            step.push(c, free, a);
+        }
+        let runs: Vec<(u32, u32)> = step.tail.iter().map(|r| (r.first, r.end())).collect();
+        assert_eq!(runs, [(17, 29), (40, 42)]);
+        assert_eq!(step.len(), pushes.len());
+        assert_eq!(step.bytes(), 4 * 20 + 14 * 16);
+        let got: Vec<u32> = step.entries().map(|e| e.0).collect();
+        assert_eq!(got, [8, 16, 18, 39, 17, 19, 20, 28, 40, 41], "the list in its order, then the tail in index order");
+        for (c, b, a) in step.entries() {
+            let want = pushes.iter().find(|p| p.0 == c).expect("pushed").1;
+            assert!(b.same_bits(&free) && a.same_bits(&want), "cell {c}");
         }
     }
 }
