@@ -579,7 +579,7 @@ impl Painting {
             }
             self.counters.cells_written += run.written + run.fresh.len() as u64;
             for f in &run.fresh {
-                self.first_write(f, false);
+                self.first_write(f);
             }
             self.counters.leaves_visited += run.visited;
             self.counters.leaves_hit += run.hit;
@@ -753,9 +753,9 @@ impl Painting {
             }
         };
         self.counters.cells_written += values.len() as u64;
+        self.first_writes_of_new_children(values);
         let mut next = Vec::new();
         for (v, &(_, x, d)) in values.iter().zip(cells) {
-            self.first_write(v, true);
             if v.next {
                 next.push((v.c, x, self.tree.lat.reach_radius[d as usize]));
             }
@@ -763,23 +763,37 @@ impl Painting {
         next
     }
 
-    /// A cell's first write in the stroke, decided already: its slot with
-    /// its before-value, its maximum when `a` rose above 0 (as
-    /// [`Painting::apply`] would set it), and the stored value.
-    ///
-    /// `new_child`: `c` was made by `make_children` in this step, so it is
-    /// journalled and marked dirty already.
-    fn first_write(&mut self, w: &FirstWrite, new_child: bool) {
+    /// [`Painting::first_write`] of a round's new children, in order: their
+    /// slots appended together, then their values written (cells that
+    /// `make_children` made in this step, journalled and marked already).
+    fn first_writes_of_new_children(&mut self, values: &[FirstWrite]) {
+        let n_used = self.tree.n_used() as usize;
+        if self.slot_of.len() < n_used {
+            self.slot_of.resize(n_used, NONE);
+        }
+        let st = self.stroke.as_mut().expect("stroke");
+        let first = st.slots.len();
+        st.slots.extend(values.iter().map(|w| Slot { cell: w.c, before_rgb: w.before_rgb, before_sigma: w.before_sigma, bounds: [0.0; 2], bounds_upto: 0 }));
+        // `record` gives a slot the maximum 0, and `first_write` raises it
+        // when `a` is above 0.
+        st.slot_a.extend(values.iter().map(|w| if w.a > 0.0 { w.a } else { 0.0 }));
+        for (i, w) in values.iter().enumerate() {
+            self.slot_of[w.c as usize] = (first + i) as u32;
+            self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
+        }
+    }
+
+    /// A leaf's first write in the stroke, decided already by a paint-pass
+    /// run: its slot with its before-value, its maximum when `a` rose above
+    /// 0 (as [`Painting::apply`] would set it), and the stored value. (A
+    /// round's new children: [`Painting::first_writes_of_new_children`].)
+    fn first_write(&mut self, w: &FirstWrite) {
         let slot = self.record(w.c, w.before_rgb, w.before_sigma) as usize;
         if w.a > 0.0 {
             let st = self.stroke.as_mut().expect("stroke");
             st.slot_a[slot] = w.a;
         }
-        if new_child {
-            self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
-        } else {
-            self.tree.set_value(w.c, w.rgb, w.sigma);
-        }
+        self.tree.set_value(w.c, w.rgb, w.sigma);
     }
 
     /// A leaf whose refinement could not change a value (spec 8.7): over
