@@ -383,12 +383,17 @@ impl Tree {
                 self.touch(c);
             }
         }
-        let r = unit as usize..(unit + UNIT) as usize;
-        self.parent[r.clone()].fill(l);
-        self.first_child[r.clone()].fill(NONE);
-        self.depth[r.clone()].fill(d);
-        self.rgb[r.clone()].fill(rgb);
-        self.sigma[r].fill(sigma);
+        // Whole units as arrays of 8: stores of known size, where a slice's
+        // fill of a length the compiler cannot see calls memset.
+        fn unit_of<T>(v: &mut [T], unit: u32) -> &mut [T; UNIT as usize] {
+            let at = unit as usize;
+            (&mut v[at..at + UNIT as usize]).try_into().expect("a unit is 8 cells")
+        }
+        *unit_of(&mut self.parent, unit) = [l; UNIT as usize];
+        *unit_of(&mut self.first_child, unit) = [NONE; UNIT as usize];
+        *unit_of(&mut self.depth, unit) = [d; UNIT as usize];
+        *unit_of(&mut self.rgb, unit) = [rgb; UNIT as usize];
+        *unit_of(&mut self.sigma, unit) = [sigma; UNIT as usize];
         self.touch(l);
         self.first_child[li] = unit;
         self.changes.topology(l, unit);
