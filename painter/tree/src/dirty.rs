@@ -68,6 +68,12 @@ pub struct Publication {
     pub mask: NeighbourMask,
 }
 
+/// The most changes recorded cell by cell between two publications (12
+/// bytes or fewer each); past it the next publication covers everything.
+/// A consumer that publishes every step or frame never gets near it: a
+/// step refines a few thousand units.
+pub const MAX_RECORDED: usize = 1 << 20;
+
 #[derive(Clone)]
 pub(crate) struct Changes {
     /// Everything is dirty: a new consumer (a GPU) has seen nothing yet.
@@ -100,13 +106,40 @@ impl Changes {
     }
 
     /// Cell `x` gained or lost the children in `unit`.
+    #[inline]
     pub fn topology(&mut self, x: u32, unit: u32) {
-        self.topo_cells.push(x);
-        self.topo_units.push(unit);
+        if self.recording() {
+            self.topo_cells.push(x);
+            self.topo_units.push(unit);
+        }
     }
 
+    #[inline]
     pub fn direct(&mut self, c: u32) {
-        self.direct.push(c);
+        if self.recording() {
+            self.direct.push(c);
+        }
+    }
+
+    /// Whether changes are still recorded cell by cell: not once the next
+    /// publication covers everything anyway, nor once the lists hold
+    /// [`MAX_RECORDED`] changes (then it is made to cover everything). A
+    /// tree nobody takes publications from (a replay without a renderer,
+    /// an export, a benchmark) thus keeps a few megabytes of lists at
+    /// most, not 8 bytes a unit it ever made.
+    #[inline]
+    fn recording(&mut self) -> bool {
+        if self.everything {
+            return false;
+        }
+        if self.topo_cells.len() + self.direct.len() < MAX_RECORDED {
+            return true;
+        }
+        self.everything = true;
+        self.topo_cells = Vec::new();
+        self.topo_units = Vec::new();
+        self.direct = Vec::new();
+        false
     }
 }
 
@@ -183,5 +216,36 @@ impl Tree {
             mask.set((c / size) as usize);
         }
         Publication { blocks, dirty_cells: cells, mask }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::Canvas;
+
+    #[test]
+    fn a_tree_nobody_publishes_keeps_bounded_lists_and_then_publishes_everything() {
+        let mut tree = Tree::new(&Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 256 });
+        let root = 0;
+        let unit = tree.allocate_unit().expect("a unit");
+        tree.make_children(root, unit);
+        // A first publication with the lists in use: one topology change.
+        let p = tree.take_publication();
+        assert!(p.dirty_cells.contains(&unit) && p.dirty_cells.len() < tree.n_used() as usize, "{:?}", p.dirty_cells);
+        // Far more changes than the lists keep, and no publication taken.
+        for i in 0..3 * MAX_RECORDED as u32 {
+            tree.changes.topology(root, unit);
+            tree.changes.direct(i % tree.n_used());
+            assert!(tree.changes.topo_cells.len() + tree.changes.direct.len() <= MAX_RECORDED);
+        }
+        assert!(tree.changes.topo_cells.capacity() + tree.changes.direct.capacity() == 0, "the lists were given back");
+        let p = tree.take_publication();
+        let n = tree.n_used();
+        assert_eq!(p.dirty_cells, (0..n).collect::<Vec<_>>(), "every cell");
+        assert_eq!(p.blocks, (0..n.div_ceil(BLOCK_CELLS)).collect::<Vec<_>>(), "every block");
+        // Recording starts again after that publication.
+        tree.changes.direct(1);
+        assert_eq!(tree.take_publication().dirty_cells, [1]);
     }
 }
