@@ -68,15 +68,11 @@ pub struct Publication {
     pub mask: NeighbourMask,
 }
 
-/// The most changes recorded cell by cell between two publications (12
-/// bytes or fewer each); past it the next publication covers everything.
-/// A consumer that publishes every step or frame never gets near it: a
-/// step refines a few thousand units.
-pub const MAX_RECORDED: usize = 1 << 20;
-
 #[derive(Clone)]
 pub(crate) struct Changes {
-    /// Everything is dirty: a new consumer (a GPU) has seen nothing yet.
+    /// Everything is dirty: a new consumer (a GPU) has seen nothing yet,
+    /// or nobody has taken a publication yet. Nothing is recorded cell by
+    /// cell meanwhile.
     everything: bool,
     blocks: Vec<u64>,
     any_block: bool,
@@ -89,7 +85,7 @@ impl Changes {
     pub fn new(capacity: u32) -> Self {
         let n_blocks = capacity.div_ceil(BLOCK_CELLS) as usize;
         Changes {
-            everything: false,
+            everything: true,
             blocks: vec![0; n_blocks.div_ceil(64)],
             any_block: false,
             topo_cells: Vec::new(),
@@ -121,25 +117,15 @@ impl Changes {
         }
     }
 
-    /// Whether changes are still recorded cell by cell: not once the next
-    /// publication covers everything anyway, nor once the lists hold
-    /// [`MAX_RECORDED`] changes (then it is made to cover everything). A
-    /// tree nobody takes publications from (a replay without a renderer,
-    /// an export, a benchmark) thus keeps a few megabytes of lists at
-    /// most, not 8 bytes a unit it ever made.
+    /// Whether changes are recorded cell by cell: not while the next
+    /// publication covers everything anyway. A tree starts that way (its
+    /// first publication covers everything: nobody has seen it yet), so a
+    /// tree nobody publishes (a replay without a renderer, an export, a
+    /// benchmark) keeps no lists at all, where it used to keep 8 bytes for
+    /// every unit it ever made.
     #[inline]
-    fn recording(&mut self) -> bool {
-        if self.everything {
-            return false;
-        }
-        if self.topo_cells.len() + self.direct.len() < MAX_RECORDED {
-            return true;
-        }
-        self.everything = true;
-        self.topo_cells = Vec::new();
-        self.topo_units = Vec::new();
-        self.direct = Vec::new();
-        false
+    fn recording(&self) -> bool {
+        !self.everything
     }
 }
 
@@ -225,27 +211,30 @@ mod tests {
     use crate::trace::Canvas;
 
     #[test]
-    fn a_tree_nobody_publishes_keeps_bounded_lists_and_then_publishes_everything() {
+    fn nothing_is_recorded_cell_by_cell_until_a_publication_is_taken() {
         let mut tree = Tree::new(&Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 256 });
         let root = 0;
         let unit = tree.allocate_unit().expect("a unit");
         tree.make_children(root, unit);
-        // A first publication with the lists in use: one topology change.
-        let p = tree.take_publication();
-        assert!(p.dirty_cells.contains(&unit) && p.dirty_cells.len() < tree.n_used() as usize, "{:?}", p.dirty_cells);
-        // Far more changes than the lists keep, and no publication taken.
-        for i in 0..3 * MAX_RECORDED as u32 {
-            tree.changes.topology(root, unit);
-            tree.changes.direct(i % tree.n_used());
-            assert!(tree.changes.topo_cells.len() + tree.changes.direct.len() <= MAX_RECORDED);
-        }
-        assert!(tree.changes.topo_cells.capacity() + tree.changes.direct.capacity() == 0, "the lists were given back");
+        tree.changes.direct(3);
+        assert!(tree.changes.topo_cells.is_empty() && tree.changes.direct.is_empty(), "nobody has published yet");
+        // The first publication covers every cell and block in use.
         let p = tree.take_publication();
         let n = tree.n_used();
-        assert_eq!(p.dirty_cells, (0..n).collect::<Vec<_>>(), "every cell");
-        assert_eq!(p.blocks, (0..n.div_ceil(BLOCK_CELLS)).collect::<Vec<_>>(), "every block");
-        // Recording starts again after that publication.
+        assert_eq!(p.dirty_cells, (0..n).collect::<Vec<_>>());
+        assert_eq!(p.blocks, (0..n.div_ceil(BLOCK_CELLS)).collect::<Vec<_>>());
+        // From then on, cell by cell: a unit's children and the cells whose
+        // g3 they change, not every cell.
+        let unit2 = tree.allocate_unit().expect("a unit");
+        tree.make_children(unit, unit2);
+        assert_eq!(tree.changes.topo_cells, [unit]);
+        let p = tree.take_publication();
+        assert!((unit2..unit2 + UNIT).all(|c| p.dirty_cells.contains(&c)), "{:?}", p.dirty_cells);
+        assert!(p.dirty_cells.len() < tree.n_used() as usize, "{:?}", p.dirty_cells);
+        // A consumer attaching marks everything again: no lists meanwhile.
+        tree.mark_everything_dirty();
         tree.changes.direct(1);
-        assert_eq!(tree.take_publication().dirty_cells, [1]);
+        assert!(tree.changes.direct.is_empty());
+        assert_eq!(tree.take_publication().dirty_cells.len(), tree.n_used() as usize);
     }
 }

@@ -198,11 +198,16 @@ impl UndoStep {
     pub fn push_born(&mut self, c: u32, after: CellRecord) {
         // In the tail when its place is there (free so far) or past the
         // last run's end (a unit on at most, else a new run); a free
-        // after-record goes to the list, where it stays an entry.
+        // after-record goes to the list, where it stays an entry. A step
+        // read back may count fewer free records in `bytes` than the step
+        // that was saved (its runs skip gaps of more than a unit).
         if c >= self.n_before && c < self.n_after && !after.same_bits(&CellRecord::FREE) {
             // The last run starting at or before `c`.
             let at = self.tail.partition_point(|run| run.first <= c);
             let past_all = at == self.tail.len();
+            // A new run only while runs hold 8 entries each on average:
+            // a crafted document's scattered cells go to the list.
+            let new_run = past_all && self.tail.len() <= self.tail_born / UNIT as usize;
             match self.tail[..at].last_mut() {
                 Some(run) if c < run.end() => {
                     let i = (c - run.first) as usize;
@@ -220,7 +225,7 @@ impl UndoStep {
                     self.tail_born += 1;
                     return;
                 }
-                _ if past_all => {
+                _ if new_run => {
                     let mut cols = Columns::default();
                     cols.push(after);
                     self.tail.push(Run { first: c, cols });
@@ -488,28 +493,32 @@ mod tests {
         let free = CellRecord::FREE;
         // Born cells one by one, as a document's step gives them; the old
         // used length is 16, so the tail starts at cell 16.
-        let pushes = [
+        let mut pushes = vec![
             (8, leaf(1)),  // below the old length (a reused free unit): the list
             (17, leaf(2)), // the tail's first run starts here
             (16, leaf(3)), // before that run: the list
             (18, free),    // free after: the list, where it stays an entry
             (19, leaf(4)), // one past the run's end: a free record, then it
             (28, leaf(5)), // 8 past it: 8 free records, then it
-            (40, leaf(6)), // 11 past it: a second run
-            (41, leaf(7)), // right at its end
-            (20, leaf(8)), // the free place in the first run
-            (39, leaf(9)), // before the last run: the list
         ];
+        pushes.extend((29..34).map(|c| (c, leaf(6)))); // the run holds 8 entries now
+        pushes.extend([
+            (43, leaf(7)), // 9 past its end: a second run
+            (44, leaf(8)), // right at its end
+            (20, leaf(9)), // the free place in the first run
+            (39, leaf(10)), // before the last run: the list
+            (60, leaf(11)), // a third run would make runs of fewer than 8 entries: the list
+        ]);
         let mut step = UndoStep::new(16, 64);
-        for (c, a) in pushes {
+        for &(c, a) in &pushes {
             step.push(c, free, a);
         }
         let runs: Vec<(u32, u32)> = step.tail.iter().map(|r| (r.first, r.end())).collect();
-        assert_eq!(runs, [(17, 29), (40, 42)]);
+        assert_eq!(runs, [(17, 34), (43, 45)]);
         assert_eq!(step.len(), pushes.len());
-        assert_eq!(step.bytes(), 4 * 20 + 14 * 16);
+        assert_eq!(step.bytes(), 5 * 20 + 19 * 16);
         let got: Vec<u32> = step.entries().map(|e| e.0).collect();
-        assert_eq!(got, [8, 16, 18, 39, 17, 19, 20, 28, 40, 41], "the list in its order, then the tail in index order");
+        assert_eq!(got, [8, 16, 18, 39, 60, 17, 19, 20, 28, 29, 30, 31, 32, 33, 43, 44], "the list in its order, then the tail in index order");
         for (c, b, a) in step.entries() {
             let want = pushes.iter().find(|p| p.0 == c).expect("pushed").1;
             assert!(b.same_bits(&free) && a.same_bits(&want), "cell {c}");
