@@ -54,6 +54,13 @@ struct Slot {
 
 const _: () = assert!(std::mem::size_of::<Slot>() == 32);
 
+impl Slot {
+    /// A new slot of `cell` with its before-value, no bounds yet.
+    fn new(cell: u32, before_rgb: [u8; 3], before_sigma: f32) -> Slot {
+        Slot { cell, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0 }
+    }
+}
+
 /// The stroke in progress.
 #[derive(Clone)]
 struct StrokeState {
@@ -767,13 +774,10 @@ impl Painting {
     /// slots appended together, then their values written (cells that
     /// `make_children` made in this step, journalled and marked already).
     fn first_writes_of_new_children(&mut self, values: &[FirstWrite]) {
-        let n_used = self.tree.n_used() as usize;
-        if self.slot_of.len() < n_used {
-            self.slot_of.resize(n_used, NONE);
-        }
+        self.slot_of_covers_the_pools();
         let st = self.stroke.as_mut().expect("stroke");
         let first = st.slots.len();
-        st.slots.extend(values.iter().map(|w| Slot { cell: w.c, before_rgb: w.before_rgb, before_sigma: w.before_sigma, bounds: [0.0; 2], bounds_upto: 0 }));
+        st.slots.extend(values.iter().map(|w| Slot::new(w.c, w.before_rgb, w.before_sigma)));
         // `record` gives a slot the maximum 0, and `first_write` raises it
         // when `a` is above 0.
         st.slot_a.extend(values.iter().map(|w| if w.a > 0.0 { w.a } else { 0.0 }));
@@ -868,14 +872,22 @@ impl Painting {
         }
     }
 
+    /// Grow the cell-to-slot map to every cell of the pools (new ones have
+    /// no slot).
+    #[inline]
+    fn slot_of_covers_the_pools(&mut self) {
+        let n_used = self.tree.n_used() as usize;
+        if self.slot_of.len() < n_used {
+            self.slot_of.resize(n_used, NONE);
+        }
+    }
+
     /// Give `c` a slot with its before-value (a = 0).
     fn record(&mut self, c: u32, before_rgb: [u8; 3], before_sigma: f32) -> u32 {
+        self.slot_of_covers_the_pools();
         let st = self.stroke.as_mut().expect("stroke");
-        if self.slot_of.len() < self.tree.n_used() as usize {
-            self.slot_of.resize(self.tree.n_used() as usize, NONE);
-        }
         let slot = st.slots.len() as u32;
-        st.slots.push(Slot { cell: c, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0 });
+        st.slots.push(Slot::new(c, before_rgb, before_sigma));
         st.slot_a.push(0.0);
         self.slot_of[c as usize] = slot;
         slot
