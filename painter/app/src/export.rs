@@ -379,7 +379,7 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
         let b = bar(args.quiet, None, "{spinner} replaying {msg} [{elapsed_precise}]");
         b.set_message(args.input.display().to_string());
         b.enable_steady_tick(std::time::Duration::from_millis(200));
-        let (stats, doc) = octopaint_tree::par::on_pool(|| replay_document(&trace, None, &mut Quiet)).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
+        let (stats, doc) = replay_document(&trace, None, &mut Quiet).map_err(|e| Refusal(1, format!("replay failed: {e}")))?;
         b.finish_and_clear();
         let painting = if trace.version == 2 {
             document = Some(doc);

@@ -512,10 +512,7 @@ fn main() -> ExitCode {
         return document::start();
     };
     match command {
-        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
-            // The painting runs on a worker of the core's thread pool (par::on_pool).
-            octopaint_tree::par::on_pool(|| cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision }))
-        }
+        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision }),
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),

@@ -43,6 +43,7 @@ pub mod layers;
 pub mod noise;
 pub mod paint;
 pub mod par;
+pub mod team;
 pub mod pool;
 pub mod raycast;
 pub mod replay;

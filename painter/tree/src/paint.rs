@@ -18,7 +18,6 @@ use crate::lanes::{self, LANES};
 use crate::noise::permutation;
 use crate::par;
 use crate::pool::{NONE, Tree, UNIT};
-use rayon::prelude::*;
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
@@ -33,6 +32,12 @@ static UNIT_RGB: [f64; 256] = {
     }
     t
 };
+
+/// The capsule paint pass splits across threads when the cells its box
+/// spans, over this, reach the grain: a split walk builds a front of
+/// subtrees and keeps lists per run, which a few thousand cells do not
+/// repay (r = 4 on two threads ran 3 times slower with it at the grain).
+const WALK_GRAIN: f64 = 16.0;
 
 /// A touched cell's stroke state (spec 8.8), but for its stroke maximum
 /// `a`, which lives in its own array: the paint pass reads it for every
@@ -504,7 +509,7 @@ impl Painting {
         let parallel = threads > 1 && {
             let cell = lat.size_canvas[lat.target_depth(cap.r0.max(cap.r1)) as usize];
             let reach = (prim.hi - prim.lo + 2.0 * cell).max(DVec3::splat(cell));
-            par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell)).min(1e18) as usize)
+            par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell) / WALK_GRAIN).min(1e18) as usize)
         };
         let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
         // 1. The front, in visiting order, and its runs (parallel only).
@@ -571,7 +576,7 @@ impl Painting {
         };
         let runs: Vec<Run> = if parallel {
             // Each run's stack pops its subtrees in visiting order.
-            bounds.par_windows(2).map(|w| walk_run(&ctx, Run { stack: front[w[0]..w[1]].iter().rev().copied().collect(), ..Run::default() })).collect()
+            par::tasks(bounds.len() - 1, |i| walk_run(&ctx, Run { stack: front[bounds[i]..bounds[i + 1]].iter().rev().copied().collect(), ..Run::default() }))
         } else {
             // One run: the traversal's stack itself, and the lists of the
             // last serial pass, kept between passes.
@@ -618,7 +623,8 @@ impl Painting {
     /// settled, in order; the settled ones are counted. The tests run in
     /// parallel; each touched leaf's bounds are written back after.
     fn unsettled(&mut self, leaves: Vec<(u32, DVec3, f64)>, caps: &[(u32, Prim)]) -> Vec<u32> {
-        let tests = par::map(&leaves, |&(c, x, h)| self.settled(c, x, h, caps));
+        // A test folds in a few capsules: about as much work as 4 cells.
+        let tests = par::map_weighted(&leaves, 4, |&(c, x, h)| self.settled(c, x, h, caps));
         let st = self.stroke.as_mut().expect("stroke");
         let upto = st.prims.len() as u32;
         let mut out = Vec::with_capacity(leaves.len());

@@ -3,20 +3,22 @@
 //! (or into disjoint cells), so the tree, its undo steps and its dirty
 //! marks are the same bytes for any number of threads.
 //!
-//! The passes run on rayon's current pool: the global one (all cores, or
-//! `RAYON_NUM_THREADS`) unless the caller installs its own
-//! (`rayon::ThreadPool::install`, as `octopaint bench tree --threads` and
-//! the thread-count tests do). On one thread, and for batches smaller than
-//! the grain, everything runs serially with no hand-off at all.
+//! The number of threads is rayon's: the current pool's (all cores, or
+//! `RAYON_NUM_THREADS`, unless the caller installs its own pool, as
+//! `octopaint bench tree --threads` and the thread-count tests do). The
+//! passes themselves run on the calling thread and the helpers of
+//! [`crate::team`], which stay awake between the many short passes of a
+//! stroke. On one thread, and for batches smaller than the grain,
+//! everything runs serially with no hand-off at all.
 
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use rayon::prelude::*;
+use crate::team;
 
-/// Batches below this many items run serially: handing a batch to the pool
-/// costs a few microseconds, which a batch of a few hundred cells does not
-/// repay.
-pub const DEFAULT_GRAIN: usize = 2048;
+/// Batches below this many items run serially: handing a batch to awake
+/// helpers costs a microsecond or two, which a few hundred cells repay.
+pub const DEFAULT_GRAIN: usize = 256;
 
 static GRAIN: AtomicUsize = AtomicUsize::new(DEFAULT_GRAIN);
 
@@ -30,25 +32,57 @@ pub fn grain() -> usize {
     GRAIN.load(Ordering::Relaxed)
 }
 
-/// Whether a batch of `len` items is split across the pool.
+/// Threads a pass may use.
+#[inline]
+fn threads() -> usize {
+    rayon::current_num_threads()
+}
+
+/// Whether a batch of `len` items is split across threads.
 #[inline]
 pub fn worth(len: usize) -> bool {
-    len >= grain() && rayon::current_num_threads() > 1
+    len >= grain() && threads() > 1
 }
 
 /// The chunk length that splits `len` items into 4 chunks a thread (a batch
 /// is split only when it is worth it, so chunks are never tiny in use).
 fn chunk_len(len: usize) -> usize {
-    len.div_ceil(rayon::current_num_threads() * 4).max(1)
+    len.div_ceil(threads() * 4).max(1)
+}
+
+/// `f(0)`, ..., `f(n − 1)` on the team, the results in order.
+pub fn tasks<U: Send>(n: usize, f: impl Fn(usize) -> U + Sync) -> Vec<U> {
+    let slots: Vec<Mutex<Option<U>>> = (0..n).map(|_| Mutex::new(None)).collect();
+    team::run(n, threads(), &|k| {
+        let v = f(k);
+        *slots[k].lock().unwrap_or_else(|e| e.into_inner()) = Some(v);
+    });
+    slots.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner()).expect("every task ran")).collect()
+}
+
+/// The chunks' results joined in order.
+fn joined<U>(parts: Vec<Vec<U>>) -> Vec<U> {
+    let mut out = Vec::with_capacity(parts.iter().map(Vec::len).sum());
+    for p in parts {
+        out.extend(p);
+    }
+    out
 }
 
 /// `items.iter().map(f).collect()`, in parallel when worth it; the results
 /// are in the items' order.
 pub fn map<T: Sync, U: Send>(items: &[T], f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
-    if !worth(items.len()) {
+    map_weighted(items, 1, f)
+}
+
+/// [`map`] for items that each cost about `weight` cells' work (the grain
+/// counts cells): a batch of fewer, heavier items is split too.
+pub fn map_weighted<T: Sync, U: Send>(items: &[T], weight: usize, f: impl Fn(&T) -> U + Sync + Send) -> Vec<U> {
+    if !worth(items.len().saturating_mul(weight)) {
         return items.iter().map(f).collect();
     }
-    items.par_iter().with_min_len(chunk_len(items.len())).map(f).collect()
+    let n = chunk_len(items.len());
+    joined(tasks(items.len().div_ceil(n), |k| items[k * n..].iter().take(n).map(&f).collect()))
 }
 
 /// `f` over consecutive groups of `n` items (`items.len()` a multiple of
@@ -61,8 +95,12 @@ pub fn for_groups<T: Sync, U: Send>(items: &[T], out: &mut [U], n: usize, f: imp
         items.chunks_exact(n).zip(out.chunks_exact_mut(n)).for_each(|(g, o)| f(g, o));
         return;
     }
-    let groups = items.len() / n;
-    items.par_chunks_exact(n).zip(out.par_chunks_exact_mut(n)).with_min_len(chunk_len(groups)).for_each(|(g, o)| f(g, o));
+    let per = chunk_len(items.len() / n) * n;
+    let parts: Vec<Mutex<&mut [U]>> = out.chunks_mut(per).map(Mutex::new).collect();
+    team::run(parts.len(), threads(), &|k| {
+        let mut o = parts[k].lock().unwrap_or_else(|e| e.into_inner());
+        items[k * per..].chunks_exact(n).zip(o.chunks_exact_mut(n)).for_each(|(g, o)| f(g, o));
+    });
 }
 
 /// The items for which `keep` holds, in their order.
@@ -70,7 +108,8 @@ pub fn filter<T: Sync + Send + Copy>(items: &[T], keep: impl Fn(&T) -> bool + Sy
     if !worth(items.len()) {
         return items.iter().copied().filter(|t| keep(t)).collect();
     }
-    items.par_iter().with_min_len(chunk_len(items.len())).copied().filter(|t| keep(t)).collect()
+    let n = chunk_len(items.len());
+    joined(tasks(items.len().div_ceil(n), |k| items[k * n..].iter().take(n).copied().filter(|t| keep(t)).collect()))
 }
 
 /// `f` over consecutive chunks of `items` (each chunk's first index and its
@@ -81,7 +120,7 @@ pub fn chunks<T: Sync, U: Send>(items: &[T], f: impl Fn(usize, &[T]) -> U + Sync
         return vec![f(0, items)];
     }
     let n = chunk_len(items.len());
-    items.par_chunks(n).enumerate().map(|(i, c)| f(i * n, c)).collect()
+    tasks(items.len().div_ceil(n), |k| f(k * n, &items[k * n..(k * n + n).min(items.len())]))
 }
 
 /// `f` over consecutive sub-ranges of `lo..hi`, the results in order.
@@ -90,23 +129,11 @@ pub fn ranges<U: Send>(lo: u32, hi: u32, f: impl Fn(std::ops::Range<u32>) -> U +
     if !worth(len) {
         return vec![f(lo..hi.max(lo))];
     }
-    let n = chunk_len(len) as u32;
-    let starts: Vec<u32> = (lo..hi).step_by(n as usize).collect();
-    starts.par_iter().map(|&s| f(s..(s + n).min(hi))).collect()
-}
-
-/// Run `f` on a worker thread of the current rayon pool, the caller
-/// waiting: for long jobs that paint many samples (a replay, an export).
-/// A parallel batch started outside the pool is injected into it and the
-/// caller sleeps until the workers finish it, so every batch costs two
-/// wake-ups; started on a worker, the batch is split between that worker
-/// and the others, and only an idle helper has to wake. Nothing is
-/// handed off on one thread, or when already on a worker.
-pub fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    if rayon::current_num_threads() <= 1 || rayon::current_thread_index().is_some() {
-        return f();
-    }
-    rayon::scope(|_| f())
+    let n = chunk_len(len);
+    tasks(len.div_ceil(n), |k| {
+        let s = lo + (k * n) as u32;
+        f(s..(s + n as u32).min(hi))
+    })
 }
 
 /// Sort a list of cell indices ascending and drop repeats: the same list as
@@ -153,20 +180,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn on_pool_runs_on_a_worker_of_a_pool_of_several_threads() {
-        // The test thread belongs to no pool: on_pool takes the global one.
-        assert_eq!(rayon::current_thread_index(), None);
-        assert_eq!(on_pool(rayon::current_thread_index).is_some(), rayon::current_num_threads() > 1);
-        // On a worker already, or on one thread: in place.
-        for threads in [1, 3] {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            let (me, there) = pool.install(|| (rayon::current_thread_index(), on_pool(rayon::current_thread_index)));
-            assert!(me.is_some());
-            assert_eq!(there, me, "{threads} threads");
-        }
-    }
-
-    #[test]
     fn sort_dedup_is_sort_then_dedup() {
         let mut seed = 12345u32;
         let mut next = || {
@@ -205,6 +218,8 @@ mod tests {
                 )
             });
             assert_eq!(r.concat(), (5..9_999).collect::<Vec<u32>>());
+            // 100 items of weight 64 are split on a pool of several threads.
+            assert_eq!(pool.install(|| map_weighted(&items[..100], 64, |x| x + 1)), (1..101).collect::<Vec<u32>>());
             assert_eq!(m.0, items.iter().map(|x| x * 3).collect::<Vec<_>>());
             assert_eq!(m.1, items.iter().map(|x| x * 5 + x / 8 * 8).collect::<Vec<_>>());
             assert_eq!(f, items.iter().copied().filter(|x| x % 7 == 3).collect::<Vec<_>>());
