@@ -56,9 +56,13 @@ struct Team {
     sleeping: [AtomicBool; MAX_HELPERS],
 }
 
-// SAFETY: `task` is written only by the lead holding `lead`, while no
-// helper is inside a pass (`live` false and `inside` 0), and read only by
-// helpers inside one.
+// SAFETY: `task` is read only by a helper that saw `live` true after it
+// raised `inside`; it is written only by the lead holding `lead` while
+// `live` is false, after the previous lead, having stored `live = false`,
+// saw `inside` at 0. With every access SeqCst, a helper that raises
+// `inside` late either sees `live` false and leaves without reading, or
+// sees a later pass's `live` true, which is ordered after that pass's
+// write. (Acquire and release alone would not give this.)
 unsafe impl Sync for Team {}
 
 thread_local! {
@@ -95,24 +99,32 @@ impl Team {
             if k >= n {
                 return;
             }
-            if catch_unwind(AssertUnwindSafe(|| task(k))).is_err() {
+            if let Err(payload) = catch_unwind(AssertUnwindSafe(|| task(k))) {
+                // Not dropped: a payload whose drop panics would unwind
+                // out of here (rust-lang/rust#86027).
+                std::mem::forget(payload);
                 self.panicked.store(true, SeqCst);
             }
             self.done.fetch_add(1, SeqCst);
         }
     }
 
-    fn helper(&'static self, index: usize) {
+    /// A helper's life: `seen` is the last pass it need not join.
+    fn helper(&'static self, index: usize, mut seen: u64) {
         IN_PASS.set(true);
-        let mut seen = self.epoch.load(SeqCst);
         loop {
-            // Wait for the next pass: awake for a while, then parked.
+            // Wait for the next pass that seats it: awake for a while
+            // after its last one (passes without a seat for it do not
+            // keep it awake), then parked.
             let since = Instant::now();
             loop {
                 let e = self.epoch.load(SeqCst);
                 if e != seen {
                     seen = e;
-                    break;
+                    if index < self.seats.load(SeqCst) {
+                        break;
+                    }
+                    continue;
                 }
                 if since.elapsed() < STAY_AWAKE {
                     std::thread::yield_now();
@@ -123,9 +135,6 @@ impl Team {
                     std::thread::park();
                 }
                 self.sleeping[index].store(false, SeqCst);
-            }
-            if index >= self.seats.load(SeqCst) {
-                continue;
             }
             self.inside.fetch_add(1, SeqCst);
             if self.live.load(SeqCst) {
@@ -140,12 +149,14 @@ impl Team {
     }
 
     /// At least `count` helpers exist (spawning fails: fewer; the pass
-    /// still runs).
+    /// still runs). Called by the lead before it posts its pass, which new
+    /// helpers then join.
     fn ensure_helpers(&'static self, count: usize) {
         let mut helpers = self.helpers.lock().unwrap_or_else(|e| e.into_inner());
+        let seen = self.epoch.load(SeqCst);
         while helpers.len() < count {
             let index = helpers.len();
-            match std::thread::Builder::new().name(format!("octopaint-helper-{index}")).spawn(move || self.helper(index)) {
+            match std::thread::Builder::new().name(format!("octopaint-helper-{index}")).spawn(move || self.helper(index, seen)) {
                 Ok(h) => helpers.push(h.thread().clone()),
                 Err(_) => break,
             }
@@ -180,6 +191,9 @@ pub fn run(n: usize, threads: usize, task: &(dyn Fn(usize) + Sync)) {
     team.panicked.store(false, SeqCst);
     team.seats.store(seats, SeqCst);
     team.live.store(true, SeqCst);
+    // Whatever happens from here, the pass ends before this frame (and the
+    // closure it lent) goes away.
+    let end = EndOfPass(team, n);
     team.epoch.fetch_add(1, SeqCst);
     {
         let helpers = team.helpers.lock().unwrap_or_else(|e| e.into_inner());
@@ -191,18 +205,45 @@ pub fn run(n: usize, threads: usize, task: &(dyn Fn(usize) + Sync)) {
     }
     IN_PASS.set(true);
     team.work(task);
-    IN_PASS.set(false);
-    while team.done.load(SeqCst) < n {
-        std::hint::spin_loop();
-    }
-    team.live.store(false, SeqCst);
-    while team.inside.load(SeqCst) != 0 {
-        std::hint::spin_loop();
-    }
-    // SAFETY: as above, no helper is inside any more.
-    unsafe { *team.task.get() = None };
+    drop(end);
     if team.panicked.load(SeqCst) {
         resume_unwind(Box::new("a task of a parallel pass panicked"));
+    }
+}
+
+/// Ends the lead's pass when dropped: waits until every task has run and
+/// no helper is inside, then takes the task back.
+struct EndOfPass(&'static Team, usize);
+
+impl Drop for EndOfPass {
+    fn drop(&mut self) {
+        let EndOfPass(team, n) = *self;
+        // Tasks nobody took yet (only when this thread unwinds before it
+        // worked) are run here, so that `done` reaches `n`.
+        // SAFETY: the lead reads what it wrote itself.
+        if let Some(task) = unsafe { *team.task.get() } {
+            team.work(task);
+        }
+        IN_PASS.set(false);
+        wait_until(|| team.done.load(SeqCst) >= n);
+        team.live.store(false, SeqCst);
+        wait_until(|| team.inside.load(SeqCst) == 0);
+        // SAFETY: `live` is false and no helper is inside (see `Team`).
+        unsafe { *team.task.get() = None };
+    }
+}
+
+/// Spin until `ok`, yielding the core after a while (the thread awaited
+/// may have been pushed off its core).
+fn wait_until(ok: impl Fn() -> bool) {
+    let mut spins = 0u32;
+    while !ok() {
+        if spins < 256 {
+            spins += 1;
+            std::hint::spin_loop();
+        } else {
+            std::thread::yield_now();
+        }
     }
 }
 
@@ -241,6 +282,37 @@ mod tests {
             }
         });
         assert_eq!(total.load(SeqCst), 4 * 200 * 8 * 4);
+    }
+
+    #[test]
+    fn a_panic_whose_payload_panics_when_dropped_stays_inside_the_pass() {
+        struct Bomb;
+        impl Drop for Bomb {
+            fn drop(&mut self) {
+                panic!("the payload's drop");
+            }
+        }
+        let ran = AtomicUsize::new(0);
+        let r = catch_unwind(AssertUnwindSafe(|| {
+            run(8, 2, &|k| {
+                ran.fetch_add(1, SeqCst);
+                if k == 3 {
+                    std::panic::panic_any(Bomb);
+                }
+            })
+        }));
+        // Serially (the team busy with another test) the payload reaches
+        // the caller as it is; on the team the lead reports the pass.
+        match r {
+            Err(p) if p.is::<Bomb>() => std::mem::forget(p),
+            r => assert!(r.is_err()),
+        }
+        assert!(ran.load(SeqCst) >= 4);
+        let after = AtomicUsize::new(0);
+        run(16, 2, &|_| {
+            after.fetch_add(1, SeqCst);
+        });
+        assert_eq!(after.load(SeqCst), 16);
     }
 
     #[test]
