@@ -4,7 +4,8 @@ operation: the precision parameter of the ray caster (spec 7, precision study).
 XLA on CPU is not a faithful IEEE machine for this purpose, and both ways it
 departs were measured (tests/test_arith.py keeps them measured):
 
-- it contracts `a*b + c` into a fused multiply-add in f16, f32 and f64 alike,
+- it contracts `a*b + c` into a fused multiply-add in f32 and f64, and in
+  f16 on some processors (not on an AMD EPYC with AVX-512 BF16, 2026-11-27),
   which skips the rounding of the product;
 - `lax.reduce_precision` and f16 arithmetic flush subnormal results to zero.
 

@@ -106,9 +106,12 @@ def test_native_arithmetic_computes_in_the_format_itself(name):
     """NATIVE (the GPU campaign's comparison, docs/precision.md): every
     result is a value of the format, a single operation on normal operands
     is the correctly rounded one, and the chains the emulation protects are
-    left to XLA: on CPU a*b + c comes out rounded once (contracted, or
-    carried wider between the two operations), which the emulation never
-    does."""
+    left to XLA: in f32, XLA on CPU computes a*b + c rounded once
+    (contracted, or carried wider between the two operations), which the
+    emulation never does. Whether it does so in f16 depends on the
+    processor: it did on the hosts of 2026-11-23 to 26, and on an AMD EPYC
+    with AVX-512 BF16 (2026-11-27) it rounded the product first, as the
+    emulation does, so the f16 chain is only held to the format."""
     from octopaint_ref.arith import NATIVE, format_of
 
     fmt = NATIVE[name]
@@ -135,6 +138,8 @@ def test_native_arithmetic_computes_in_the_format_itself(name):
             w = w.astype(np.float64)
             normal = np.isfinite(w) & (np.abs(w) >= tiny) & (np.abs(a) >= tiny) & (np.abs(b) >= tiny)
             assert (g[normal] == w[normal]).all()
-    # The fused chain differs from the emulated (twice rounded) one somewhere.
-    both = np.isfinite(got[3]) & np.isfinite(got[4])
-    assert (got[3][both] != got[4][both]).any()
+    # The fused chain differs from the emulated (twice rounded) one
+    # somewhere (f32; f16 depends on the processor, see above).
+    if name == "f32":
+        both = np.isfinite(got[3]) & np.isfinite(got[4])
+        assert (got[3][both] != got[4][both]).any()
