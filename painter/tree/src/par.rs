@@ -60,6 +60,13 @@ pub fn tasks<U: Send>(n: usize, f: impl Fn(usize) -> U + Sync) -> Vec<U> {
     slots.into_iter().map(|m| m.into_inner().unwrap_or_else(|e| e.into_inner()).expect("every task ran")).collect()
 }
 
+/// `f` over consecutive chunks of `items` of [`chunk_len`] items (each
+/// chunk's first index and its slice) on the team, the results in order.
+fn per_chunk<T: Sync, U: Send>(items: &[T], f: impl Fn(usize, &[T]) -> U + Sync) -> Vec<U> {
+    let n = chunk_len(items.len());
+    tasks(items.len().div_ceil(n), |k| f(k * n, &items[k * n..(k * n + n).min(items.len())]))
+}
+
 /// The chunks' results joined in order.
 fn joined<U>(parts: Vec<Vec<U>>) -> Vec<U> {
     let mut out = Vec::with_capacity(parts.iter().map(Vec::len).sum());
@@ -81,8 +88,7 @@ pub fn map_weighted<T: Sync, U: Send>(items: &[T], weight: usize, f: impl Fn(&T)
     if !worth(items.len().saturating_mul(weight)) {
         return items.iter().map(f).collect();
     }
-    let n = chunk_len(items.len());
-    joined(tasks(items.len().div_ceil(n), |k| items[k * n..].iter().take(n).map(&f).collect()))
+    joined(per_chunk(items, |_, c| c.iter().map(&f).collect()))
 }
 
 /// `f` over consecutive groups of `n` items (`items.len()` a multiple of
@@ -108,8 +114,7 @@ pub fn filter<T: Sync + Send + Copy>(items: &[T], keep: impl Fn(&T) -> bool + Sy
     if !worth(items.len()) {
         return items.iter().copied().filter(|t| keep(t)).collect();
     }
-    let n = chunk_len(items.len());
-    joined(tasks(items.len().div_ceil(n), |k| items[k * n..].iter().take(n).copied().filter(|t| keep(t)).collect()))
+    joined(per_chunk(items, |_, c| c.iter().copied().filter(|t| keep(t)).collect()))
 }
 
 /// `f` over consecutive chunks of `items` (each chunk's first index and its
@@ -119,8 +124,7 @@ pub fn chunks<T: Sync, U: Send>(items: &[T], f: impl Fn(usize, &[T]) -> U + Sync
     if !worth(items.len()) {
         return vec![f(0, items)];
     }
-    let n = chunk_len(items.len());
-    tasks(items.len().div_ceil(n), |k| f(k * n, &items[k * n..(k * n + n).min(items.len())]))
+    per_chunk(items, f)
 }
 
 /// `f` over consecutive sub-ranges of `lo..hi`, the results in order.
