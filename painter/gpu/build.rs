@@ -21,4 +21,5 @@ fn main() {
     validate("g3.wgsl", &g3_source());
     validate("raycast.wgsl (f32)", &raycast_source(Precision::F32));
     validate("raycast.wgsl (f16)", &raycast_source(Precision::F16));
+    validate("digest.wgsl", DIGEST_WGSL);
 }

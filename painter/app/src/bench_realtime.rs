@@ -14,7 +14,10 @@
 //!   matches neither consistent state the GPU holds (the newest fully
 //!   uploaded publication, nor the newest uploaded at all), and how long
 //!   such corruption lasts; the consistent images are rendered afterwards
-//!   by replaying the same jobs publication by publication;
+//!   by replaying the same jobs publication by publication, and images are
+//!   compared by their 64-bit digests, computed on the GPU
+//!   (`octopaint_gpu::digest`), so capturing a frame costs a small pass
+//!   rather than a read-back of the image;
 //! - latency per job (submission to the end of the first frame showing
 //!   all of it), frame times, and cells per second through the pipeline.
 //!
@@ -210,7 +213,7 @@ fn apply(painting: &mut Painting, job: &Job) {
     }
 }
 
-/// The images of the consistent states the frames need, by publication
+/// The image digests of the consistent states the frames need, by publication
 /// number: the live jobs replayed single-threaded, published exactly as
 /// the stroke thread publishes, each wanted state uploaded fully and cast.
 fn consistent_images(
@@ -220,23 +223,23 @@ fn consistent_images(
     wanted: &BTreeSet<u64>,
     camera: &Camera,
     skip_invalid: bool,
-) -> anyhow::Result<HashMap<u64, Vec<u8>>> {
+) -> anyhow::Result<HashMap<u64, u64>> {
     let mut painting = pre.clone();
     let mut r = Renderer::new(Backend::Auto)?;
     r.sync(&mut painting.tree)?;
     let mut out = HashMap::new();
     let mut params = octopaint_tree::raycast::RayParams::new(&painting.tree.lat, camera);
     params.skip_invalid = skip_invalid;
-    let cast = |r: &mut Renderer, painting: &mut Painting, n: u64, out: &mut HashMap<u64, Vec<u8>>| -> anyhow::Result<()> {
+    let cast = |r: &mut Renderer, painting: &mut Painting, n: u64, out: &mut HashMap<u64, u64>| -> anyhow::Result<()> {
         if wanted.contains(&n) {
             r.sync(&mut painting.tree)?;
-            out.insert(n, r.cast_params(&params, Precision::F32)?);
+            out.insert(n, r.cast_digest(&params, Precision::F32)?);
         }
         Ok(())
     };
     let mut n = 0u64;
     cast(&mut r, &mut painting, 0, &mut out)?;
-    let publish = |r: &mut Renderer, painting: &mut Painting, n: &mut u64, out: &mut HashMap<u64, Vec<u8>>| -> anyhow::Result<()> {
+    let publish = |r: &mut Renderer, painting: &mut Painting, n: &mut u64, out: &mut HashMap<u64, u64>| -> anyhow::Result<()> {
         let p = painting.tree.take_publication();
         if p.blocks.is_empty() && p.mask.count() == 0 {
             return Ok(());
@@ -266,14 +269,14 @@ fn consistent_images(
     Ok(out)
 }
 
-fn corruption(report: &Report, images: &HashMap<u64, Vec<u8>>) -> Corruption {
+fn corruption(report: &Report, images: &HashMap<u64, u64>) -> Corruption {
     let frames = &report.frames;
     let bad: Vec<bool> = frames
         .iter()
         .map(|f| {
-            let img = f.image.as_ref().expect("captured");
-            let a = images.get(&f.cut).is_some_and(|q| q == img);
-            let b = images.get(&f.newest_uploaded).is_some_and(|q| q == img);
+            let img = f.digest.expect("captured");
+            let a = images.get(&f.cut) == Some(&img);
+            let b = images.get(&f.newest_uploaded) == Some(&img);
             !(a || b)
         })
         .collect();

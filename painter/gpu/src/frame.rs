@@ -130,6 +130,16 @@ impl Renderer {
         self.ray.read_image(&self.gpu, params.width, params.height)
     }
 
+    /// Cast the image `params` describe and return its digest
+    /// (`digest::rgb_digest` of the image [`Renderer::cast_params`] returns).
+    pub fn cast_digest(&mut self, params: &RayParams, precision: Precision) -> Result<u64, GpuError> {
+        let params = *params;
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
+        self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
+        self.gpu.queue.submit([enc.finish()]);
+        self.ray.image_digest(&self.gpu, params.width, params.height)
+    }
+
     /// Cast one image per entry of `eyes` (a stereo frame: one per eye)
     /// and wait for the GPU, without reading anything back: what a frame's
     /// ray casting costs (benchmarks). Each cast is its own submission, so

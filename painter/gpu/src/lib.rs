@@ -9,12 +9,14 @@
 //! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | tree/src/pool.rs |
 //! | [`g3`] | the g3 pass | g3.wgsl | tree/src/g3.rs |
 //! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
+//! | [`digest`] | a cast image's 64-bit digest, for frame-by-frame comparisons | digest.wgsl | digest.rs (`rgb_digest`) |
 //! | [`frame`] | one frame: uploads, mask, g3 pass, ray cast | | |
 //! | [`blit`] | a cast image drawn into a colour target | (in blit.rs) | |
 //! | [`image`] | PNG files, texels read back as RGB | | |
 
 pub mod blit;
 pub mod context;
+pub mod digest;
 pub mod frame;
 pub mod g3;
 pub mod image;

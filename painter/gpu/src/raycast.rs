@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use octopaint_tree::raycast::RayParams;
 
 use crate::context::{Gpu, GpuError};
+use crate::digest::ImageDigest;
 use crate::pools::{GpuPools, read_buffer, read_through};
 use crate::shaders::{Precision, raycast_source};
 
@@ -147,6 +148,8 @@ pub struct RayCaster {
     /// reads (a frame captured at headset size every frame: making one
     /// each time cost more than the copy).
     readback: Option<(u64, wgpu::Buffer)>,
+    /// The digest pass, made on first use.
+    digest: Option<ImageDigest>,
 }
 
 impl RayCaster {
@@ -202,7 +205,7 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None, readback: None };
+        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None, readback: None, digest: None };
         // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
             let _ = caster.pipeline(gpu, precision, 0, false);
@@ -333,6 +336,15 @@ impl RayCaster {
     /// bytes r | g << 8 | b << 16, row 0 at the top (a window draws it).
     pub fn pixel_buffer(&self) -> Option<&wgpu::Buffer> {
         self.pixels.as_ref().map(|(_, b)| b)
+    }
+
+    /// The digest of the last image cast (`digest::rgb_digest` of what
+    /// [`RayCaster::read_image`] would return), computed on the GPU: 8 bytes
+    /// a workgroup come back instead of the image.
+    pub fn image_digest(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<u64, GpuError> {
+        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let count = u32::try_from(u64::from(width) * u64::from(height)).map_err(|_| GpuError::Readback(format!("an image of {width}x{height} has too many pixels for a digest")))?;
+        self.digest.get_or_insert_with(|| ImageDigest::new(gpu)).digest(gpu, buf, count)
     }
 
     /// The last image cast, `width·height·3` bytes of sRGB, row 0 at the top.

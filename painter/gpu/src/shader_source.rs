@@ -13,6 +13,7 @@ pub enum Precision {
 pub const POOLS_WGSL: &str = include_str!("../../../shaders/shared/pools.wgsl");
 pub const G3_WGSL: &str = include_str!("../../../shaders/g3.wgsl");
 pub const RAYCAST_WGSL: &str = include_str!("../../../shaders/raycast.wgsl");
+pub const DIGEST_WGSL: &str = include_str!("../../../shaders/digest.wgsl");
 
 /// The g3 pass: the pools, then the stage.
 pub fn g3_source() -> String {

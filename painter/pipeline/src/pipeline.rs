@@ -89,7 +89,8 @@ pub struct FrameRecord {
     pub upload_seconds: f64,
     pub g3_seconds: f64,
     pub cast_seconds: f64,
-    pub image: Option<Vec<u8>>,
+    /// With `capture`: the digest of the frame's image (`octopaint_gpu::digest`).
+    pub digest: Option<u64>,
 }
 
 impl FrameRecord {
@@ -512,7 +513,7 @@ fn render_thread(
         let mut enc = r.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame cast") });
         r.ray.encode(&r.gpu, &r.pools, &mut enc, &params, settings.precision)?;
         r.gpu.queue.submit([enc.finish()]);
-        let image = if settings.capture { Some(r.ray.read_image(&r.gpu, params.width, params.height)?) } else { None };
+        let digest = if settings.capture { Some(r.ray.image_digest(&r.gpu, params.width, params.height)?) } else { None };
         r.gpu.wait();
         let end = Instant::now();
         let index = frames.len() as u64 + 1;
@@ -537,7 +538,7 @@ fn render_thread(
             upload_seconds: (t_up - start).as_secs_f64(),
             g3_seconds: (t_g3 - t_up).as_secs_f64(),
             cast_seconds: (end - t_g3).as_secs_f64(),
-            image,
+            digest,
         });
         shared.frames.store(index, Ordering::Release);
         // Done when asked to finish and everything has reached the screen:

@@ -63,7 +63,8 @@ pub struct Settings {
     /// Pace frames at this rate (a headset's refresh); None: as fast as the
     /// renderer goes.
     pub target_hz: Option<f64>,
-    /// Read every frame's image back (corruption analysis; costs time).
+    /// Take every frame's image digest (corruption analysis): a GPU pass
+    /// over the pixels and 32 KiB read back a frame.
     pub capture: bool,
     /// Threads the stroke thread's painter core may use (its parallel
     /// passes give the same bytes for any count). Default: the cores less
