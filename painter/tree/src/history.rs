@@ -71,8 +71,9 @@ impl Journal {
 /// - *born*: free before (a new cell), only the after-record, 20 bytes;
 ///   the cells past the used length at the stroke's start (its *tail*,
 ///   where most new cells are) keep their after-records in runs of
-///   consecutive cells as the pools hold them, 16 bytes a cell, freed ones
-///   included;
+///   consecutive cells, freed ones included, packed: 7 bytes a cell, 9 a
+///   span of cells with one parent and depth (a unit), 8 a cell with
+///   children, about 9 bytes a cell in all;
 /// - *freed*: free after (a collapse), only the before-record, 20 bytes;
 /// - *other*: both records (a refined leaf, a parent), 36 bytes.
 #[derive(Clone, Debug, Default)]
@@ -98,67 +99,99 @@ pub struct UndoStep {
     other: Vec<[CellRecord; 2]>,
 }
 
-/// Cell records one vector a field, as the pools hold them.
+/// The records of consecutive cells, packed: rgb and sigma for every cell,
+/// the parent and depth once for each span of cells that share them (a
+/// unit's 8 siblings do), and first_child only where it is not NONE (most
+/// cells a stroke makes are leaves). About 9 bytes a cell for a stroke's new
+/// units, where the pools take 16.
 #[derive(Clone, Debug, Default)]
-struct Columns {
-    parent: Vec<u32>,
-    first_child: Vec<u32>,
-    depth: Vec<u8>,
+struct Packed {
     rgb: Vec<[u8; 3]>,
     sigma: Vec<f32>,
+    /// Each span's first cell (its index in the run), parent and depth;
+    /// a span runs to the next one's first cell.
+    span_at: Vec<u32>,
+    span_parent: Vec<u32>,
+    span_depth: Vec<u8>,
+    /// The cells whose first_child is not NONE, ascending, and theirs.
+    child_at: Vec<u32>,
+    child: Vec<u32>,
 }
 
-impl Columns {
+impl Packed {
     fn len(&self) -> usize {
-        self.parent.len()
-    }
-
-    fn get(&self, i: usize) -> CellRecord {
-        CellRecord { parent: self.parent[i], first_child: self.first_child[i], depth: self.depth[i], rgb: self.rgb[i], sigma: self.sigma[i] }
-    }
-
-    /// Record `i` is `CellRecord::FREE` bit for bit (no entry), read
-    /// field by field with the depth first: a live cell is told by one
-    /// byte, where building the record reads all five vectors.
-    #[inline]
-    fn is_free(&self, i: usize) -> bool {
-        let free = CellRecord::FREE;
-        self.depth[i] == free.depth
-            && self.parent[i] == free.parent
-            && self.first_child[i] == free.first_child
-            && self.rgb[i] == free.rgb
-            && self.sigma[i].to_bits() == free.sigma.to_bits()
-    }
-
-    fn set(&mut self, i: usize, r: CellRecord) {
-        (self.parent[i], self.first_child[i], self.depth[i], self.rgb[i], self.sigma[i]) = (r.parent, r.first_child, r.depth, r.rgb, r.sigma);
+        self.rgb.len()
     }
 
     fn push(&mut self, r: CellRecord) {
-        self.parent.push(r.parent);
-        self.first_child.push(r.first_child);
-        self.depth.push(r.depth);
+        let i = self.rgb.len() as u32;
+        if self.span_parent.last() != Some(&r.parent) || self.span_depth.last() != Some(&r.depth) {
+            self.span_at.push(i);
+            self.span_parent.push(r.parent);
+            self.span_depth.push(r.depth);
+        }
+        if r.first_child != NONE {
+            self.child_at.push(i);
+            self.child.push(r.first_child);
+        }
         self.rgb.push(r.rgb);
         self.sigma.push(r.sigma);
     }
 
-    /// The pools' records of `cells`, copied slice by slice.
-    fn from_pools(tree: &Tree, cells: std::ops::Range<usize>) -> Columns {
-        Columns {
-            parent: tree.parent[cells.clone()].to_vec(),
-            first_child: tree.first_child[cells.clone()].to_vec(),
-            depth: tree.depth[cells.clone()].to_vec(),
-            rgb: tree.rgb[cells.clone()].to_vec(),
-            sigma: tree.sigma[cells].to_vec(),
+    /// The pools' records of `cells`: rgb and sigma copied slice by slice,
+    /// the spans and children found by one scan of their columns.
+    fn from_pools(tree: &Tree, cells: std::ops::Range<usize>) -> Packed {
+        let mut p = Packed { rgb: tree.rgb[cells.clone()].to_vec(), sigma: tree.sigma[cells.clone()].to_vec(), ..Packed::default() };
+        let (parent, depth) = (&tree.parent[cells.clone()], &tree.depth[cells.clone()]);
+        let mut last = None;
+        for (i, (&pa, &d)) in parent.iter().zip(depth).enumerate() {
+            if last != Some((pa, d)) {
+                last = Some((pa, d));
+                p.span_at.push(i as u32);
+                p.span_parent.push(pa);
+                p.span_depth.push(d);
+            }
         }
+        for (i, &fc) in tree.first_child[cells].iter().enumerate() {
+            if fc != NONE {
+                p.child_at.push(i as u32);
+                p.child.push(fc);
+            }
+        }
+        p
+    }
+
+    /// Every record in order.
+    fn records(&self) -> impl Iterator<Item = CellRecord> + '_ {
+        let (mut span, mut child) = (0usize, 0usize);
+        (0..self.len()).map(move |i| {
+            let i32_ = i as u32;
+            while span + 1 < self.span_at.len() && self.span_at[span + 1] <= i32_ {
+                span += 1;
+            }
+            let first_child = if self.child_at.get(child) == Some(&i32_) {
+                child += 1;
+                self.child[child - 1]
+            } else {
+                NONE
+            };
+            CellRecord { parent: self.span_parent[span], first_child, depth: self.span_depth[span], rgb: self.rgb[i], sigma: self.sigma[i] }
+        })
+    }
+
+    /// What the vectors hold, in bytes.
+    fn bytes(&self) -> usize {
+        self.len() * (3 + 4) + self.span_at.len() * (4 + 4 + 1) + self.child_at.len() * (4 + 4)
     }
 
     fn shrink(&mut self) {
-        self.parent.shrink_to_fit();
-        self.first_child.shrink_to_fit();
-        self.depth.shrink_to_fit();
         self.rgb.shrink_to_fit();
         self.sigma.shrink_to_fit();
+        self.span_at.shrink_to_fit();
+        self.span_parent.shrink_to_fit();
+        self.span_depth.shrink_to_fit();
+        self.child_at.shrink_to_fit();
+        self.child.shrink_to_fit();
     }
 }
 
@@ -166,7 +199,7 @@ impl Columns {
 #[derive(Clone, Debug)]
 struct Run {
     first: u32,
-    cols: Columns,
+    cols: Packed,
 }
 
 impl Run {
@@ -209,28 +242,18 @@ impl UndoStep {
     /// `push` does with a free `before`).
     #[inline]
     pub fn push_born(&mut self, c: u32, after: CellRecord) {
-        // In the tail when its place is there (free so far) or past the
-        // last run's end (a unit on at most, else a new run); a free
-        // after-record goes to the list, where it stays an entry. A step
+        // In the tail when its place is past the last run's end (a unit on
+        // at most, else a new run); a free after-record goes to the list,
+        // where it stays an entry, and so does a cell whose place lies
+        // inside a run (the packed runs only grow at their end). A step
         // read back may count fewer free records in `bytes` than the step
         // that was saved (its runs skip gaps of more than a unit).
         if c >= self.n_before && c < self.n_after && !after.same_bits(&CellRecord::FREE) {
-            // The last run starting at or before `c`.
-            let at = self.tail.partition_point(|run| run.first <= c);
-            let past_all = at == self.tail.len();
             // A new run only while runs hold 8 entries each on average:
             // a crafted document's scattered cells go to the list.
-            let new_run = past_all && self.tail.len() <= self.tail_born / UNIT as usize;
-            match self.tail[..at].last_mut() {
-                Some(run) if c < run.end() => {
-                    let i = (c - run.first) as usize;
-                    if run.cols.is_free(i) {
-                        run.cols.set(i, after);
-                        self.tail_born += 1;
-                        return;
-                    }
-                }
-                Some(run) if past_all && (c - run.end()) as usize <= TAIL_GAP => {
+            let new_run = self.tail.len() <= self.tail_born / UNIT as usize;
+            match self.tail.last_mut() {
+                Some(run) if c >= run.end() && (c - run.end()) as usize <= TAIL_GAP => {
                     while run.end() < c {
                         run.cols.push(CellRecord::FREE);
                     }
@@ -238,14 +261,21 @@ impl UndoStep {
                     self.tail_born += 1;
                     return;
                 }
-                _ if new_run => {
-                    let mut cols = Columns::default();
+                Some(run) if c >= run.end() && new_run => {
+                    let mut cols = Packed::default();
                     cols.push(after);
                     self.tail.push(Run { first: c, cols });
                     self.tail_born += 1;
                     return;
                 }
-                _ => {} // before the last run, in no run or taken
+                None if new_run => {
+                    let mut cols = Packed::default();
+                    cols.push(after);
+                    self.tail.push(Run { first: c, cols });
+                    self.tail_born += 1;
+                    return;
+                }
+                _ => {} // before the last run's end, or too scattered
             }
         }
         self.born_cells.push(c);
@@ -261,8 +291,8 @@ impl UndoStep {
         if from >= to {
             return;
         }
-        let t = Columns::from_pools(tree, from..to);
-        self.tail_born = (0..t.len()).filter(|&i| !t.is_free(i)).count();
+        let t = Packed::from_pools(tree, from..to);
+        self.tail_born = t.records().filter(|r| !r.same_bits(&CellRecord::FREE)).count();
         self.tail = vec![Run { first: self.n_before, cols: t }];
     }
 
@@ -340,7 +370,7 @@ impl UndoStep {
         });
         let born = self.born_cells.iter().zip(&self.born).map(|(&c, r)| (c, CellRecord::FREE, *r));
         let tail = self.tail.iter().flat_map(|run| {
-            (0..run.cols.len()).filter(|&i| !run.cols.is_free(i)).map(move |i| (run.first + i as u32, CellRecord::FREE, run.cols.get(i)))
+            run.cols.records().enumerate().filter(|(_, r)| !r.same_bits(&CellRecord::FREE)).map(move |(i, r)| (run.first + i as u32, CellRecord::FREE, r))
         });
         let freed = self.freed_cells.iter().zip(&self.freed).map(|(&c, r)| (c, *r, CellRecord::FREE));
         let other = self.other_cells.iter().zip(&self.other).map(|(&c, r)| (c, r[0], r[1]));
@@ -350,7 +380,7 @@ impl UndoStep {
     pub fn bytes(&self) -> usize {
         self.value_cells.len() * (4 + 4 + 1 + 2 * 3 + 2 * 4)
             + (self.born_cells.len() + self.freed_cells.len()) * (4 + std::mem::size_of::<CellRecord>())
-            + self.tail.iter().map(|run| run.cols.len()).sum::<usize>() * std::mem::size_of::<CellRecord>()
+            + self.tail.iter().map(|run| run.cols.bytes()).sum::<usize>()
             + self.other_cells.len() * (4 + 2 * std::mem::size_of::<CellRecord>())
     }
 }
@@ -510,7 +540,7 @@ mod tests {
         pushes.extend([
             (43, leaf(7)), // 9 past its end: a second run
             (44, leaf(8)), // right at its end
-            (20, leaf(9)), // the free place in the first run
+            (20, leaf(9)), // a free place in the first run: the list (runs grow at their end only)
             (39, leaf(10)), // before the last run: the list
             (60, leaf(11)), // a third run would make runs of fewer than 8 entries: the list
         ]);
@@ -521,12 +551,46 @@ mod tests {
         let runs: Vec<(u32, u32)> = step.tail.iter().map(|r| (r.first, r.end())).collect();
         assert_eq!(runs, [(17, 34), (43, 45)]);
         assert_eq!(step.len(), pushes.len());
-        assert_eq!(step.bytes(), 5 * 20 + 19 * 16);
+        // The list: 6 cells of 20 bytes. The runs: 17 + 2 cells of 7 bytes;
+        // spans of one parent and depth: leaf, free (18), leaf (19), free
+        // (20-27), leaf (28-33) in the first run, one in the second.
+        assert_eq!(step.bytes(), 6 * 20 + 19 * 7 + 6 * 9);
         let got: Vec<u32> = step.entries().map(|e| e.0).collect();
-        assert_eq!(got, [8, 16, 18, 39, 60, 17, 19, 20, 28, 29, 30, 31, 32, 33, 43, 44], "the list in its order, then the tail in index order");
+        assert_eq!(got, [8, 16, 18, 20, 39, 60, 17, 19, 28, 29, 30, 31, 32, 33, 43, 44], "the list in its order, then the tail in index order");
         for (c, b, a) in step.entries() {
             let want = pushes.iter().find(|p| p.0 == c).expect("pushed").1;
             assert!(b.same_bits(&free) && a.same_bits(&want), "cell {c}");
         }
+    }
+
+    #[test]
+    fn packed_runs_give_back_every_record() {
+        // Units of 8 siblings, a free unit, parents with children, and
+        // spans that change every cell.
+        let mut want = Vec::new();
+        for u in 0..6u32 {
+            for k in 0..8u32 {
+                want.push(if u == 2 {
+                    CellRecord::FREE
+                } else {
+                    rec(u * 3, if (u + k) % 5 == 0 { 100 + 8 * k } else { NONE }, 4 + (u % 2) as u8, [k as u8, u as u8, 7], k as f32 * 0.25)
+                });
+            }
+        }
+        want.extend((0..5u32).map(|i| rec(i, NONE, 9, [1; 3], -0.0)));
+        let mut p = Packed::default();
+        for &r in &want {
+            p.push(r);
+        }
+        assert_eq!(p.len(), want.len());
+        let got: Vec<CellRecord> = p.records().collect();
+        assert_eq!(got.len(), want.len());
+        for (i, (a, b)) in want.iter().zip(&got).enumerate() {
+            assert!(a.same_bits(b), "record {i}: {a:?} came back as {b:?}");
+        }
+        // 5 units and a free unit make 6 spans, then 5 more.
+        assert_eq!(p.span_at.len(), 11);
+        assert_eq!(p.child_at.len(), want.iter().filter(|r| r.first_child != NONE).count());
+        assert_eq!(p.bytes(), want.len() * 7 + 11 * 9 + p.child_at.len() * 8);
     }
 }
