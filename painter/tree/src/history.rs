@@ -179,6 +179,26 @@ impl Packed {
         })
     }
 
+    /// How many records are `CellRecord::FREE` bit for bit: looked for only
+    /// in the spans whose parent and depth are a free record's.
+    fn free_records(&self) -> usize {
+        let free = CellRecord::FREE;
+        let mut n = 0;
+        for (k, (&parent, &depth)) in self.span_parent.iter().zip(&self.span_depth).enumerate() {
+            if (parent, depth) != (free.parent, free.depth) {
+                continue;
+            }
+            let from = self.span_at[k] as usize;
+            let to = self.span_at.get(k + 1).map_or(self.len(), |&e| e as usize);
+            let (lo, hi) = (self.child_at.partition_point(|&i| (i as usize) < from), self.child_at.partition_point(|&i| (i as usize) < to));
+            let with_children = &self.child_at[lo..hi];
+            n += (from..to)
+                .filter(|&i| self.rgb[i] == free.rgb && self.sigma[i].to_bits() == free.sigma.to_bits() && with_children.binary_search(&(i as u32)).is_err())
+                .count();
+        }
+        n
+    }
+
     /// What the vectors hold, in bytes.
     fn bytes(&self) -> usize {
         self.len() * (3 + 4) + self.span_at.len() * (4 + 4 + 1) + self.child_at.len() * (4 + 4)
@@ -292,7 +312,7 @@ impl UndoStep {
             return;
         }
         let t = Packed::from_pools(tree, from..to);
-        self.tail_born = t.records().filter(|r| !r.same_bits(&CellRecord::FREE)).count();
+        self.tail_born = t.len() - t.free_records();
         self.tail = vec![Run { first: self.n_before, cols: t }];
     }
 
@@ -592,5 +612,12 @@ mod tests {
         assert_eq!(p.span_at.len(), 11);
         assert_eq!(p.child_at.len(), want.iter().filter(|r| r.first_child != NONE).count());
         assert_eq!(p.bytes(), want.len() * 7 + 11 * 9 + p.child_at.len() * 8);
+        assert_eq!(p.free_records(), 8);
+        // A record with a free record's parent and depth but a colour, or
+        // children, is no free record.
+        p.push(CellRecord { rgb: [0, 0, 1], ..CellRecord::FREE });
+        p.push(CellRecord { first_child: 64, ..CellRecord::FREE });
+        p.push(CellRecord::FREE);
+        assert_eq!(p.free_records(), 9);
     }
 }
