@@ -20,7 +20,7 @@ struct DigestParams {
 @group(0) @binding(2) var<uniform> dp: DigestParams;
 
 const DIGEST_GROUP: u32 = 256u;
-var<workgroup> part: array<vec2<u32>, 256>;
+var<workgroup> part: array<vec2<u32>, DIGEST_GROUP>;
 
 fn fmix(x: u32) -> u32 {
     var h = x;
@@ -32,7 +32,7 @@ fn fmix(x: u32) -> u32 {
     return h;
 }
 
-@compute @workgroup_size(256)
+@compute @workgroup_size(DIGEST_GROUP)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>,
         @builtin(local_invocation_index) li: u32,
         @builtin(workgroup_id) wg: vec3<u32>) {

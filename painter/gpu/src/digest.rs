@@ -13,7 +13,8 @@ use crate::context::{Gpu, GpuError};
 use crate::pools::read_through;
 use crate::shaders::DIGEST_WGSL;
 
-/// Invocations in a workgroup (the shader's `DIGEST_GROUP`).
+/// Invocations in a workgroup: the shader's `DIGEST_GROUP`, which must be
+/// the same number.
 const GROUP: u32 = 256;
 /// Workgroups at most; each folds a strided share of the pixels.
 const MAX_GROUPS: u32 = 4096;
@@ -115,9 +116,12 @@ impl ImageDigest {
     /// The digest of the first `count` pixels of `pixels` (one u32 each,
     /// r | g << 8 | b << 16), after the work already submitted that writes
     /// them. Waits for the GPU; reads back 8 bytes a workgroup.
-    pub fn digest(&self, gpu: &Gpu, pixels: &wgpu::Buffer, count: u32) -> Result<u64, GpuError> {
+    pub fn digest(&mut self, gpu: &Gpu, pixels: &wgpu::Buffer, count: u32) -> Result<u64, GpuError> {
         if count == 0 {
             return Ok(join((0, 0)));
+        }
+        if u64::from(count) * 4 > pixels.size() {
+            return Err(GpuError::Readback(format!("a digest of {count} pixels from a buffer of {} bytes", pixels.size())));
         }
         let groups = count.div_ceil(GROUP).min(MAX_GROUPS);
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&DigestParams { count, stride: groups * GROUP }));

@@ -30,7 +30,7 @@ fn a_cast_images_digest_is_the_cpu_ports_digest_of_its_pixels() {
 #[test]
 fn synthetic_buffers_fold_alike_on_the_gpu_and_the_cpu() {
     let r = renderer(Backend::Vulkan);
-    let pass = ImageDigest::new(&r.gpu);
+    let mut pass = ImageDigest::new(&r.gpu);
     // 1,300,000 pixels need more invocations than the pass dispatches
     // (4,096 workgroups of 256), so each folds several pixels.
     let n = 1_300_000u32;
@@ -70,4 +70,7 @@ fn synthetic_buffers_fold_alike_on_the_gpu_and_the_cpu() {
         usage: wgpu::BufferUsages::STORAGE,
     });
     assert_ne!(pass.digest(&r.gpu, &buf3, n).unwrap(), rgb_digest(&rgb));
+    // More pixels than the buffer holds: an error, not a digest of what
+    // lies past it.
+    assert!(pass.digest(&r.gpu, &buf3, n + 1).is_err());
 }

@@ -64,7 +64,7 @@ pub struct Settings {
     /// renderer goes.
     pub target_hz: Option<f64>,
     /// Take every frame's image digest (corruption analysis): a GPU pass
-    /// over the pixels and 32 KiB read back a frame.
+    /// over the pixels and at most 32 KiB read back a frame.
     pub capture: bool,
     /// Threads the stroke thread's painter core may use (its parallel
     /// passes give the same bytes for any count). Default: the cores less

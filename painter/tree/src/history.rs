@@ -88,8 +88,8 @@ pub struct UndoStep {
     born_cells: Vec<u32>,
     born: Vec<CellRecord>,
     /// The tail: runs of consecutive cells from `n_before` on, ascending,
-    /// one vector a field as in the pools (at commit one run, copied from
-    /// them). A cell whose record is `CellRecord::FREE` here is no entry.
+    /// their records packed (at commit one run, packed from the pools). A
+    /// cell whose record is `CellRecord::FREE` here is no entry.
     tail: Vec<Run>,
     /// How many tail records are not free (entries).
     tail_born: usize,
@@ -262,7 +262,7 @@ impl UndoStep {
     /// `push` does with a free `before`).
     #[inline]
     pub fn push_born(&mut self, c: u32, after: CellRecord) {
-        // In the tail when its place is past the last run's end (a unit on
+        // In the tail when its place is at or past the last run's end (a unit on
         // at most, else a new run); a free after-record goes to the list,
         // where it stays an entry, and so does a cell whose place lies
         // inside a run (the packed runs only grow at their end). A step
@@ -482,8 +482,8 @@ impl Tree {
         };
         (step.n_before, step.n_after) = (j.n_before, n_used);
         // The cells past the old used length, all free before: their
-        // records copied from the pools as they are (16 bytes a cell; the
-        // ones cleaning freed again are no entries).
+        // records packed from the pools as they are (about 9 bytes a cell;
+        // the ones cleaning freed again are no entries).
         step.take_tail(tree);
         self.spare_journal = j.emptied();
         step
