@@ -27,8 +27,7 @@ fn gpu_images_match_the_cpu_port() {
             let (mut painting, camera) = painted(name);
             let gpu = r.render(&mut painting.tree, &camera, Precision::F32).unwrap();
             let cpu = cpu_image(&painting, &camera);
-            let (within, worst) = closeness(&gpu, &cpu, 1);
-            assert!(within >= 0.999 && worst <= 2, "{name} on {backend:?}: {within} within a step, worst {worst}");
+            assert_f32_close(&r, &gpu, &cpu, &format!("{name} on {backend:?}"));
             // Not a blank image: the painting is in it.
             let bg = cpu[..3].to_vec();
             assert!(cpu.chunks(3).filter(|p| *p != bg.as_slice()).count() > 100, "{name}: nothing painted in view");
@@ -56,8 +55,7 @@ fn lit_gpu_images_match_the_cpu_port_and_light_changes_them() {
         let params = plain.with_light(Some(&light(shadows)));
         let cpu = render(&inp, &params);
         let gpu = r.cast_params(&params, Precision::F32).unwrap();
-        let (within, worst) = closeness(&gpu, &cpu, 1);
-        assert!(within >= 0.999 && worst <= 2, "shadows {shadows}: {within} within a step, worst {worst}");
+        assert_f32_close(&r, &gpu, &cpu, &format!("shadows {shadows}"));
         let f16 = r.cast_params(&params, Precision::F16).unwrap();
         let (within, _) = closeness(&f16, &cpu, 2);
         assert!(within >= 0.999, "f16, shadows {shadows}: {within} within 2 steps");
@@ -100,8 +98,7 @@ fn cells_with_broken_links_are_skipped_alike() {
     t.mark_everything_dirty();
     let gpu = r.render(&mut painting.tree, &camera, Precision::F32).unwrap();
     let cpu = cpu_image(&painting, &camera);
-    let (within, worst) = closeness(&gpu, &cpu, 1);
-    assert!(within >= 0.999 && worst <= 2, "{within} within a step, worst {worst}");
+    assert_f32_close(&r, &gpu, &cpu, "a broken unit");
     assert!(gpu != before || cpu == before, "the broken unit changed nothing on the GPU only");
 }
 
@@ -124,8 +121,7 @@ fn a_documents_layers_on_the_gpu_match_the_cpu_port() {
     for params in [plain, plain.with_light(Some(&light(true)))] {
         let cpu = render_layers(&inputs, &params);
         let gpu = r.render_layers(&trees, &params, Precision::F32).unwrap();
-        let (within, worst) = closeness(&gpu, &cpu, 1);
-        assert!(within >= 0.999 && worst <= 2, "lit {}: {within} within a step, worst {worst}", params.lit);
+        assert_f32_close(&r, &gpu, &cpu, &format!("lit {}", params.lit));
         let f16 = r.render_layers(&trees, &params, Precision::F16).unwrap();
         let (within, _) = closeness(&f16, &cpu, 2);
         assert!(within >= 0.999, "f16, lit {}: {within} within 2 steps", params.lit);
