@@ -123,21 +123,23 @@ impl Renderer {
 
     /// [`Renderer::cast`] with the frame constants given.
     pub fn cast_params(&mut self, params: &RayParams, precision: Precision) -> Result<Vec<u8>, GpuError> {
-        let params = *params;
-        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
-        self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
-        self.gpu.queue.submit([enc.finish()]);
+        self.submit_cast(params, precision)?;
         self.ray.read_image(&self.gpu, params.width, params.height)
     }
 
     /// Cast the image `params` describe and return its digest
     /// (`digest::rgb_digest` of the image [`Renderer::cast_params`] returns).
     pub fn cast_digest(&mut self, params: &RayParams, precision: Precision) -> Result<u64, GpuError> {
-        let params = *params;
-        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
-        self.ray.encode(&self.gpu, &self.pools, &mut enc, &params, precision)?;
-        self.gpu.queue.submit([enc.finish()]);
+        self.submit_cast(params, precision)?;
         self.ray.image_digest(&self.gpu, params.width, params.height)
+    }
+
+    /// Submit the ray cast of one image, without waiting for it.
+    fn submit_cast(&mut self, params: &RayParams, precision: Precision) -> Result<(), GpuError> {
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast") });
+        self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
+        self.gpu.queue.submit([enc.finish()]);
+        Ok(())
     }
 
     /// Cast one image per entry of `eyes` (a stereo frame: one per eye)
@@ -146,9 +148,7 @@ impl Renderer {
     /// each sees its own frame constants; they share the pixel buffer.
     pub fn cast_and_wait(&mut self, eyes: &[RayParams], precision: Precision) -> Result<(), GpuError> {
         for params in eyes {
-            let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray cast (timed)") });
-            self.ray.encode(&self.gpu, &self.pools, &mut enc, params, precision)?;
-            self.gpu.queue.submit([enc.finish()]);
+            self.submit_cast(params, precision)?;
         }
         self.gpu.wait();
         Ok(())

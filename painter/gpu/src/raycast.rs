@@ -326,10 +326,15 @@ impl RayCaster {
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("ray probe") });
         self.encode_words(gpu, pools, &mut enc, params, precision, true, None)?;
         gpu.queue.submit([enc.finish()]);
-        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let buf = self.cast_pixels()?;
         let raw = read_buffer(gpu, buf, bytes)?;
         let words: Vec<u32> = raw.chunks_exact(4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         Ok(words.chunks_exact(PROBE_WORDS as usize).map(ProbeRecord::from_words).collect())
+    }
+
+    /// The buffer the last cast wrote, or an error when nothing was cast.
+    fn cast_pixels(&self) -> Result<&wgpu::Buffer, GpuError> {
+        self.pixel_buffer().ok_or_else(|| GpuError::Readback("nothing was cast".into()))
     }
 
     /// The buffer the last image was cast into: one u32 per pixel, sRGB
@@ -342,14 +347,14 @@ impl RayCaster {
     /// [`RayCaster::read_image`] would return), computed on the GPU: 8 bytes
     /// a workgroup come back instead of the image.
     pub fn image_digest(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<u64, GpuError> {
-        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let buf = self.cast_pixels()?.clone();
         let count = u32::try_from(u64::from(width) * u64::from(height)).map_err(|_| GpuError::Readback(format!("an image of {width}x{height} has too many pixels for a digest")))?;
-        self.digest.get_or_insert_with(|| ImageDigest::new(gpu)).digest(gpu, buf, count)
+        self.digest.get_or_insert_with(|| ImageDigest::new(gpu)).digest(gpu, &buf, count)
     }
 
     /// The last image cast, `width·height·3` bytes of sRGB, row 0 at the top.
     pub fn read_image(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<Vec<u8>, GpuError> {
-        let (_, buf) = self.pixels.as_ref().ok_or_else(|| GpuError::Readback("nothing was cast".into()))?;
+        let buf = self.cast_pixels()?.clone();
         let size = u64::from(width) * u64::from(height) * 4;
         if size == 0 {
             return Ok(Vec::new());
@@ -367,7 +372,7 @@ impl RayCaster {
                 b
             }
         };
-        read_through(gpu, buf, size, &staging, |raw| {
+        read_through(gpu, &buf, size, &staging, |raw| {
             let mut out = vec![0u8; raw.len() / 4 * 3];
             for (o, p) in out.chunks_exact_mut(3).zip(raw.chunks_exact(4)) {
                 o.copy_from_slice(&p[..3]);
