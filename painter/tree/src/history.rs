@@ -126,36 +126,46 @@ impl Packed {
     fn push(&mut self, r: CellRecord) {
         let i = self.rgb.len() as u32;
         if self.span_parent.last() != Some(&r.parent) || self.span_depth.last() != Some(&r.depth) {
-            self.span_at.push(i);
-            self.span_parent.push(r.parent);
-            self.span_depth.push(r.depth);
+            self.open_span(i, r.parent, r.depth);
         }
         if r.first_child != NONE {
-            self.child_at.push(i);
-            self.child.push(r.first_child);
+            self.add_child(i, r.first_child);
         }
         self.rgb.push(r.rgb);
         self.sigma.push(r.sigma);
     }
 
+    /// A span of cells with this parent and depth starts at cell `i`.
+    #[inline]
+    fn open_span(&mut self, i: u32, parent: u32, depth: u8) {
+        self.span_at.push(i);
+        self.span_parent.push(parent);
+        self.span_depth.push(depth);
+    }
+
+    /// Cell `i`'s first_child is `fc` (not NONE).
+    #[inline]
+    fn add_child(&mut self, i: u32, fc: u32) {
+        self.child_at.push(i);
+        self.child.push(fc);
+    }
+
     /// The pools' records of `cells`: rgb and sigma copied slice by slice,
-    /// the spans and children found by one scan of their columns.
+    /// the spans and children found by a scan of their columns each (the
+    /// last span kept in a local: this runs over every new cell of a
+    /// stroke).
     fn from_pools(tree: &Tree, cells: std::ops::Range<usize>) -> Packed {
         let mut p = Packed { rgb: tree.rgb[cells.clone()].to_vec(), sigma: tree.sigma[cells.clone()].to_vec(), ..Packed::default() };
-        let (parent, depth) = (&tree.parent[cells.clone()], &tree.depth[cells.clone()]);
         let mut last = None;
-        for (i, (&pa, &d)) in parent.iter().zip(depth).enumerate() {
-            if last != Some((pa, d)) {
-                last = Some((pa, d));
-                p.span_at.push(i as u32);
-                p.span_parent.push(pa);
-                p.span_depth.push(d);
+        for (i, (&parent, &depth)) in tree.parent[cells.clone()].iter().zip(&tree.depth[cells.clone()]).enumerate() {
+            if last != Some((parent, depth)) {
+                last = Some((parent, depth));
+                p.open_span(i as u32, parent, depth);
             }
         }
         for (i, &fc) in tree.first_child[cells].iter().enumerate() {
             if fc != NONE {
-                p.child_at.push(i as u32);
-                p.child.push(fc);
+                p.add_child(i as u32, fc);
             }
         }
         p
@@ -165,11 +175,11 @@ impl Packed {
     fn records(&self) -> impl Iterator<Item = CellRecord> + '_ {
         let (mut span, mut child) = (0usize, 0usize);
         (0..self.len()).map(move |i| {
-            let i32_ = i as u32;
-            while span + 1 < self.span_at.len() && self.span_at[span + 1] <= i32_ {
+            let at = i as u32;
+            while span + 1 < self.span_at.len() && self.span_at[span + 1] <= at {
                 span += 1;
             }
-            let first_child = if self.child_at.get(child) == Some(&i32_) {
+            let first_child = if self.child_at.get(child) == Some(&at) {
                 child += 1;
                 self.child[child - 1]
             } else {
@@ -273,7 +283,8 @@ impl UndoStep {
             // a crafted document's scattered cells go to the list.
             let new_run = self.tail.len() <= self.tail_born / UNIT as usize;
             match self.tail.last_mut() {
-                Some(run) if c >= run.end() && (c - run.end()) as usize <= TAIL_GAP => {
+                Some(run) if c < run.end() => {} // inside a run or before it
+                Some(run) if (c - run.end()) as usize <= TAIL_GAP => {
                     while run.end() < c {
                         run.cols.push(CellRecord::FREE);
                     }
@@ -281,21 +292,14 @@ impl UndoStep {
                     self.tail_born += 1;
                     return;
                 }
-                Some(run) if c >= run.end() && new_run => {
+                _ if new_run => {
                     let mut cols = Packed::default();
                     cols.push(after);
                     self.tail.push(Run { first: c, cols });
                     self.tail_born += 1;
                     return;
                 }
-                None if new_run => {
-                    let mut cols = Packed::default();
-                    cols.push(after);
-                    self.tail.push(Run { first: c, cols });
-                    self.tail_born += 1;
-                    return;
-                }
-                _ => {} // before the last run's end, or too scattered
+                _ => {} // too scattered
             }
         }
         self.born_cells.push(c);
