@@ -151,7 +151,7 @@ fn digest(p: &Painting) -> u64 {
         eat(&r.rgb);
         eat(&r.sigma.to_bits().to_le_bytes());
     }
-    for step in &p.history.done {
+    for step in p.history.full_steps(&p.tree) {
         for (c, b, a) in step.entries() {
             eat(&c.to_le_bytes());
             for r in [b, a] {

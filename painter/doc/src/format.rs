@@ -133,11 +133,13 @@ fn pools_bytes(t: &Tree) -> Vec<u8> {
     out
 }
 
-fn history_bytes(h: &History) -> Vec<u8> {
+/// `h`'s steps with all their records; `tree` holds the newest done
+/// step's after-records (a done step's tail is read from the pools).
+fn history_bytes(h: &History, tree: &Tree) -> Vec<u8> {
     let mut out = Vec::new();
     put_u32(&mut out, h.done.len() as u32);
     put_u32(&mut out, h.undone.len() as u32);
-    for s in h.done.iter().chain(&h.undone) {
+    for s in h.full_steps(tree) {
         put_u32(&mut out, s.n_before);
         put_u32(&mut out, s.n_after);
         put_u32(&mut out, s.len() as u32);
@@ -178,7 +180,7 @@ pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> st
 /// when there are any).
 pub fn write_with(trace_text: &str, tree: &Tree, history: &History, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
     // One tree: version 1, which every reader opens, unless it imported.
-    let (pools, hist) = (pools_bytes(tree), history_bytes(history));
+    let (pools, hist) = (pools_bytes(tree), history_bytes(history, tree));
     let voxl: Vec<Vec<u8>> = imports.iter().map(|(f, d)| voxl_bytes(f, d)).collect();
     let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"POOL", pools.as_slice(), 0), (b"HIST", hist.as_slice(), 0)];
     sections.extend(voxl.iter().map(|raw| (b"VOXL", raw.as_slice(), 0)));
@@ -267,7 +269,7 @@ fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
     let pools = pools_bytes(l.tree());
     out.extend_from_slice(&(pools.len() as u64).to_le_bytes());
     out.extend_from_slice(&pools);
-    out.extend_from_slice(&history_bytes(&l.painting.history));
+    out.extend_from_slice(&history_bytes(&l.painting.history, l.tree()));
     out
 }
 

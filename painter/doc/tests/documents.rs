@@ -45,7 +45,7 @@ fn session_from(dir: &Path, t: &Trace) -> (Session, PathBuf) {
 fn same_history(a: &Painting, b: &Painting) {
     assert_eq!(a.history.done.len(), b.history.done.len());
     assert_eq!(a.history.undone.len(), b.history.undone.len());
-    for (x, y) in a.history.done.iter().chain(&a.history.undone).zip(b.history.done.iter().chain(&b.history.undone)) {
+    for (x, y) in a.history.full_steps(&a.tree).iter().zip(&b.history.full_steps(&b.tree)) {
         assert_eq!((x.n_before, x.n_after, x.len()), (y.n_before, y.n_after, y.len()));
         for ((c, b, a), (d, e, f)) in x.entries().zip(y.entries()) {
             assert_eq!(c, d);

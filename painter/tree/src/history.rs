@@ -8,9 +8,20 @@
 //! before-records back and restores the used length, so the pools are byte
 //! for byte what they were, indices and free units included; redo writes
 //! the after-records.
+//!
+//! A done step does not copy the records of its *tail* (the cells past the
+//! used length at the stroke's start, where most of a stroke's new cells
+//! are): they are redundant. Every change of the pools goes through an
+//! undo step, and undo takes back the newest done step first, so while a
+//! step is the newest done one the pools hold its after-records; an older
+//! step's are what the steps above it hold as before-records, or the pools
+//! where none of them changed the cell. Undo copies the tail out of the
+//! pools before it writes the before-records back (an undone step keeps
+//! every record, for redo), and [`History::full_steps`] rebuilds every
+//! step's records for a document or a comparison.
 
 use crate::par;
-use crate::pool::{CellRecord, NONE, Tree, UNIT};
+use crate::pool::{CellRecord, FREE, NONE, Tree, UNIT};
 
 #[derive(Clone, Default)]
 pub(crate) struct Journal {
@@ -93,6 +104,10 @@ pub struct UndoStep {
     tail: Vec<Run>,
     /// How many tail records are not free (entries).
     tail_born: usize,
+    /// The tail's records are left in the pools (see the module's notes):
+    /// `tail` is empty, and the tail is the cells from `n_before` to
+    /// `n_after`, `tail_born` of them not free.
+    tail_in_pools: bool,
     freed_cells: Vec<u32>,
     freed: Vec<CellRecord>,
     other_cells: Vec<u32>,
@@ -307,17 +322,51 @@ impl UndoStep {
     }
 
     /// The tail of a step that has none yet: the pools' records of the
-    /// cells from `n_before` to the used length, as one run.
+    /// cells from `n_before` to `n_after` (the pools hold the step's
+    /// after-records), as one run.
     fn take_tail(&mut self, tree: &Tree) {
         debug_assert!(self.tail.is_empty());
         // None when the pools ended shorter than they began.
-        let (from, to) = (self.n_before as usize, tree.n_used() as usize);
+        let (from, to) = (self.n_before as usize, self.n_after as usize);
         if from >= to {
             return;
         }
         let t = Packed::from_pools(tree, from..to);
         self.tail_born = t.len() - t.free_records();
         self.tail = vec![Run { first: self.n_before, cols: t }];
+    }
+
+    /// A step just committed leaves its tail in the pools: only how many
+    /// of its records are not free is counted (a collapse frees whole
+    /// units; a free record's depth is FREE, and a live cell's is not).
+    fn leave_tail_in_pools(&mut self, tree: &Tree) {
+        debug_assert!(self.tail.is_empty() && self.n_after == tree.n_used());
+        let (from, to) = (self.n_before as usize, self.n_after as usize);
+        self.tail_born = if from < to { tree.depth[from..to].iter().filter(|&&d| d != FREE).count() } else { 0 };
+        debug_assert_eq!(self.tail_born, (from..to).filter(|&c| !tree.record(c as u32).same_bits(&CellRecord::FREE)).count());
+        self.tail_in_pools = true;
+    }
+
+    /// Whether the tail's records are left in the pools, which must then
+    /// hold this step's after-records when they are read: the step is the
+    /// newest done one.
+    pub fn tail_in_pools(&self) -> bool {
+        self.tail_in_pools
+    }
+
+    /// Copy a tail left in the pools out of `tree`, which holds this step's
+    /// after-records (it is the newest done step there).
+    pub(crate) fn take_tail_from_pools(&mut self, tree: &Tree) {
+        if !self.tail_in_pools {
+            return;
+        }
+        let born = self.tail_born;
+        self.tail_in_pools = false;
+        self.take_tail(tree);
+        debug_assert_eq!(self.tail_born, born, "the pools do not hold the step's after-records");
+        for run in &mut self.tail {
+            run.cols.shrink();
+        }
     }
 
     /// Steps built in parts, one after another, as one step (the parts'
@@ -347,6 +396,7 @@ impl UndoStep {
             born: join(&parts, |p| &p.born),
             tail: Vec::new(),
             tail_born: 0,
+            tail_in_pools: false,
             freed_cells: join(&parts, |p| &p.freed_cells),
             freed: join(&parts, |p| &p.freed),
             other_cells: join(&parts, |p| &p.other_cells),
@@ -385,8 +435,10 @@ impl UndoStep {
 
     /// Every changed cell with its records before and after the stroke
     /// (values first, then born (the list, then the tail in index order),
-    /// freed and other cells).
+    /// freed and other cells). Not for a step whose tail is left in the
+    /// pools (a done step of a painting: [`History::full_steps`]).
     pub fn entries(&self) -> impl Iterator<Item = (u32, CellRecord, CellRecord)> + '_ {
+        assert!(!self.tail_in_pools, "the step's tail is in the pools: History::full_steps gives its records");
         let values = (0..self.value_cells.len()).map(|i| {
             let (parent, depth) = (self.value_parent[i], self.value_depth[i]);
             let rec = |k: usize| CellRecord { parent, first_child: NONE, depth, rgb: self.value_rgb[i][k], sigma: self.value_sigma[i][k] };
@@ -401,6 +453,7 @@ impl UndoStep {
         values.chain(born).chain(tail).chain(freed).chain(other)
     }
 
+    /// What the step holds, in bytes (a tail left in the pools takes none).
     pub fn bytes(&self) -> usize {
         self.value_cells.len() * (4 + 4 + 1 + 2 * 3 + 2 * 4)
             + (self.born_cells.len() + self.freed_cells.len()) * (4 + std::mem::size_of::<CellRecord>())
@@ -439,6 +492,32 @@ impl History {
         }
         self.done.drain(..drop);
         drop
+    }
+
+    /// Every step, the done ones and then the undone ones, with all its
+    /// records, for `tree`, which holds the newest done step's
+    /// after-records (between strokes). A done step whose tail is left in
+    /// the pools gets a copy with the tail: the newest from `tree`, an
+    /// older one from a copy of the tree that the steps above it have been
+    /// undone on (so it holds that step's after-records).
+    pub fn full_steps<'a>(&'a self, tree: &Tree) -> Vec<std::borrow::Cow<'a, UndoStep>> {
+        use std::borrow::Cow;
+        let mut out: Vec<Cow<'a, UndoStep>> = self.done.iter().chain(&self.undone).map(Cow::Borrowed).collect();
+        let Some(lowest) = self.done.iter().position(UndoStep::tail_in_pools) else { return out };
+        let top = self.done.len() - 1;
+        let mut copy: Option<Tree> = None;
+        for k in (lowest..=top).rev() {
+            let at = copy.as_ref().unwrap_or(tree);
+            if self.done[k].tail_in_pools {
+                let mut full = self.done[k].clone();
+                full.take_tail_from_pools(at);
+                out[k] = Cow::Owned(full);
+            }
+            if k > lowest {
+                copy.get_or_insert_with(|| tree.clone()).apply_step(&out[k], false);
+            }
+        }
+        out
     }
 }
 
@@ -486,9 +565,9 @@ impl Tree {
         };
         (step.n_before, step.n_after) = (j.n_before, n_used);
         // The cells past the old used length, all free before: their
-        // records packed from the pools as they are (about 9 bytes a cell;
-        // the ones cleaning freed again are no entries).
-        step.take_tail(tree);
+        // records stay in the pools (the ones cleaning freed again are no
+        // entries), until undo copies them out.
+        step.leave_tail_in_pools(tree);
         self.spare_journal = j.emptied();
         step
     }
@@ -497,6 +576,7 @@ impl Tree {
     /// Marks the rewritten cells dirty, and the cells that gained or lost
     /// children as topology changes (spec 10, 3.4).
     pub(crate) fn apply_step(&mut self, step: &UndoStep, forward: bool) {
+        assert!(!step.tail_in_pools, "apply_step of a step whose tail is in the pools");
         let n = if forward { step.n_after } else { step.n_before };
         self.set_used_length(step.n_before.max(step.n_after));
         for (c, before, after) in step.entries() {

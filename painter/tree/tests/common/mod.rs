@@ -13,7 +13,9 @@ use octopaint_tree::replay::replay_document;
 /// order (a tag tells done from undone): equal bytes, equal histories.
 pub fn history_bytes(p: &Painting) -> Vec<u8> {
     let mut out = Vec::new();
-    for (tag, steps) in [(0u8, &p.history.done), (1, &p.history.undone)] {
+    let steps = p.history.full_steps(&p.tree);
+    let (done, undone) = steps.split_at(p.history.done.len());
+    for (tag, steps) in [(0u8, done), (1, undone)] {
         for step in steps {
             out.push(tag);
             out.extend(step.n_before.to_le_bytes());
