@@ -205,7 +205,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
             "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
-            "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, ",
+            "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, \"slot_map_mib\": {:.2}, ",
             "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
         a.radius,
@@ -234,6 +234,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         t.pool_bytes_allocated() as f64 / n,
         history / n,
         history / painting.history.changed_cells().max(1) as f64,
+        painting.slot_map_bytes() as f64 / (1024.0 * 1024.0),
         octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
         threads,
         octopaint_tree::par::grain(),

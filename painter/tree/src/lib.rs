@@ -47,6 +47,7 @@ pub mod team;
 pub mod pool;
 pub mod raycast;
 pub mod replay;
+pub mod slots;
 pub mod stroke;
 pub mod trace;
 pub mod trace_write;

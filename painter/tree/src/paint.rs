@@ -17,6 +17,7 @@ use crate::history::History;
 use crate::lanes::{self, LANES};
 use crate::noise::permutation;
 use crate::par;
+use crate::slots::SlotMap;
 use crate::pool::{NONE, Tree, UNIT};
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
@@ -182,7 +183,7 @@ pub struct Painting {
     stroke: Option<StrokeState>,
     work: Option<SegmentWork>,
     /// cell -> slot in the stroke, NONE when untouched; cleared per stroke.
-    slot_of: Vec<u32>,
+    slot_of: SlotMap,
     /// Allocations kept from one stroke or level to the next.
     spare_slots: Vec<Slot>,
     spare_slot_a: Vec<f64>,
@@ -209,7 +210,7 @@ impl Painting {
             warnings: Vec::new(),
             stroke: None,
             work: None,
-            slot_of: Vec::new(),
+            slot_of: SlotMap::default(),
             spare_slots: Vec::new(),
             spare_slot_a: Vec::new(),
             spare_stack: Vec::new(),
@@ -338,9 +339,7 @@ impl Painting {
         assert!(self.work.is_none(), "the last sample is not finished");
         let t0 = std::time::Instant::now();
         let mut st = self.stroke.take().expect("no stroke open");
-        for s in &st.slots {
-            self.slot_of[s.cell as usize] = NONE;
-        }
+        self.slot_of.clear(st.slots.iter().map(|s| s.cell));
         self.clean_and_commit(st.slots.iter().map(|s| s.cell));
         st.slots.clear();
         st.slot_a.clear();
@@ -373,6 +372,12 @@ impl Painting {
         self.counters.cells_written += work.touched.len() as u64;
         self.clean_and_commit(work.touched);
         self.counters.refine_ns += t0.elapsed().as_nanos() as u64;
+    }
+
+    /// Bytes the cell-to-slot map holds (its pages, kept from stroke to
+    /// stroke: as many as the stroke that touched the most pages used).
+    pub fn slot_map_bytes(&self) -> usize {
+        self.slot_of.bytes()
     }
 
     /// Undo the last stroke; false if there is none.
@@ -783,7 +788,6 @@ impl Painting {
     /// slots appended together, then their values written (cells that
     /// `make_children` made in this step, journalled and marked already).
     fn first_writes_of_new_children(&mut self, values: &[FirstWrite]) {
-        self.slot_of_covers_the_pools();
         let st = self.stroke.as_mut().expect("stroke");
         let first = st.slots.len();
         st.slots.extend(values.iter().map(|w| Slot::new(w.c, w.before_rgb, w.before_sigma)));
@@ -791,7 +795,7 @@ impl Painting {
         // when `a` is above 0.
         st.slot_a.extend(values.iter().map(|w| if w.a > 0.0 { w.a } else { 0.0 }));
         for (i, w) in values.iter().enumerate() {
-            self.slot_of[w.c as usize] = (first + i) as u32;
+            self.slot_of.set(w.c, (first + i) as u32);
             self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
         }
     }
@@ -821,7 +825,7 @@ impl Painting {
     /// the capsules added since: returned with its slot, for the caller to
     /// write.
     fn settled(&self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> (bool, Option<(u32, [f64; 2])>) {
-        let slot = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
+        let slot = self.slot_of.get(c);
         let st = self.stroke.as_ref().expect("stroke");
         let hardness = st.brush.hardness;
         let (mut a_lo, mut a_hi, from) = match slot {
@@ -872,7 +876,7 @@ impl Painting {
     /// `c`'s before-value (spec 8.8): the one its slot recorded when the
     /// stroke touched it, else its stored value.
     fn before_value(&self, c: u32) -> ([u8; 3], f32) {
-        match self.slot_of.get(c as usize).copied().unwrap_or(NONE) {
+        match self.slot_of.get(c) {
             NONE => (self.tree.rgb[c as usize], self.tree.sigma[c as usize]),
             s => {
                 let s = &self.stroke.as_ref().expect("stroke").slots[s as usize];
@@ -881,31 +885,20 @@ impl Painting {
         }
     }
 
-    /// Grow the cell-to-slot map to every cell of the pools (new ones have
-    /// no slot).
-    #[inline]
-    fn slot_of_covers_the_pools(&mut self) {
-        let n_used = self.tree.n_used() as usize;
-        if self.slot_of.len() < n_used {
-            self.slot_of.resize(n_used, NONE);
-        }
-    }
-
     /// Give `c` a slot with its before-value (a = 0).
     fn record(&mut self, c: u32, before_rgb: [u8; 3], before_sigma: f32) -> u32 {
-        self.slot_of_covers_the_pools();
         let st = self.stroke.as_mut().expect("stroke");
         let slot = st.slots.len() as u32;
         st.slots.push(Slot::new(c, before_rgb, before_sigma));
         st.slot_a.push(0.0);
-        self.slot_of[c as usize] = slot;
+        self.slot_of.set(c, slot);
         slot
     }
 
     /// Raise `c`'s stroke maximum to `a` if larger, and then write
     /// `blend(before, K, a)` with the colour K of the primitive that raised it.
     fn apply(&mut self, c: u32, a: f64, colour: [f64; 3]) {
-        let existing = self.slot_of.get(c as usize).copied().unwrap_or(NONE);
+        let existing = self.slot_of.get(c);
         let slot = if existing == NONE {
             let (rgb, sigma) = (self.tree.rgb[c as usize], self.tree.sigma[c as usize]);
             self.record(c, rgb, sigma)
@@ -961,7 +954,7 @@ impl<T> Disjoint<T> {
 struct RunContext<'a> {
     tree: &'a Tree,
     st: &'a StrokeState,
-    slot_of: &'a [u32],
+    slot_of: &'a SlotMap,
     cap: &'a Capsule,
     prim: &'a Prim,
     hardness: f64,
@@ -1065,7 +1058,7 @@ fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f6
     if a >= TINY {
         out.hit += 1;
         let colour = ctx.prim.colour;
-        match ctx.slot_of.get(c as usize).copied().unwrap_or(NONE) {
+        match ctx.slot_of.get(c) {
             NONE => {
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);

@@ -1,0 +1,124 @@
+//! The stroke's map from cell to slot (paint.rs), in pages.
+//!
+//! A stroke looks up every cell it visits, so the map must answer at once;
+//! but it touches a small part of the pools, and a map as long as the
+//! pools (4 bytes a cell) would add a quarter to their 16 bytes a cell for
+//! the whole canvas. Here the cells are cut into pages of [`PAGE`]; a page
+//! gets its entries when the stroke gives one of its cells a slot, and at
+//! the stroke's end every page goes back to a free list (its entries reset
+//! to NONE) for the next stroke. The map takes memory for the pages one
+//! stroke touches, not for the canvas.
+
+use crate::pool::NONE;
+
+/// Cells a page: 4 KiB of entries.
+pub const PAGE: usize = 1024;
+
+/// A page not in use.
+const NO_PAGE: u32 = u32::MAX;
+
+#[derive(Clone, Default)]
+pub struct SlotMap {
+    /// Page number -> its place in `entries` (in pages), NO_PAGE when it
+    /// has none; as long as the highest page given an entry.
+    page_at: Vec<u32>,
+    /// The pages' entries, PAGE a page: a slot or NONE.
+    entries: Vec<u32>,
+    /// Places in `entries` whose entries are all NONE, for the next page.
+    free: Vec<u32>,
+    /// The page numbers given a place since the last `clear`.
+    in_use: Vec<u32>,
+}
+
+impl SlotMap {
+    /// `c`'s slot, NONE when it has none.
+    #[inline(always)]
+    pub fn get(&self, c: u32) -> u32 {
+        let p = c as usize / PAGE;
+        match self.page_at.get(p) {
+            Some(&at) if at != NO_PAGE => self.entries[at as usize * PAGE + c as usize % PAGE],
+            _ => NONE,
+        }
+    }
+
+    /// Give `c` the slot `s` (not NONE).
+    #[inline]
+    pub fn set(&mut self, c: u32, s: u32) {
+        let p = c as usize / PAGE;
+        let at = match self.page_at.get(p) {
+            Some(&at) if at != NO_PAGE => at,
+            _ => self.new_page(p),
+        };
+        self.entries[at as usize * PAGE + c as usize % PAGE] = s;
+    }
+
+    /// A place for page `p`: a free one, else a new one at the end.
+    #[cold]
+    fn new_page(&mut self, p: usize) -> u32 {
+        if p >= self.page_at.len() {
+            self.page_at.resize(p + 1, NO_PAGE);
+        }
+        let at = self.free.pop().unwrap_or_else(|| {
+            let at = (self.entries.len() / PAGE) as u32;
+            self.entries.resize(self.entries.len() + PAGE, NONE);
+            at
+        });
+        self.page_at[p] = at;
+        self.in_use.push(p as u32);
+        at
+    }
+
+    /// Forget every slot: `cells` are the cells given one (their entries
+    /// go back to NONE), and every page goes to the free list.
+    pub fn clear(&mut self, cells: impl IntoIterator<Item = u32>) {
+        for c in cells {
+            let at = self.page_at[c as usize / PAGE];
+            self.entries[at as usize * PAGE + c as usize % PAGE] = NONE;
+        }
+        for &p in &self.in_use {
+            let at = std::mem::replace(&mut self.page_at[p as usize], NO_PAGE);
+            debug_assert!(self.entries[at as usize * PAGE..][..PAGE].iter().all(|&e| e == NONE), "a page went back with a slot in it");
+            self.free.push(at);
+        }
+        self.in_use.clear();
+    }
+
+    /// Bytes the map holds (its vectors' capacity).
+    pub fn bytes(&self) -> usize {
+        (self.page_at.capacity() + self.entries.capacity() + self.free.capacity() + self.in_use.capacity()) * 4
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slots_come_back_and_pages_are_reused() {
+        let mut m = SlotMap::default();
+        assert_eq!(m.get(0), NONE);
+        assert_eq!(m.get(u32::MAX - 1), NONE);
+        let cells = [5u32, 6, 1023, 1024, 70_000, 3 * PAGE as u32 + 7];
+        for (s, &c) in cells.iter().enumerate() {
+            m.set(c, s as u32);
+        }
+        for (s, &c) in cells.iter().enumerate() {
+            assert_eq!(m.get(c), s as u32);
+        }
+        assert_eq!(m.get(7), NONE, "a neighbour on a page in use");
+        assert_eq!(m.get(2 * PAGE as u32), NONE, "a page never used");
+        let pages = m.entries.len() / PAGE;
+        assert_eq!(pages, 4, "pages 0, 1, 3 and 68");
+        m.clear(cells);
+        for &c in &cells {
+            assert_eq!(m.get(c), NONE);
+        }
+        // The next stroke's pages come from the free list.
+        for (s, c) in (10_000..10_000 + 4 * PAGE as u32).step_by(PAGE).enumerate() {
+            m.set(c, s as u32);
+        }
+        assert_eq!(m.entries.len() / PAGE, pages, "no new page while free ones remain");
+        assert_eq!(m.get(10_000 + PAGE as u32), 1);
+        assert_eq!(m.get(5), NONE, "an old page's entry does not come back");
+    }
+}
