@@ -9,16 +9,18 @@
 //! for byte what they were, indices and free units included; redo writes
 //! the after-records.
 //!
-//! A done step does not copy the records of its *tail* (the cells past the
-//! used length at the stroke's start, where most of a stroke's new cells
-//! are): they are redundant. Every change of the pools goes through an
-//! undo step, and undo takes back the newest done step first, so while a
-//! step is the newest done one the pools hold its after-records; an older
-//! step's are what the steps above it hold as before-records, or the pools
-//! where none of them changed the cell. Undo copies the tail out of the
-//! pools before it writes the before-records back (an undone step keeps
-//! every record, for redo), and [`History::full_steps`] rebuilds every
-//! step's records for a document or a comparison.
+//! A done step keeps no after-records: they are redundant. Every change of
+//! the pools goes through an undo step, and undo takes back the newest done
+//! step first, so while a step is the newest done one the pools hold its
+//! after-records; an older step's are what the steps above it hold as
+//! before-records, or the pools where none of them changed the cell. So a
+//! done step keeps its changed cells and their before-records, and of its
+//! *tail* (the cells past the used length at the stroke's start, which
+//! were free before: most of a stroke's new cells) only how many are live.
+//! Undo copies the after-records out of the pools before it writes the
+//! before-records back (an undone step keeps every record, for redo), and
+//! [`History::full_steps`] rebuilds every step's records for a document or
+//! a comparison.
 
 use crate::par;
 use crate::pool::{CellRecord, FREE, NONE, Tree, UNIT};
@@ -87,6 +89,10 @@ impl Journal {
 ///   children, about 9 bytes a cell in all;
 /// - *freed*: free after (a collapse), only the before-record, 20 bytes;
 /// - *other*: both records (a refined leaf, a parent), 36 bytes.
+///
+/// A done step of a painting leaves its after-records in the pools (see the
+/// module's notes): a value cell then takes 11 bytes, a born cell of the
+/// list 4, a tail cell nothing, a freed or other cell 20.
 #[derive(Clone, Debug, Default)]
 pub struct UndoStep {
     pub n_before: u32,
@@ -104,14 +110,22 @@ pub struct UndoStep {
     tail: Vec<Run>,
     /// How many tail records are not free (entries).
     tail_born: usize,
-    /// The tail's records are left in the pools (see the module's notes):
+    /// The after-records are left in the pools (see the module's notes):
     /// `tail` is empty, and the tail is the cells from `n_before` to
-    /// `n_after`, `tail_born` of them not free.
-    tail_in_pools: bool,
+    /// `n_after`, `tail_born` of them not free; the born cells of the list
+    /// have no records in `born`, and the value and other cells keep their
+    /// before-records in `before_*` (their `value_*` and `other` vectors
+    /// are empty).
+    after_in_pools: bool,
     freed_cells: Vec<u32>,
     freed: Vec<CellRecord>,
     other_cells: Vec<u32>,
     other: Vec<[CellRecord; 2]>,
+    /// With the after-records in the pools: the value cells' rgb and
+    /// sigma before, and the other cells' records before.
+    before_rgb: Vec<[u8; 3]>,
+    before_sigma: Vec<f32>,
+    before_other: Vec<CellRecord>,
 }
 
 /// The records of consecutive cells, packed: rgb and sigma for every cell,
@@ -283,6 +297,26 @@ impl UndoStep {
         }
     }
 
+    /// [`UndoStep::push`] for a step whose after-records stay in the pools
+    /// (a commit; the step is then marked so): only the before-records are
+    /// kept. `after` (not free when `before` is) sorts the cell.
+    fn push_before(&mut self, c: u32, before: CellRecord, after: &CellRecord) {
+        if before.same_bits(&CellRecord::FREE) {
+            debug_assert!(!after.same_bits(&CellRecord::FREE));
+            self.born_cells.push(c);
+        } else if after.same_bits(&CellRecord::FREE) {
+            self.freed_cells.push(c);
+            self.freed.push(before);
+        } else if before.first_child == NONE && (before.parent, before.first_child, before.depth) == (after.parent, after.first_child, after.depth) {
+            self.value_cells.push(c);
+            self.before_rgb.push(before.rgb);
+            self.before_sigma.push(before.sigma);
+        } else {
+            self.other_cells.push(c);
+            self.before_other.push(before);
+        }
+    }
+
     /// Add a cell that was free before the stroke and is `after` now (what
     /// `push` does with a free `before`).
     #[inline]
@@ -336,37 +370,47 @@ impl UndoStep {
         self.tail = vec![Run { first: self.n_before, cols: t }];
     }
 
-    /// A step just committed leaves its tail in the pools: only how many
-    /// of its records are not free is counted (a collapse frees whole
-    /// units; a free record's depth is FREE, and a live cell's is not).
-    fn leave_tail_in_pools(&mut self, tree: &Tree) {
+    /// A step just committed (its cells pushed by `push_before`) leaves its
+    /// after-records in the pools: of its tail only how many records are
+    /// not free is counted (a collapse frees whole units; a free record's
+    /// depth is FREE, and a live cell's is not).
+    fn leave_after_in_pools(&mut self, tree: &Tree) {
         debug_assert!(self.tail.is_empty() && self.n_after == tree.n_used());
         let (from, to) = (self.n_before as usize, self.n_after as usize);
         self.tail_born = if from < to { tree.depth[from..to].iter().filter(|&&d| d != FREE).count() } else { 0 };
         debug_assert_eq!(self.tail_born, (from..to).filter(|&c| !tree.record(c as u32).same_bits(&CellRecord::FREE)).count());
-        self.tail_in_pools = true;
+        self.after_in_pools = true;
     }
 
-    /// Whether the tail's records are left in the pools, which must then
-    /// hold this step's after-records when they are read: the step is the
-    /// newest done one.
-    pub fn tail_in_pools(&self) -> bool {
-        self.tail_in_pools
+    /// Whether the after-records are left in the pools, which must then
+    /// hold them when they are read: the step is the newest done one.
+    pub fn after_in_pools(&self) -> bool {
+        self.after_in_pools
     }
 
-    /// Copy a tail left in the pools out of `tree`, which holds this step's
-    /// after-records (it is the newest done step there).
-    pub(crate) fn take_tail_from_pools(&mut self, tree: &Tree) {
-        if !self.tail_in_pools {
+    /// Copy after-records left in the pools out of `tree`, which holds
+    /// them (this is the newest done step there): the step then holds
+    /// every record.
+    pub(crate) fn take_after_from_pools(&mut self, tree: &Tree) {
+        if !self.after_in_pools {
             return;
         }
+        self.after_in_pools = false;
         let born = self.tail_born;
-        self.tail_in_pools = false;
         self.take_tail(tree);
         debug_assert_eq!(self.tail_born, born, "the pools do not hold the step's after-records");
         for run in &mut self.tail {
             run.cols.shrink();
         }
+        self.born = self.born_cells.iter().map(|&c| tree.record(c)).collect();
+        let values = self.value_cells.iter().map(|&c| tree.record(c));
+        (self.value_parent, self.value_depth) = values.clone().map(|r| (r.parent, r.depth)).unzip();
+        self.value_rgb = values.clone().zip(&self.before_rgb).map(|(r, &b)| [b, r.rgb]).collect();
+        self.value_sigma = values.zip(&self.before_sigma).map(|(r, &b)| [b, r.sigma]).collect();
+        self.other = self.other_cells.iter().zip(&self.before_other).map(|(&c, &b)| [b, tree.record(c)]).collect();
+        self.before_rgb = Vec::new();
+        self.before_sigma = Vec::new();
+        self.before_other = Vec::new();
     }
 
     /// Steps built in parts, one after another, as one step (the parts'
@@ -396,11 +440,14 @@ impl UndoStep {
             born: join(&parts, |p| &p.born),
             tail: Vec::new(),
             tail_born: 0,
-            tail_in_pools: false,
+            after_in_pools: false,
             freed_cells: join(&parts, |p| &p.freed_cells),
             freed: join(&parts, |p| &p.freed),
             other_cells: join(&parts, |p| &p.other_cells),
             other: join(&parts, |p| &p.other),
+            before_rgb: join(&parts, |p| &p.before_rgb),
+            before_sigma: join(&parts, |p| &p.before_sigma),
+            before_other: join(&parts, |p| &p.before_other),
         }
     }
 
@@ -422,6 +469,9 @@ impl UndoStep {
         self.freed.shrink_to_fit();
         self.other_cells.shrink_to_fit();
         self.other.shrink_to_fit();
+        self.before_rgb.shrink_to_fit();
+        self.before_sigma.shrink_to_fit();
+        self.before_other.shrink_to_fit();
     }
 
     /// How many cells the stroke changed.
@@ -435,10 +485,10 @@ impl UndoStep {
 
     /// Every changed cell with its records before and after the stroke
     /// (values first, then born (the list, then the tail in index order),
-    /// freed and other cells). Not for a step whose tail is left in the
-    /// pools (a done step of a painting: [`History::full_steps`]).
+    /// freed and other cells). Not for a step whose after-records are left
+    /// in the pools (a done step of a painting: [`History::full_steps`]).
     pub fn entries(&self) -> impl Iterator<Item = (u32, CellRecord, CellRecord)> + '_ {
-        assert!(!self.tail_in_pools, "the step's tail is in the pools: History::full_steps gives its records");
+        assert!(!self.after_in_pools, "the step's after-records are in the pools: History::full_steps gives them");
         let values = (0..self.value_cells.len()).map(|i| {
             let (parent, depth) = (self.value_parent[i], self.value_depth[i]);
             let rec = |k: usize| CellRecord { parent, first_child: NONE, depth, rgb: self.value_rgb[i][k], sigma: self.value_sigma[i][k] };
@@ -453,8 +503,15 @@ impl UndoStep {
         values.chain(born).chain(tail).chain(freed).chain(other)
     }
 
-    /// What the step holds, in bytes (a tail left in the pools takes none).
+    /// What the step holds, in bytes (after-records left in the pools take
+    /// none).
     pub fn bytes(&self) -> usize {
+        if self.after_in_pools {
+            return self.value_cells.len() * (4 + 3 + 4)
+                + self.born_cells.len() * 4
+                + self.freed_cells.len() * (4 + std::mem::size_of::<CellRecord>())
+                + self.other_cells.len() * (4 + std::mem::size_of::<CellRecord>());
+        }
         self.value_cells.len() * (4 + 4 + 1 + 2 * 3 + 2 * 4)
             + (self.born_cells.len() + self.freed_cells.len()) * (4 + std::mem::size_of::<CellRecord>())
             + self.tail.iter().map(|run| run.cols.bytes()).sum::<usize>()
@@ -503,14 +560,14 @@ impl History {
     pub fn full_steps<'a>(&'a self, tree: &Tree) -> Vec<std::borrow::Cow<'a, UndoStep>> {
         use std::borrow::Cow;
         let mut out: Vec<Cow<'a, UndoStep>> = self.done.iter().chain(&self.undone).map(Cow::Borrowed).collect();
-        let Some(lowest) = self.done.iter().position(UndoStep::tail_in_pools) else { return out };
+        let Some(lowest) = self.done.iter().position(UndoStep::after_in_pools) else { return out };
         let top = self.done.len() - 1;
         let mut copy: Option<Tree> = None;
         for k in (lowest..=top).rev() {
             let at = copy.as_ref().unwrap_or(tree);
-            if self.done[k].tail_in_pools {
+            if self.done[k].after_in_pools {
                 let mut full = self.done[k].clone();
-                full.take_tail_from_pools(at);
+                full.take_after_from_pools(at);
                 out[k] = Cow::Owned(full);
             }
             if k > lowest {
@@ -544,7 +601,7 @@ impl Tree {
             for (&c, before) in cells.iter().zip(&j.before[at..]) {
                 let now = tree.record(c);
                 if !now.same_bits(before) {
-                    part.push(c, *before, now);
+                    part.push_before(c, *before, &now);
                 }
             }
         };
@@ -564,10 +621,10 @@ impl Tree {
             step
         };
         (step.n_before, step.n_after) = (j.n_before, n_used);
-        // The cells past the old used length, all free before: their
-        // records stay in the pools (the ones cleaning freed again are no
-        // entries), until undo copies them out.
-        step.leave_tail_in_pools(tree);
+        // The after-records stay in the pools, until undo copies them out;
+        // of the cells past the old used length, all free before, the live
+        // ones are entries (the ones cleaning freed again are not).
+        step.leave_after_in_pools(tree);
         self.spare_journal = j.emptied();
         step
     }
@@ -576,7 +633,7 @@ impl Tree {
     /// Marks the rewritten cells dirty, and the cells that gained or lost
     /// children as topology changes (spec 10, 3.4).
     pub(crate) fn apply_step(&mut self, step: &UndoStep, forward: bool) {
-        assert!(!step.tail_in_pools, "apply_step of a step whose tail is in the pools");
+        assert!(!step.after_in_pools, "apply_step of a step whose after-records are in the pools");
         let n = if forward { step.n_after } else { step.n_before };
         self.set_used_length(step.n_before.max(step.n_after));
         for (c, before, after) in step.entries() {

@@ -384,9 +384,9 @@ impl Painting {
     pub fn undo(&mut self) -> bool {
         assert!(self.stroke.is_none(), "undo inside a stroke");
         let Some(mut step) = self.history.done.pop() else { return false };
-        // The pools hold the step's after-records: its tail is copied out
-        // of them, for redo, before the before-records are written back.
-        step.take_tail_from_pools(&self.tree);
+        // The pools hold the step's after-records: they are copied out, for
+        // redo, before the before-records are written back.
+        step.take_after_from_pools(&self.tree);
         self.tree.apply_step(&step, false);
         self.history.undone.push(step);
         true

@@ -1,7 +1,8 @@
-//! A done step leaves its tail's records (the cells past the used length
-//! at the stroke's start) in the pools instead of copying them (history.rs).
-//! What `History::full_steps` rebuilds for every step must be the records
-//! the pools held when the step was committed, through later strokes that
+//! A done step keeps only before-records; its after-records, its tail's
+//! (the cells past the used length at the stroke's start) among them, stay
+//! in the pools instead of being copied (history.rs). What
+//! `History::full_steps` rebuilds for every step must be the records the
+//! pools held when the step was committed, through later strokes that
 //! repaint, refine and collapse those cells, and through undo and redo.
 
 use octopaint_tree::dump::dump_bytes;
@@ -44,7 +45,7 @@ fn strokes() -> Vec<(Brush, Vec<[f64; 3]>)> {
 }
 
 #[test]
-fn tails_left_in_the_pools_come_back_as_they_were_committed() {
+fn after_records_left_in_the_pools_come_back_as_they_were_committed() {
     let canvas = Canvas { roots: [1, 1, 1], max_depth: 8, root_size: 128.0, capacity: 1 << 24 };
     let mut p = Painting::new(&canvas);
     let mut committed = Vec::new();
@@ -57,12 +58,12 @@ fn tails_left_in_the_pools_come_back_as_they_were_committed() {
         }
         p.end_stroke();
         let top = p.history.done.last().expect("a step");
-        assert!(top.tail_in_pools(), "a committed step keeps its tail in the pools");
+        assert!(top.after_in_pools(), "a committed step leaves its after-records in the pools");
         // Right after the commit the pools hold the step's after-records:
         // what the step copied out of them before this change.
         let full = p.history.full_steps(&p.tree).pop().expect("a step");
         let grew = top.n_after > top.n_before;
-        assert!(top.bytes() < full.bytes() || !grew, "the tail left in the pools takes no bytes");
+        assert!(top.bytes() < full.bytes(), "the after-records left in the pools take no bytes");
         new_cells += usize::from(grew);
         assert_eq!(top.len(), full.len(), "the same entries");
         committed.push(step_bytes(&full));
@@ -79,7 +80,7 @@ fn tails_left_in_the_pools_come_back_as_they_were_committed() {
     for k in (0..n).rev() {
         assert!(p.undo());
         let s = p.history.undone.last().expect("undone");
-        assert!(!s.tail_in_pools());
+        assert!(!s.after_in_pools());
         assert!(step_bytes(s) == committed[k], "undone step {k} differs from its commit");
         assert!(dump_bytes(&p.tree) == dumps[k], "undo {k} did not restore the pools");
         // The steps still done are rebuilt from the pools as they are now.
