@@ -403,10 +403,17 @@ impl UndoStep {
             run.cols.shrink();
         }
         self.born = self.born_cells.iter().map(|&c| tree.record(c)).collect();
-        let values = self.value_cells.iter().map(|&c| tree.record(c));
-        (self.value_parent, self.value_depth) = values.clone().map(|r| (r.parent, r.depth)).unzip();
-        self.value_rgb = values.clone().zip(&self.before_rgb).map(|(r, &b)| [b, r.rgb]).collect();
-        self.value_sigma = values.zip(&self.before_sigma).map(|(r, &b)| [b, r.sigma]).collect();
+        let n = self.value_cells.len();
+        (self.value_parent, self.value_depth, self.value_rgb, self.value_sigma) =
+            (Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n), Vec::with_capacity(n));
+        for (i, &c) in self.value_cells.iter().enumerate() {
+            // A value cell's parent and depth did not change; its values did.
+            let c = c as usize;
+            self.value_parent.push(tree.parent[c]);
+            self.value_depth.push(tree.depth[c]);
+            self.value_rgb.push([self.before_rgb[i], tree.rgb[c]]);
+            self.value_sigma.push([self.before_sigma[i], tree.sigma[c]]);
+        }
         self.other = self.other_cells.iter().zip(&self.before_other).map(|(&c, &b)| [b, tree.record(c)]).collect();
         self.before_rgb = Vec::new();
         self.before_sigma = Vec::new();
@@ -571,7 +578,7 @@ impl History {
                 out[k] = Cow::Owned(full);
             }
             if k > lowest {
-                copy.get_or_insert_with(|| tree.clone()).apply_step(&out[k], false);
+                copy.get_or_insert_with(|| tree.records_copy()).undo_records(&out[k]);
             }
         }
         out
@@ -627,6 +634,64 @@ impl Tree {
         step.leave_after_in_pools(tree);
         self.spare_journal = j.emptied();
         step
+    }
+
+    /// A tree with this one's records and nothing else: no journal, change
+    /// log or free units ([`History::full_steps`] undoes steps on it).
+    fn records_copy(&self) -> Tree {
+        Tree {
+            lat: self.lat.clone(),
+            capacity: self.capacity,
+            parent: self.parent.clone(),
+            first_child: self.first_child.clone(),
+            depth: self.depth.clone(),
+            rgb: self.rgb.clone(),
+            sigma: self.sigma.clone(),
+            free_units: Default::default(),
+            changes: crate::dirty::Changes::new(0),
+            journal: None,
+            spare_journal: Journal::default(),
+        }
+    }
+
+    /// The records and used length of `apply_step(step, false)`, written
+    /// straight into the columns of a [`Tree::records_copy`].
+    fn undo_records(&mut self, step: &UndoStep) {
+        let len = |t: &mut Tree, n: u32| {
+            let n = n as usize;
+            let free = CellRecord::FREE;
+            t.parent.resize(n, free.parent);
+            t.first_child.resize(n, free.first_child);
+            t.depth.resize(n, free.depth);
+            t.rgb.resize(n, free.rgb);
+            t.sigma.resize(n, free.sigma);
+        };
+        assert!(!step.after_in_pools);
+        len(self, step.n_before.max(step.n_after).max(self.n_used()));
+        let mut put = |c: u32, r: &CellRecord| {
+            let i = c as usize;
+            self.parent[i] = r.parent;
+            self.first_child[i] = r.first_child;
+            self.depth[i] = r.depth;
+            self.rgb[i] = r.rgb;
+            self.sigma[i] = r.sigma;
+        };
+        // The entries' before-records, category by category; the tail's
+        // cells lie past `n_before`, where the used length ends.
+        for (i, &c) in step.value_cells.iter().enumerate() {
+            let (parent, depth) = (step.value_parent[i], step.value_depth[i]);
+            put(c, &CellRecord { parent, first_child: NONE, depth, rgb: step.value_rgb[i][0], sigma: step.value_sigma[i][0] });
+        }
+        for &c in &step.born_cells {
+            put(c, &CellRecord::FREE);
+        }
+        for (&c, r) in step.freed_cells.iter().zip(&step.freed) {
+            put(c, r);
+        }
+        for (&c, r) in step.other_cells.iter().zip(&step.other) {
+            put(c, &r[0]);
+        }
+        len(self, step.n_before);
     }
 
     /// Write one side of an undo step: the records and the used length.
