@@ -668,14 +668,7 @@ impl Tree {
         };
         assert!(!step.after_in_pools);
         len(self, step.n_before.max(step.n_after).max(self.n_used()));
-        let mut put = |c: u32, r: &CellRecord| {
-            let i = c as usize;
-            self.parent[i] = r.parent;
-            self.first_child[i] = r.first_child;
-            self.depth[i] = r.depth;
-            self.rgb[i] = r.rgb;
-            self.sigma[i] = r.sigma;
-        };
+        let mut put = |c: u32, r: &CellRecord| self.put_record(c, r);
         // The entries' before-records, category by category; the tail's
         // cells lie past `n_before`, where the used length ends.
         for (i, &c) in step.value_cells.iter().enumerate() {

@@ -320,6 +320,13 @@ impl Tree {
     /// Overwrite a whole cell (undo/redo).
     pub(crate) fn write_record(&mut self, c: u32, r: CellRecord) {
         self.touch(c);
+        self.put_record(c, &r);
+    }
+
+    /// Write `c`'s record as it is, with no journal entry or change mark
+    /// (a copy of the records that history.rs undoes steps on).
+    #[inline]
+    pub(crate) fn put_record(&mut self, c: u32, r: &CellRecord) {
         let i = c as usize;
         self.parent[i] = r.parent;
         self.first_child[i] = r.first_child;

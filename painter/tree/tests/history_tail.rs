@@ -5,28 +5,12 @@
 //! pools held when the step was committed, through later strokes that
 //! repaint, refine and collapse those cells, and through undo and redo.
 
+mod common;
+
+use common::step_bytes;
 use octopaint_tree::dump::dump_bytes;
-use octopaint_tree::history::UndoStep;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{Brush, Canvas, Mode, Sample, Shape};
-
-/// A step's entries as bytes, in their order.
-fn step_bytes(s: &UndoStep) -> Vec<u8> {
-    let mut out = Vec::new();
-    out.extend(s.n_before.to_le_bytes());
-    out.extend(s.n_after.to_le_bytes());
-    for (c, b, a) in s.entries() {
-        out.extend(c.to_le_bytes());
-        for r in [b, a] {
-            out.extend(r.parent.to_le_bytes());
-            out.extend(r.first_child.to_le_bytes());
-            out.push(r.depth);
-            out.extend(r.rgb);
-            out.extend(r.sigma.to_bits().to_le_bytes());
-        }
-    }
-    out
-}
 
 /// Paint strokes that overlap: new cells, cells of earlier tails
 /// repainted, an erase that collapses cells an earlier stroke made, and

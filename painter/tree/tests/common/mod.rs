@@ -1,9 +1,10 @@
 //! What the determinism tests (threads.rs, threads_grain.rs, lanes.rs)
-//! share. Each test binary uses part of it.
+//! and history_tail.rs share. Each test binary uses part of it.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 
+use octopaint_tree::history::UndoStep;
 use octopaint_tree::layers::Document;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::read_trace;
@@ -18,18 +19,26 @@ pub fn history_bytes(p: &Painting) -> Vec<u8> {
     for (tag, steps) in [(0u8, done), (1, undone)] {
         for step in steps {
             out.push(tag);
-            out.extend(step.n_before.to_le_bytes());
-            out.extend(step.n_after.to_le_bytes());
-            for (c, b, a) in step.entries() {
-                out.extend(c.to_le_bytes());
-                for r in [b, a] {
-                    out.extend(r.parent.to_le_bytes());
-                    out.extend(r.first_child.to_le_bytes());
-                    out.push(r.depth);
-                    out.extend(r.rgb);
-                    out.extend(r.sigma.to_bits().to_le_bytes());
-                }
-            }
+            out.extend(step_bytes(step));
+        }
+    }
+    out
+}
+
+/// One step with all its records (not left in the pools) as bytes: its
+/// used lengths, then each entry's cell and records before and after.
+pub fn step_bytes(step: &UndoStep) -> Vec<u8> {
+    let mut out = Vec::new();
+    out.extend(step.n_before.to_le_bytes());
+    out.extend(step.n_after.to_le_bytes());
+    for (c, b, a) in step.entries() {
+        out.extend(c.to_le_bytes());
+        for r in [b, a] {
+            out.extend(r.parent.to_le_bytes());
+            out.extend(r.first_child.to_le_bytes());
+            out.push(r.depth);
+            out.extend(r.rgb);
+            out.extend(r.sigma.to_bits().to_le_bytes());
         }
     }
     out
