@@ -128,6 +128,31 @@ pub struct UndoStep {
     before_other: Vec<CellRecord>,
 }
 
+/// How an undo step keeps a changed cell (see [`UndoStep`]).
+enum Kind {
+    /// Free before.
+    Born,
+    /// Free after.
+    Freed,
+    /// A leaf before and after whose only change is rgb and sigma.
+    Value,
+    Other,
+}
+
+impl Kind {
+    fn of(before: &CellRecord, after: &CellRecord) -> Kind {
+        if before.same_bits(&CellRecord::FREE) {
+            Kind::Born
+        } else if after.same_bits(&CellRecord::FREE) {
+            Kind::Freed
+        } else if before.first_child == NONE && (before.parent, before.first_child, before.depth) == (after.parent, after.first_child, after.depth) {
+            Kind::Value
+        } else {
+            Kind::Other
+        }
+    }
+}
+
 /// The records of consecutive cells, packed: rgb and sigma for every cell,
 /// the parent and depth once for each span of cells that share them (a
 /// unit's 8 siblings do), and first_child only where it is not NONE (most
@@ -280,20 +305,23 @@ impl UndoStep {
 
     /// Add a cell that changed from `before` to `after` (each cell once).
     pub fn push(&mut self, c: u32, before: CellRecord, after: CellRecord) {
-        if before.same_bits(&CellRecord::FREE) {
-            self.push_born(c, after);
-        } else if after.same_bits(&CellRecord::FREE) {
-            self.freed_cells.push(c);
-            self.freed.push(before);
-        } else if before.first_child == NONE && (before.parent, before.first_child, before.depth) == (after.parent, after.first_child, after.depth) {
-            self.value_cells.push(c);
-            self.value_parent.push(before.parent);
-            self.value_depth.push(before.depth);
-            self.value_rgb.push([before.rgb, after.rgb]);
-            self.value_sigma.push([before.sigma, after.sigma]);
-        } else {
-            self.other_cells.push(c);
-            self.other.push([before, after]);
+        match Kind::of(&before, &after) {
+            Kind::Born => self.push_born(c, after),
+            Kind::Freed => {
+                self.freed_cells.push(c);
+                self.freed.push(before);
+            }
+            Kind::Value => {
+                self.value_cells.push(c);
+                self.value_parent.push(before.parent);
+                self.value_depth.push(before.depth);
+                self.value_rgb.push([before.rgb, after.rgb]);
+                self.value_sigma.push([before.sigma, after.sigma]);
+            }
+            Kind::Other => {
+                self.other_cells.push(c);
+                self.other.push([before, after]);
+            }
         }
     }
 
@@ -301,19 +329,24 @@ impl UndoStep {
     /// (a commit; the step is then marked so): only the before-records are
     /// kept. `after` (not free when `before` is) sorts the cell.
     fn push_before(&mut self, c: u32, before: CellRecord, after: &CellRecord) {
-        if before.same_bits(&CellRecord::FREE) {
-            debug_assert!(!after.same_bits(&CellRecord::FREE));
-            self.born_cells.push(c);
-        } else if after.same_bits(&CellRecord::FREE) {
-            self.freed_cells.push(c);
-            self.freed.push(before);
-        } else if before.first_child == NONE && (before.parent, before.first_child, before.depth) == (after.parent, after.first_child, after.depth) {
-            self.value_cells.push(c);
-            self.before_rgb.push(before.rgb);
-            self.before_sigma.push(before.sigma);
-        } else {
-            self.other_cells.push(c);
-            self.before_other.push(before);
+        match Kind::of(&before, after) {
+            Kind::Born => {
+                debug_assert!(!after.same_bits(&CellRecord::FREE));
+                self.born_cells.push(c);
+            }
+            Kind::Freed => {
+                self.freed_cells.push(c);
+                self.freed.push(before);
+            }
+            Kind::Value => {
+                self.value_cells.push(c);
+                self.before_rgb.push(before.rgb);
+                self.before_sigma.push(before.sigma);
+            }
+            Kind::Other => {
+                self.other_cells.push(c);
+                self.before_other.push(before);
+            }
         }
     }
 
@@ -560,10 +593,10 @@ impl History {
 
     /// Every step, the done ones and then the undone ones, with all its
     /// records, for `tree`, which holds the newest done step's
-    /// after-records (between strokes). A done step whose tail is left in
-    /// the pools gets a copy with the tail: the newest from `tree`, an
-    /// older one from a copy of the tree that the steps above it have been
-    /// undone on (so it holds that step's after-records).
+    /// after-records (between strokes). A done step whose after-records
+    /// are left in the pools gets a copy with them: the newest from `tree`,
+    /// an older one from a copy of the records that the steps above it
+    /// have been undone on (so it holds that step's after-records).
     pub fn full_steps<'a>(&'a self, tree: &Tree) -> Vec<std::borrow::Cow<'a, UndoStep>> {
         use std::borrow::Cow;
         let mut out: Vec<Cow<'a, UndoStep>> = self.done.iter().chain(&self.undone).map(Cow::Borrowed).collect();
@@ -657,17 +690,8 @@ impl Tree {
     /// The records and used length of `apply_step(step, false)`, written
     /// straight into the columns of a [`Tree::records_copy`].
     fn undo_records(&mut self, step: &UndoStep) {
-        let len = |t: &mut Tree, n: u32| {
-            let n = n as usize;
-            let free = CellRecord::FREE;
-            t.parent.resize(n, free.parent);
-            t.first_child.resize(n, free.first_child);
-            t.depth.resize(n, free.depth);
-            t.rgb.resize(n, free.rgb);
-            t.sigma.resize(n, free.sigma);
-        };
         assert!(!step.after_in_pools);
-        len(self, step.n_before.max(step.n_after).max(self.n_used()));
+        self.set_used_length(step.n_before.max(step.n_after).max(self.n_used()));
         let mut put = |c: u32, r: &CellRecord| self.put_record(c, r);
         // The entries' before-records, category by category; the tail's
         // cells lie past `n_before`, where the used length ends.
@@ -684,7 +708,7 @@ impl Tree {
         for (&c, r) in step.other_cells.iter().zip(&step.other) {
             put(c, &r[0]);
         }
-        len(self, step.n_before);
+        self.set_used_length(step.n_before);
     }
 
     /// Write one side of an undo step: the records and the used length.

@@ -17,8 +17,8 @@ use crate::history::History;
 use crate::lanes::{self, LANES};
 use crate::noise::permutation;
 use crate::par;
-use crate::slots::SlotMap;
 use crate::pool::{NONE, Tree, UNIT};
+use crate::slots::SlotMap;
 use crate::stroke::{Geometry, Prim, StrokePath};
 use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
 
