@@ -361,6 +361,14 @@ def mirror() -> str:
     w.camera([0.5, 0.9, 1.8], [0.5, 0.45, 0.5], size=(256, 192))
     w.ev("render", 0.1, name="mirror")
     w.ev("snapshot", 0.0, name="mirror")
+    # A hard sphere mirrored on y whose samples lie close together: leaves
+    # inside its core are settled (spec 8.7) at the first sample and are
+    # candidates again at every later sample's paint pass, where each copy
+    # is a capsule of the segment (the painter once refined them there).
+    w.ev("mirror", 0.1, axes=[False, True, False], centre=mid)
+    w.brush("sphere", "paint", 0.1, [0.3, 0.7, 0.9], opacity=0.9, hardness=1.0)
+    w.stroke(line([0.3, 0.3, 0.5], [0.33, 0.3, 0.5], 4))
+    w.ev("snapshot", 0.1, name="mirror_settled")
     return w.text()
 
 

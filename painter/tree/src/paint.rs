@@ -447,6 +447,10 @@ impl Painting {
             return candidates;
         }
         let (mut visited, mut hit) = (0u64, 0u64);
+        // Candidates to test for settling (spec 8.7), as the capsule pass
+        // does: a mirrored sphere stroke has a capsule per copy here.
+        let settles = self.stroke.as_ref().expect("stroke").settles;
+        let mut maybe = Vec::new();
         while let Some((c, o)) = stack.pop() {
             let d = u32::from(self.tree.depth[c as usize]);
             let x = self.tree.lat.centre(o, d);
@@ -476,12 +480,21 @@ impl Painting {
                 self.apply(c, a, colour);
             }
             if needs {
-                candidates.push(c);
+                if settles {
+                    maybe.push((c, x, h));
+                } else {
+                    candidates.push(c);
+                }
             }
         }
         self.counters.leaves_visited += visited;
         self.counters.leaves_hit += hit;
         self.spare_stack = stack;
+        if !maybe.is_empty() {
+            let st = self.stroke.as_ref().expect("stroke");
+            let caps = capsules_near(&st.prims, maybe.iter().map(|&(_, x, h)| (x, h)));
+            candidates.extend(self.unsettled(maybe, &caps));
+        }
         candidates
     }
 
