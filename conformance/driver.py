@@ -68,7 +68,7 @@ def _fence(lines: list[str]) -> str:
     return "```\n" + "\n".join(lines) + "\n```"
 
 
-def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32") -> TraceResult:
+def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32", painter_args: tuple = ()) -> TraceResult:
     name = os.path.basename(trace)[: -len(".jsonl")]
     r = TraceResult(name)
     ref_dir = os.path.join(work, name, "reference")
@@ -77,7 +77,7 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str, precision:
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
     ref_cmd = [os.path.join(REPO, ".venv", "bin", "octopaint-ref"), "replay", trace, "--out", ref_dir, "--quiet"]
-    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision]
+    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision, *painter_args]
     ref, r.ref_seconds = _run(ref_cmd)
     pt, r.painter_seconds = _run(pt_cmd)
     if ref.returncode != pt.returncode:
