@@ -6,7 +6,7 @@ apart unseen (a mirrored hard sphere once refined leaves the reference
 settles, spec 8.7, and no trace had one). This script writes random valid
 traces from a seed (every shape, mode and brush parameter, mirror copies,
 pressure, samples close together and far apart, a small cell budget now and
-then, undo and redo, layers in version-2 traces), replays each with the
+then, undo and redo, layers in version-2 traces, voxel-set imports), replays each with the
 reference and the painter through the driver's `check_trace`, and reports
 every seed whose dumps or warnings differ, with its trace kept for replay:
 
@@ -94,7 +94,14 @@ def _stroke(w, rng: random.Random, shape: str, radius: float, size: list[float])
 
 def random_trace(seed: int) -> str:
     """A valid trace (docs/TRACE-FORMAT.md) drawn from `seed` alone."""
+    return random_trace_and_files(seed)[0]
+
+
+def random_trace_and_files(seed: int) -> tuple[str, dict[str, bytes]]:
+    """A valid trace drawn from `seed` alone, and the voxel sets its
+    imports read (paths relative to the trace's folder)."""
     rng = random.Random(seed)
+    files: dict[str, bytes] = {}
     version = 2 if rng.random() < 0.3 else 1
     roots = [rng.choice((1, 1, 2)) for _ in range(3)]
     max_depth = rng.randint(4, 8)
@@ -109,6 +116,8 @@ def random_trace(seed: int) -> str:
     for _ in range(rng.randint(1, 7)):
         if version == 2 and rng.random() < 0.35:
             _layer_op(w, rng, layers)
+        if rng.random() < 0.12:
+            _import(w, rng, files, f"fuzz_{seed}_{len(files)}.npz", roots, root_size, max_depth)
         if rng.random() < 0.25:
             dyadic = rng.random() < 0.5
             centre = [gen.r6(size[k] * (rng.randint(1, 3) / 4 if dyadic else rng.uniform(0.2, 0.8))) for k in range(3)]
@@ -123,8 +132,61 @@ def random_trace(seed: int) -> str:
         if rng.random() < 0.15:
             snapshots += 1
             w.ev("snapshot", 0.1, name=f"fuzz_{seed}_{snapshots}")
+    if rng.random() < 0.5:
+        _renders(w, rng, seed, size)
     w.ev("snapshot", 0.1, name=f"fuzz_{seed}")
-    return w.text()
+    return w.text(), files
+
+
+def _renders(w, rng: random.Random, seed: int, size: list[float]) -> None:
+    """Small images of the canvas (spec 6): from outside it or from inside,
+    towards its middle or a random point, unlit and then perhaps lit."""
+    mid = [s / 2 for s in size]
+    if rng.random() < 0.25:
+        eye = [rng.uniform(0.1, 0.9) * s for s in size]
+    else:
+        d = [rng.uniform(-1.0, 1.0) for _ in range(3)]
+        n = math.sqrt(sum(v * v for v in d)) or 1.0
+        reach = max(size) * rng.uniform(0.9, 2.0)
+        eye = [mid[k] + reach * d[k] / n for k in range(3)]
+    target = mid if rng.random() < 0.6 else [rng.uniform(0.0, 1.0) * s for s in size]
+    if sum((eye[k] - target[k]) ** 2 for k in range(3)) < 1e-6:
+        target = [target[0] + 0.1 * size[0], target[1], target[2]]
+    w.camera(eye, target, size=(64, 48), fov_deg=rng.uniform(20.0, 80.0))
+    w.ev("render", 0.1, name=f"fuzz_{seed}_unlit")
+    if rng.random() < 0.5:
+        light = [rng.uniform(-1.0, 1.0) for _ in range(3)]
+        if max(abs(v) for v in light) < 0.05:
+            light = [0.0, 1.0, 0.0]
+        w.ev("light", 0.1, dir=[gen.r6(v) for v in light], intensity=gen.r6(rng.uniform(0.3, 1.5)),
+             ambient=gen.r6(rng.uniform(0.0, 0.5)), shadows=rng.random() < 0.7)
+        w.ev("render", 0.1, name=f"fuzz_{seed}_lit")
+
+
+def _import(w, rng: random.Random, files: dict, name: str, roots: list, root_size: float, max_depth: int) -> None:
+    """An import event (spec 15) of a ball of voxels inside the canvas at a
+    random depth: one colour (blocks that settle), a gradient (refined to
+    the set's depth) or sigma 0 (it erases)."""
+    depth = rng.randint(max(1, max_depth - 4), max_depth)
+    n = [r << depth for r in roots]  # voxels a side of the canvas
+    h = root_size / (1 << depth)
+    radius = h * rng.uniform(1.0, min(6.0, min(n) / 2))
+    centre = [h * rng.uniform(radius / h, n[k] - radius / h) for k in range(3)]
+    kind = rng.choice(("flat", "gradient", "gradient", "erase"))
+    rgb = [rng.randrange(256) for _ in range(3)]
+    sigma = gen.r6(rng.uniform(0.5, 60.0))
+
+    def colour(i, j, k):
+        if kind == "flat":
+            return (*rgb, sigma)
+        if kind == "erase":
+            return (0, 0, 0, 0.0)
+        return ((rgb[0] + 9 * i) % 256, (rgb[1] + 13 * j) % 256, (rgb[2] + 5 * k) % 256, float(1 + (i + j + k) % 7))
+
+    voxels = [v for v in gen.ball_voxels(depth, centre, radius, root_size, colour) if all(v[a] < n[a] for a in range(3))]
+    data = gen.voxel_set(depth, voxels)
+    files[name] = data
+    w.ev("import", 0.1, file=name, sha256=gen.hashlib.sha256(data).hexdigest())
 
 
 def _layer_op(w, rng: random.Random, layers: list[str]) -> None:
@@ -171,9 +233,16 @@ def fuzz(painter: str, seeds: range, out: str, budget_s: float | None = None, lo
             log(f"time budget of {budget_s:.0f} s spent after seed {seed - 1}")
             break
         trace = os.path.join(out, f"fuzz_{seed}.jsonl")
+        text, files = random_trace_and_files(seed)
         with open(trace, "w") as f:
-            f.write(random_trace(seed))
-        r = driver.check_trace(trace, painter, work, out, painter_args=["--renderer", "none"])
+            f.write(text)
+        for path, data in files.items():
+            with open(os.path.join(out, path), "wb") as f:
+                f.write(data)
+        # Images on the painter's GPU renderer (the one that ships).
+        r = driver.check_trace(trace, painter, work, out)
+        if r.images_not_rendered:
+            r.problems.append(f"images the painter did not write: {r.images_not_rendered}")
         shutil.rmtree(os.path.join(work, f"fuzz_{seed}"), ignore_errors=True)
         if r.problems:
             bad.append(seed)
@@ -182,6 +251,8 @@ def fuzz(painter: str, seeds: range, out: str, budget_s: float | None = None, lo
             log(f"seed {seed}: DIFFERS ({r.cells} cells; trace {trace})")
         else:
             os.remove(trace)
+            for path in files:
+                os.remove(os.path.join(out, path))
             log(f"seed {seed}: same ({r.dumps} dumps, {r.cells} cells, reference {r.ref_seconds:.1f} s, painter {r.painter_seconds:.1f} s)")
     return bad
 
