@@ -77,6 +77,7 @@ pub fn replay_document(
     let mut camera: Option<Camera> = None;
     let mut light: Option<Light> = None;
     let mut mirror: Option<Mirror> = None;
+    let mut writer = DumpWriter::default();
     let t0 = Instant::now();
     for ev in &trace.events {
         match &ev.kind {
@@ -116,7 +117,7 @@ pub fn replay_document(
                         dump_bytes_with(&painting.tree, &g3)
                     };
                     let path = d.join(format!("{name}.npz"));
-                    durable::write(&path, &bytes)?;
+                    writer.write(path.clone(), bytes)?;
                     stats.written.push(path);
                 }
             }
@@ -137,8 +138,68 @@ pub fn replay_document(
         }
         obs.after_event(ev, &doc.current().painting);
     }
+    writer.finish()?;
     stats.seconds = t0.elapsed().as_secs_f64();
     stats.cells = doc.used().min(u64::from(u32::MAX)) as u32;
     stats.deepest = doc.layers().flat_map(|l| l.tree().depth.iter()).filter(|&&d| d != FREE).map(|&d| u32::from(d)).max().unwrap_or(0);
     Ok((stats, doc))
+}
+
+/// Writes dumps on a thread of its own, one at a time: a dump's durable
+/// write (most of it is the file's sync) goes on while the events after its
+/// snapshot run. The next snapshot, the end of the replay, or dropping the
+/// writer (an error elsewhere) waits for the one in flight, so a failed
+/// write is reported before anything else is written, and no temporary
+/// file is left behind by a thread cut short.
+#[derive(Default)]
+struct DumpWriter {
+    pending: Option<std::thread::JoinHandle<std::io::Result<()>>>,
+}
+
+impl DumpWriter {
+    /// Wait for the dump in flight, then start writing `bytes` to `path`.
+    fn write(&mut self, path: PathBuf, bytes: Vec<u8>) -> std::io::Result<()> {
+        self.finish()?;
+        let h = std::thread::Builder::new().name("dump writer".into()).spawn(move || durable::write(&path, &bytes))?;
+        self.pending = Some(h);
+        Ok(())
+    }
+
+    /// Wait for the dump in flight; its error, if it failed.
+    fn finish(&mut self) -> std::io::Result<()> {
+        match self.pending.take() {
+            Some(h) => h.join().map_err(|_| std::io::Error::other("the dump writer panicked"))?,
+            None => Ok(()),
+        }
+    }
+}
+
+impl Drop for DumpWriter {
+    fn drop(&mut self) {
+        let _ = self.finish();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A dump that cannot be written is reported when the next snapshot
+    /// (or the end) comes, before that one is started; a writer dropped
+    /// with a dump in flight lets it finish.
+    #[test]
+    fn a_failed_dump_write_is_reported_before_the_next_starts() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut w = DumpWriter::default();
+        w.write(dir.path().join("missing").join("a.npz"), vec![1, 2, 3]).unwrap();
+        let err = w.write(dir.path().join("b.npz"), vec![4]).unwrap_err();
+        assert_eq!(err.kind(), std::io::ErrorKind::NotFound);
+        assert!(!dir.path().join("b.npz").exists());
+        w.write(dir.path().join("c.npz"), vec![5; 1 << 20]).unwrap();
+        drop(w);
+        assert_eq!(std::fs::read(dir.path().join("c.npz")).unwrap(), vec![5; 1 << 20]);
+        // Nothing else in the folder: no temporary file left behind.
+        let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names, ["c.npz"]);
+    }
 }
