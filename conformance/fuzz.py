@@ -6,7 +6,8 @@ apart unseen (a mirrored hard sphere once refined leaves the reference
 settles, spec 8.7, and no trace had one). This script writes random valid
 traces from a seed (every shape, mode and brush parameter, mirror copies,
 pressure, samples close together and far apart, a small cell budget now and
-then, undo and redo, layers in version-2 traces, voxel-set imports), replays each with the
+then, undo and redo, layers in version-2 traces, voxel-set imports, deep
+and shallow canvases), replays each with the
 reference and the painter through the driver's `check_trace`, and reports
 every seed whose dumps or warnings differ, with its trace kept for replay:
 
@@ -103,10 +104,27 @@ def random_trace_and_files(seed: int) -> tuple[str, dict[str, bytes]]:
     rng = random.Random(seed)
     files: dict[str, bytes] = {}
     version = 2 if rng.random() < 0.3 else 1
-    roots = [rng.choice((1, 1, 2)) for _ in range(3)]
-    max_depth = rng.randint(4, 8)
-    root_size = rng.choice((1.0, 0.5, 2.0, 0.3, 7.0))
-    capacity = rng.choice((1 << 21, 1 << 21, 1 << 21, 20000, 4000))
+    shape = rng.random()
+    if shape < 0.15:
+        # Deep: cells a thousandth of a millionth of the canvas and less,
+        # lattice coordinates near 2^32 (spec 12.2's limits).
+        # One axis may have the most roots it can (R·2^D = 2^32).
+        max_depth = rng.randint(16, 28)
+        roots = [1, 1, 1]
+        if rng.random() < 0.4:
+            roots[rng.randrange(3)] = 1 << (32 - max_depth)
+        root_size = rng.choice((1e4, 1e-3, 3.7, 1e9))
+    elif shape < 0.25:
+        # Shallow: a root that never refines (depth 0) up to depth 3.
+        max_depth = rng.randint(0, 3)
+        roots = [rng.randint(1, 4) for _ in range(3)]
+        root_size = rng.choice((1.0, 0.25, 5.0))
+    else:
+        roots = [rng.choice((1, 1, 2)) for _ in range(3)]
+        max_depth = rng.randint(4, 8)
+        root_size = rng.choice((1.0, 0.5, 2.0, 0.3, 7.0))
+    n_roots = roots[0] * roots[1] * roots[2]
+    capacity = max(rng.choice((1 << 21, 1 << 21, 1 << 21, 20000, 4000)), 2 * n_roots)
     w = gen.Writer({"roots": roots, "max_depth": max_depth, "root_size": root_size, "capacity": capacity}, f"fuzz seed {seed}", version)
     size = [r * root_size for r in roots]
     extent = min(size)
@@ -167,7 +185,7 @@ def _import(w, rng: random.Random, files: dict, name: str, roots: list, root_siz
     """An import event (spec 15) of a ball of voxels inside the canvas at a
     random depth: one colour (blocks that settle), a gradient (refined to
     the set's depth) or sigma 0 (it erases)."""
-    depth = rng.randint(max(1, max_depth - 4), max_depth)
+    depth = rng.randint(max(0, max_depth - 4), max_depth)
     n = [r << depth for r in roots]  # voxels a side of the canvas
     h = root_size / (1 << depth)
     radius = h * rng.uniform(1.0, min(6.0, min(n) / 2))

@@ -25,6 +25,8 @@ def test_random_traces_are_reproducible_and_cover_the_features():
     headers = [json.loads(t.splitlines()[0]) for t in a]
     assert {h["version"] for h in headers} == {1, 2}
     assert min(h["canvas"]["capacity"] for h in headers) <= 4000  # budget refusals
+    depths = {h["canvas"]["max_depth"] for h in headers}
+    assert min(depths) <= 1 and max(depths) >= 25, depths  # a root that barely refines, 0.3 mm cells
 
 
 def test_the_painter_agrees_with_the_reference_on_random_traces(painter, tmp_path):
