@@ -7,15 +7,15 @@ settles, spec 8.7, and no trace had one). This script writes random valid
 traces from a seed (every shape, mode and brush parameter, mirror copies,
 pressure, samples close together and far apart, a small cell budget now and
 then, undo and redo, layers in version-2 traces, voxel-set imports, deep
-and shallow canvases), replays each with the
-reference and the painter through the driver's `check_trace`, and reports
-every seed whose dumps or warnings differ, with its trace kept for replay:
+and shallow canvases, small images), replays each with the reference and
+the painter through the driver's `check_trace`, and reports every seed
+whose dumps, images or warnings differ, with its trace kept for replay:
 
     .venv/bin/python conformance/fuzz.py --painter painter/target/release/octopaint \\
         --seeds 200 --out /tmp/fuzz
 
-Traces are small (a few thousand to a few hundred thousand cells), so that
-the reference replays each in about a second. The same seed gives the same
+Traces are small (a few thousand to about a million cells), so that the
+reference replays most in one to three seconds. The same seed gives the same
 trace on any machine: `random.Random(seed)` and nothing else.
 """
 
@@ -106,9 +106,9 @@ def random_trace_and_files(seed: int) -> tuple[str, dict[str, bytes]]:
     version = 2 if rng.random() < 0.3 else 1
     shape = rng.random()
     if shape < 0.15:
-        # Deep: cells a thousandth of a millionth of the canvas and less,
-        # lattice coordinates near 2^32 (spec 12.2's limits).
-        # One axis may have the most roots it can (R·2^D = 2^32).
+        # Deep: finest cells from 2^-16 to 2^-28 of a root, and one axis
+        # perhaps with the most roots it may have (R·2^D = 2^32, spec
+        # 12.2's limit), so lattice coordinates reach 2^32.
         max_depth = rng.randint(16, 28)
         roots = [1, 1, 1]
         if rng.random() < 0.4:
