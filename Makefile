@@ -28,7 +28,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
+.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
@@ -90,6 +90,13 @@ test-conformance: setup painter
 
 conformance: setup painter
 	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance --require-images
+
+# Random traces replayed by both implementations (conformance/README.md):
+# `make fuzz SEEDS=500 FIRST=1000`; differing traces stay in out/fuzz.
+SEEDS ?= 200
+FIRST ?= 0
+fuzz: setup painter
+	$(PY) conformance/fuzz.py --painter $(PAINTER) --first $(FIRST) --seeds $(SEEDS) --out $(OUT)/fuzz
 
 # The VR session against Monado's simulated headset in a Debian 13 chroot
 # (docs/vr.md): needs root, and network the first time (debootstrap and
