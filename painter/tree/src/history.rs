@@ -529,11 +529,7 @@ impl UndoStep {
     /// in the pools (a done step of a painting: [`History::full_steps`]).
     pub fn entries(&self) -> impl Iterator<Item = (u32, CellRecord, CellRecord)> + '_ {
         assert!(!self.after_in_pools, "the step's after-records are in the pools: History::full_steps gives them");
-        let values = (0..self.value_cells.len()).map(|i| {
-            let (parent, depth) = (self.value_parent[i], self.value_depth[i]);
-            let rec = |k: usize| CellRecord { parent, first_child: NONE, depth, rgb: self.value_rgb[i][k], sigma: self.value_sigma[i][k] };
-            (self.value_cells[i], rec(0), rec(1))
-        });
+        let values = (0..self.value_cells.len()).map(|i| (self.value_cells[i], self.value_record(i, 0), self.value_record(i, 1)));
         let born = self.born_cells.iter().zip(&self.born).map(|(&c, r)| (c, CellRecord::FREE, *r));
         let tail = self.tail.iter().flat_map(|run| {
             run.cols.records().enumerate().filter(|(_, r)| !r.same_bits(&CellRecord::FREE)).map(move |(i, r)| (run.first + i as u32, CellRecord::FREE, r))
@@ -541,6 +537,11 @@ impl UndoStep {
         let freed = self.freed_cells.iter().zip(&self.freed).map(|(&c, r)| (c, *r, CellRecord::FREE));
         let other = self.other_cells.iter().zip(&self.other).map(|(&c, r)| (c, r[0], r[1]));
         values.chain(born).chain(tail).chain(freed).chain(other)
+    }
+
+    /// Value cell `i`'s record before (`k` = 0) or after (1) the stroke.
+    fn value_record(&self, i: usize, k: usize) -> CellRecord {
+        CellRecord { parent: self.value_parent[i], first_child: NONE, depth: self.value_depth[i], rgb: self.value_rgb[i][k], sigma: self.value_sigma[i][k] }
     }
 
     /// What the step holds, in bytes (after-records left in the pools take
@@ -696,8 +697,7 @@ impl Tree {
         // The entries' before-records, category by category; the tail's
         // cells lie past `n_before`, where the used length ends.
         for (i, &c) in step.value_cells.iter().enumerate() {
-            let (parent, depth) = (step.value_parent[i], step.value_depth[i]);
-            put(c, &CellRecord { parent, first_child: NONE, depth, rgb: step.value_rgb[i][0], sigma: step.value_sigma[i][0] });
+            put(c, &step.value_record(i, 0));
         }
         for &c in &step.born_cells {
             put(c, &CellRecord::FREE);
