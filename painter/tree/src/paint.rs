@@ -491,9 +491,7 @@ impl Painting {
         self.counters.leaves_hit += hit;
         self.spare_stack = stack;
         if !maybe.is_empty() {
-            let st = self.stroke.as_ref().expect("stroke");
-            let caps = capsules_near(&st.prims, maybe.iter().map(|&(_, x, h)| (x, h)));
-            candidates.extend(self.unsettled(maybe, &caps));
+            candidates.extend(self.unsettled(maybe));
         }
         candidates
     }
@@ -632,9 +630,7 @@ impl Painting {
             }
         }
         if !maybe.is_empty() {
-            let st = self.stroke.as_ref().expect("stroke");
-            let caps = capsules_near(&st.prims, maybe.iter().map(|&(_, x, h)| (x, h)));
-            candidates.extend(self.unsettled(maybe, &caps));
+            candidates.extend(self.unsettled(maybe));
         }
         stack.clear();
         stack
@@ -642,8 +638,12 @@ impl Painting {
 
     /// The cells among `leaves` (cell, centre, reach radius) that are not
     /// settled, in order; the settled ones are counted. The tests run in
-    /// parallel; each touched leaf's bounds are written back after.
-    fn unsettled(&mut self, leaves: Vec<(u32, DVec3, f64)>, caps: &[(u32, Prim)]) -> Vec<u32> {
+    /// parallel, each over the capsules whose boxes meet the leaves' balls;
+    /// each touched leaf's bounds are written back after.
+    fn unsettled(&mut self, leaves: Vec<(u32, DVec3, f64)>) -> Vec<u32> {
+        let st = self.stroke.as_ref().expect("stroke");
+        let caps = capsules_near(&st.prims, leaves.iter().map(|&(_, x, h)| (x, h)));
+        let caps = &caps[..];
         // A test folds in a few capsules: about as much work as 4 cells.
         let tests = par::map_weighted(&leaves, 4, |&(c, x, h)| self.settled(c, x, h, caps));
         let st = self.stroke.as_mut().expect("stroke");
@@ -717,9 +717,7 @@ impl Painting {
         }
         let st = self.stroke.as_ref().expect("stroke");
         let next = if st.settles {
-            let lat = &self.tree.lat;
-            let caps = capsules_near(&st.prims, cells.iter().map(|&(_, x, d)| (x, lat.reach_radius[d as usize])));
-            self.unsettled(next, &caps)
+            self.unsettled(next)
         } else {
             next.into_iter().map(|(c, _, _)| c).collect()
         };
