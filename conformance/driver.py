@@ -68,7 +68,10 @@ def _fence(lines: list[str]) -> str:
     return "```\n" + "\n".join(lines) + "\n```"
 
 
-def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32", painter_args: tuple = ()) -> TraceResult:
+def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32", require_images: bool = False) -> TraceResult:
+    """Replay `trace` with both implementations and compare what they
+    wrote; with `require_images`, an image the painter did not write is a
+    problem too."""
     name = os.path.basename(trace)[: -len(".jsonl")]
     r = TraceResult(name)
     ref_dir = os.path.join(work, name, "reference")
@@ -77,7 +80,7 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str, precision:
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
     ref_cmd = [os.path.join(REPO, ".venv", "bin", "octopaint-ref"), "replay", trace, "--out", ref_dir, "--quiet"]
-    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision, *painter_args]
+    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision]
     ref, r.ref_seconds = _run(ref_cmd)
     pt, r.painter_seconds = _run(pt_cmd)
     if ref.returncode != pt.returncode:
@@ -130,6 +133,8 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str, precision:
             r.problems.append(para)
     for f in sorted(pt_files - set(ref_files)):
         r.problems.append(f"**`{f}`**: written by the painter only")
+    if r.images_not_rendered and require_images:
+        r.problems.append(f"images not written by the painter: {', '.join(r.images_not_rendered)}")
     return r
 
 
@@ -161,9 +166,7 @@ def main(argv=None) -> int:
     out += ["## Replays", "", "| trace | dumps | cells | images | reference (s) | painter (s) | speed-up | result |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     details = []
     for trace in traces:
-        r = check_trace(os.path.abspath(trace), args.painter, work, args.report, args.precision)
-        if r.images_not_rendered and args.require_images:
-            r.problems.append(f"images not written by the painter: {', '.join(r.images_not_rendered)}")
+        r = check_trace(os.path.abspath(trace), args.painter, work, args.report, args.precision, args.require_images)
         ok = not r.problems
         failed |= not ok
         speed = r.ref_seconds / r.painter_seconds if r.painter_seconds > 0 else float("nan")

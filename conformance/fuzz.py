@@ -22,6 +22,7 @@ trace on any machine: `random.Random(seed)` and nothing else.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import importlib.util
 import math
 import os
@@ -204,7 +205,7 @@ def _import(w, rng: random.Random, files: dict, name: str, roots: list, root_siz
     voxels = [v for v in gen.ball_voxels(depth, centre, radius, root_size, colour) if all(v[a] < n[a] for a in range(3))]
     data = gen.voxel_set(depth, voxels)
     files[name] = data
-    w.ev("import", 0.1, file=name, sha256=gen.hashlib.sha256(data).hexdigest())
+    w.ev("import", 0.1, file=name, sha256=hashlib.sha256(data).hexdigest())
 
 
 def _layer_op(w, rng: random.Random, layers: list[str]) -> None:
@@ -258,9 +259,7 @@ def fuzz(painter: str, seeds: range, out: str, budget_s: float | None = None, lo
             with open(os.path.join(out, path), "wb") as f:
                 f.write(data)
         # Images on the painter's GPU renderer (the one that ships).
-        r = driver.check_trace(trace, painter, work, out)
-        if r.images_not_rendered:
-            r.problems.append(f"images the painter did not write: {r.images_not_rendered}")
+        r = driver.check_trace(trace, painter, work, out, require_images=True)
         shutil.rmtree(os.path.join(work, f"fuzz_{seed}"), ignore_errors=True)
         if r.problems:
             bad.append(seed)
