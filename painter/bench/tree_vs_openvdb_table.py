@@ -4,7 +4,10 @@ OpenVDB merges, every figure with its ratio (docs/benchmarks.md)."""
 import json
 import sys
 
-build, cores, radii = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+# ARGS: BUILD THREADS CONTEXT RADII..., THREADS a comma-separated list
+# starting with 1, CONTEXT 0 where the density-only runs were left out.
+build, threads, context, radii = sys.argv[1], sys.argv[2].split(","), sys.argv[3] != "0", sys.argv[4:]
+assert threads[0] == "1", "the thread counts start with 1"
 
 
 def load(name, r):
@@ -20,19 +23,20 @@ def mib(x):
     return f"{x / 2**20:.1f}"
 
 
-# OpenVDB's equal-work runs, by thread count; they must have painted the
-# same before any figure is printed.
-EQUAL_RUNS = (("1", 1), ("all", cores))
+# The equal-work runs, by thread count; every count must have painted what
+# one thread painted before any figure is printed.
+EQUAL_RUNS = [(t, t) for t in threads]
 for r in radii:
-    a, b = load("openvdb_equal_1", r), load("openvdb_equal_all", r)
-    assert (a["sigma_sum"], a["rgb_sum"], a["active_voxels"]) == (b["sigma_sum"], b["rgb_sum"], b["active_voxels"]), (
-        f"r={r}: OpenVDB painted differently on 1 and {cores} threads"
-    )
-    a, b = load("octopaint_1", r), load("octopaint_all", r)
-    assert a["tree_digest"] == b["tree_digest"], f"r={r}: octopaint painted differently on 1 and {cores} threads"
+    for t in threads[1:]:
+        a, b = load("openvdb_equal_1", r), load(f"openvdb_equal_{t}", r)
+        assert (a["sigma_sum"], a["rgb_sum"], a["active_voxels"]) == (b["sigma_sum"], b["rgb_sum"], b["active_voxels"]), (
+            f"r={r}: OpenVDB painted differently on 1 and {t} threads"
+        )
+        a, b = load("octopaint_1", r), load(f"octopaint_{t}", r)
+        assert a["tree_digest"] == b["tree_digest"], f"r={r}: octopaint painted differently on 1 and {t} threads"
 
 # Equal work: octopaint against OpenVDB doing octopaint's work.
-print(f"Equal work (colour and density, per-stroke maximum, octopaint's blend); all cores = {cores}.")
+print(f"Equal work (colour and density, per-stroke maximum, octopaint's blend); threads {', '.join(threads)}.")
 print("Updates are the cells each program evaluated: octopaint does not revisit the half ball behind")
 print("each sample (open capsule starts, spec 8.3), so for the same result it makes fewer; compare times.")
 print()
@@ -66,6 +70,21 @@ for r in radii:
             f"{v['peak_rss_mib'] / o['peak_rss_mib']:.2f}x |"
         )
 print()
+print("Scaling, time on one thread over time on N (the same program, the same strokes):")
+print()
+print("| radius | program | " + " | ".join(f"{t} threads" for t in threads) + " |")
+print("| ---: | --- | " + " | ".join("---:" for _ in threads) + " |")
+for r in radii:
+    for name, prefix in (("octopaint", "octopaint"), ("OpenVDB", "openvdb_equal")):
+        one = load(f"{prefix}_1", r)["seconds"]
+        print(f"| {r} | {name} | " + " | ".join(f"{one / load(f'{prefix}_{t}', r)['seconds']:.2f}x" for t in threads) + " |")
+print()
+print("octopaint also refines: " + "; ".join(
+    f"r={r}: {load('octopaint_1', r)['cells_created'] / 1e6:.1f} M cells created at {load('octopaint_1', r)['cells_created_per_s'] / 1e6:.2f} M/s, "
+    f"{load('octopaint_1', r)['stroke_end_seconds']:.2f} s cleaning and undo bookkeeping" for r in radii))
+if not context:
+    sys.exit(0)
+print()
 print("Density only (OpenVDB paints no colour; the earlier rows, kept for context; octopaint on one thread):")
 print()
 print("| radius (cells) | implementation | time (s) | updates or writes | per s, whole run | per s, stamping | cells or voxels kept | bytes each |")
@@ -96,7 +115,3 @@ for r in radii:
             f"{v['active_voxels'] / o['leaves']:.2f}x | "
             f"{(v['active_voxels'] * v['bytes_per_voxel']) / (o['cells_used'] * o['bytes_per_cell_allocated']):.2f}x |"
         )
-print()
-print("octopaint also refines: " + "; ".join(
-    f"r={r}: {load('octopaint_1', r)['cells_created'] / 1e6:.1f} M cells created at {load('octopaint_1', r)['cells_created_per_s'] / 1e6:.2f} M/s, "
-    f"{load('octopaint_1', r)['stroke_end_seconds']:.2f} s cleaning and undo bookkeeping" for r in radii))
