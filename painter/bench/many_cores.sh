@@ -9,7 +9,7 @@
 #
 # Environment (all optional):
 #   THREADS="1 2 4 8 16"  thread counts (default: 1, the powers of two
-#                         below nproc, and nproc)
+#                         below nproc, and nproc; 1 is always run)
 #   OCTOPAINT=PATH        a prebuilt octopaint (default: cargo's build)
 #   OPENVDB_STAMP=PATH    a prebuilt openvdb_stamp (default: g++'s build)
 #   SCENE_RUNS=3          replays of traces/scene.jsonl per thread count
@@ -35,8 +35,10 @@ if [ -z "${THREADS:-}" ]; then
     for ((t = 2; t < cores; t *= 2)); do THREADS="$THREADS $t"; done
     [ "$cores" -gt 1 ] && THREADS="$THREADS $cores"
 fi
-export THREADS
 read -r -a threads <<< "$THREADS"
+# One thread is every table's baseline, as in tree_vs_openvdb.sh.
+case " ${threads[*]} " in *" 1 "*) ;; *) threads=(1 "${threads[@]}") ;; esac
+export THREADS="${threads[*]}"
 
 if [ -z "${OCTOPAINT:-}" ]; then
     cargo build --quiet --release --locked --manifest-path "$root/painter/Cargo.toml" -p octopaint-app
