@@ -507,6 +507,7 @@ fn xr_info() -> ExitCode {
 }
 
 fn main() -> ExitCode {
+    octopaint_platform::stdio::end_quietly_on_closed_stdout();
     let cli = Cli::parse();
     let Some(command) = cli.command else {
         return document::start();

@@ -343,3 +343,28 @@ fn a_render_larger_than_the_gpu_binds_is_drawn_by_the_cpu_port() {
         assert!(err.contains("drawn by the CPU port instead"), "{err}");
     }
 }
+
+/// A reader that stops early (`octopaint check --canonical TRACE | head`):
+/// on Unix the painter ends quietly by SIGPIPE, with no panic message.
+#[cfg(unix)]
+#[test]
+fn a_closed_standard_output_ends_the_painter_quietly() {
+    use std::io::Read;
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = octopaint()
+        .args(["check", "--canonical"])
+        .arg(repo().join("traces/scene.jsonl"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Read one line's worth, then close the pipe: the scene's canonical
+    // form (over a megabyte) cannot fit in the pipe's buffer.
+    let mut first = [0u8; 64];
+    child.stdout.as_mut().unwrap().read_exact(&mut first).unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.signal(), Some(13), "{:?} {stderr}", out.status);
+}

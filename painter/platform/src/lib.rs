@@ -7,9 +7,11 @@
 //! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`, `FlushFileBuffers`; the folder's ACL |
 //! | [`memory`] | the process's peak resident memory | `VmHWM` in /proc (Linux; none on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
 //! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` (`$HOME/Octopaint` without a Documents folder) | the Documents known folder + `Octopaint` |
+//! | [`stdio`] | a reader that closes standard output early | the default SIGPIPE: the process ends quietly | a panic message (no such signal) |
 //!
 //! docs/documents.md says what each platform guarantees a save.
 
 pub mod durable;
 pub mod folders;
 pub mod memory;
+pub mod stdio;
