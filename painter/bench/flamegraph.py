@@ -154,9 +154,11 @@ def render(counts, title):
         out.append(f'<g><title>{html.escape(tip)}</title><rect x="{x:.2f}" y="{y}" width="{w:.2f}" height="{ROW - 1}" fill="{colour(name)}" rx="1"/>')
         k = chars(w)
         if k >= 3:
-            # The box shows the last two parts of the path (the whole name
-            # is in the tooltip): `Painting::step`, not its crate and module.
-            label = "::".join(name.split("::")[-2:]) if name.count("::") > 1 and not name.endswith("}") else name
+            # The box shows the end of the path (the whole name is in the
+            # tooltip): `Painting::step`, not its crate and module.
+            # A closure keeps its function: `Painting::paint_new_cells::{closure}`.
+            keep = 3 if name.endswith("}") else 2
+            label = "::".join(name.split("::")[-keep:])
             label = label if len(label) <= k else label[: k - 2] + ".."
             out.append(f'<text x="{x + 2:.2f}" y="{y + ROW - 5}">{html.escape(label)}</text>')
         out.append("</g>")
