@@ -36,8 +36,12 @@ if [ -z "${THREADS:-}" ]; then
     [ "$cores" -gt 1 ] && THREADS="$THREADS $cores"
 fi
 read -r -a threads <<< "$THREADS"
-# One thread is every table's baseline, as in tree_vs_openvdb.sh.
-case " ${threads[*]} " in *" 1 "*) ;; *) threads=(1 "${threads[@]}") ;; esac
+for t in "${threads[@]}"; do
+    [[ "$t" =~ ^[1-9][0-9]*$ ]] || { echo "THREADS: '$t' is not a thread count" >&2; exit 2; }
+done
+# Ascending, each once, from 1, as tree_vs_openvdb.sh takes them: one
+# thread is every table's baseline.
+mapfile -t threads < <(printf '%s\n' 1 "${threads[@]}" | sort -nu)
 export THREADS="${threads[*]}"
 
 if [ -z "${OCTOPAINT:-}" ]; then

@@ -38,10 +38,11 @@ radii=("$@")
 [ ${#radii[@]} -eq 0 ] && radii=(4 10 32)
 cores=$(nproc)
 read -r -a threads <<< "${THREADS:-1 $cores}"
-case " ${threads[*]} " in *" 1 "*) ;; *) threads=(1 "${threads[@]}") ;; esac
 for t in "${threads[@]}"; do
     [[ "$t" =~ ^[1-9][0-9]*$ ]] || { echo "THREADS: '$t' is not a thread count" >&2; exit 2; }
 done
+# Ascending, each once, from 1: one thread is every table's baseline.
+mapfile -t threads < <(printf '%s\n' 1 "${threads[@]}" | sort -nu)
 context="${CONTEXT:-1}"
 
 stamp="${OPENVDB_STAMP:-}"

@@ -23,9 +23,8 @@ def mib(x):
     return f"{x / 2**20:.1f}"
 
 
-# The equal-work runs, by thread count; every count must have painted what
-# one thread painted before any figure is printed.
-EQUAL_RUNS = [(t, t) for t in threads]
+# Every thread count must have painted what one thread painted before any
+# figure is printed.
 for r in radii:
     for t in threads[1:]:
         a, b = load("openvdb_equal_1", r), load(f"openvdb_equal_{t}", r)
@@ -43,15 +42,15 @@ print()
 print("| radius | program | threads | time (s) | updates/s, whole run | cells or voxels kept | MiB kept | MiB allocated | peak RSS MiB |")
 print("| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in radii:
-    for t, label in EQUAL_RUNS:
+    for t in threads:
         o = load(f"octopaint_{t}", r)
         kept = o["cells_used"] * o["bytes_per_cell_pools"]
         alloc = o["cells_used"] * o["bytes_per_cell_allocated"]
-        print(f"| {r} | octopaint | {label} | {o['seconds']:.2f} | {m(o['cell_updates'] / o['seconds'])} | "
+        print(f"| {r} | octopaint | {t} | {o['seconds']:.2f} | {m(o['cell_updates'] / o['seconds'])} | "
               f"{m(o['leaves'])} leaves ({m(o['cells_used'])} cells) | {mib(kept)} | {mib(alloc)} (+{mib(o['history_bytes_per_cell'] * o['cells_used'])} undo) | {o['peak_rss_mib']:.0f} |")
-    for t, label in EQUAL_RUNS:
+    for t in threads:
         v = load(f"openvdb_equal_{t}", r)
-        print(f"| {r} | OpenVDB {v['version']} | {label} | {v['seconds']:.2f} | {m(v['voxel_writes'] / v['seconds'])} | "
+        print(f"| {r} | OpenVDB {v['version']} | {t} | {v['seconds']:.2f} | {m(v['voxel_writes'] / v['seconds'])} | "
               f"{m(v['active_voxels'])} voxels | {mib(v['mem_bytes'])} | {mib(v['mem_bytes'])} | {v['peak_rss_mib']:.0f} |")
 print()
 print("Ratios at equal work, octopaint over OpenVDB on as many threads (above 1: octopaint better):")
@@ -59,11 +58,11 @@ print()
 print("| radius | threads | time | updates/s, whole run | kept (voxels/cells) | bytes kept | peak RSS |")
 print("| ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
 for r in radii:
-    for t, label in EQUAL_RUNS:
+    for t in threads:
         o = load(f"octopaint_{t}", r)
         v = load(f"openvdb_equal_{t}", r)
         print(
-            f"| {r} | {label} | {v['seconds'] / o['seconds']:.2f}x | "
+            f"| {r} | {t} | {v['seconds'] / o['seconds']:.2f}x | "
             f"{(o['cell_updates'] / o['seconds']) / (v['voxel_writes'] / v['seconds']):.2f}x | "
             f"{v['active_voxels'] / o['leaves']:.2f}x | "
             f"{v['mem_bytes'] / (o['cells_used'] * o['bytes_per_cell_pools']):.2f}x | "
