@@ -63,6 +63,11 @@ pub struct Args {
     /// often. Any value gives the same tree.
     #[arg(long)]
     grain: Option<usize>,
+    /// Split the capsule paint pass's walk whenever the grain says it is
+    /// worth it, instead of choosing by its measured cost (the default).
+    /// The same tree either way.
+    #[arg(long)]
+    always_split: bool,
 }
 
 /// Max depth of the benchmark canvas: one root of 2^11 finest cells a side.
@@ -182,6 +187,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let threads = pool.current_num_threads();
     anyhow::ensure!(a.grain.is_none_or(|g| g >= 1), "--grain must be at least 1");
     octopaint_tree::par::set_grain(a.grain.unwrap_or(octopaint_tree::par::DEFAULT_GRAIN));
+    octopaint_tree::par::set_measured_split(!a.always_split);
     let t0 = Instant::now();
     pool.install(|| {
         for (b, pts) in set.brushes.iter().zip(&set.samples) {
@@ -206,7 +212,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, \"slot_map_mib\": {:.2}, ",
-            "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"tree_digest\": \"{:016x}\"}}"
+            "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"measured_split\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
         a.radius,
         a.strokes,
@@ -238,6 +244,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         octopaint_platform::memory::peak_rss_kib().unwrap_or(0) as f64 / 1024.0,
         threads,
         octopaint_tree::par::grain(),
+        octopaint_tree::par::measured_split(),
         digest(&painting),
     );
     println!("{json}");

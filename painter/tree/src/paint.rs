@@ -40,6 +40,72 @@ static UNIT_RGB: [f64; 256] = {
 /// repay (r = 4 on two threads ran 3 times slower with it at the grain).
 const WALK_GRAIN: f64 = 16.0;
 
+/// Whether the capsule paint pass splits its walk across threads, chosen
+/// by measurement: each way's recent cost per leaf visited, the cheaper
+/// taken, the other tried every [`SplitChoice::EXPLORE`]th pass so that
+/// its cost stays current. Splitting pays where cores are many and a
+/// hand-off is cheap, and costs where they are few (a 2-core host: r = 10's
+/// paint passes 1.01 s split against 0.66 s not, docs/benchmarks.md,
+/// issue 15's sixteenth step); the bytes are the same either way. Only
+/// passes the grain finds worth splitting are measured.
+#[derive(Clone, Copy, Debug, Default)]
+struct SplitChoice {
+    /// Nanoseconds and leaves visited of recent passes, unsplit [0] and
+    /// split [1], each pass's weight decaying by 1/64 with every later
+    /// pass measured the same way (with 1/16 the choice flipped on the
+    /// noise of single passes at r = 32): their quotient is the cost per
+    /// leaf, weighted by the passes' sizes as the run's time is.
+    ns: [f64; 2],
+    visits: [f64; 2],
+    /// Passes chosen so far.
+    passes: u64,
+    /// The way the last pass went, and how many passes in a row went so.
+    last: bool,
+    streak: u32,
+}
+
+impl SplitChoice {
+    /// Every PERIOD passes, TRY passes go the other way.
+    const PERIOD: u64 = 128;
+    const TRY: u64 = 8;
+    /// Passes after a change of way that are not measured: the first ones
+    /// after a change pay for the cache lines the other way left on other
+    /// cores (measured, they made either way look dearer when tried
+    /// among the other, and the choice stuck with whichever came first).
+    const SETTLE: u32 = 2;
+
+    /// Split the next pass: unsplit until measured, split until measured,
+    /// then the cheaper way, but for TRY passes every PERIOD.
+    fn choose(&mut self) -> bool {
+        let split = if self.visits[0] == 0.0 {
+            false
+        } else if self.visits[1] == 0.0 {
+            true
+        } else {
+            let cheaper = self.ns[1] * self.visits[0] < self.ns[0] * self.visits[1];
+            if self.passes % Self::PERIOD >= Self::PERIOD - Self::TRY { !cheaper } else { cheaper }
+        };
+        self.passes += 1;
+        if split == self.last {
+            self.streak = self.streak.saturating_add(1);
+        } else {
+            self.last = split;
+            self.streak = 1;
+        }
+        split
+    }
+
+    /// The pass just chosen took `ns` for `visits` leaves.
+    fn record(&mut self, ns: f64, visits: u64) {
+        if self.streak <= Self::SETTLE || visits == 0 || !ns.is_finite() {
+            return;
+        }
+        let w = usize::from(self.last);
+        self.ns[w] = self.ns[w] * (63.0 / 64.0) + ns;
+        self.visits[w] = self.visits[w] * (63.0 / 64.0) + visits as f64;
+    }
+}
+
 /// A touched cell's stroke state (spec 8.8), but for its stroke maximum
 /// `a`, which lives in its own array: the paint pass reads it for every
 /// leaf and rarely needs the rest. The colour K of the primitive that
@@ -190,6 +256,8 @@ pub struct Painting {
     spare_stack: Vec<(u32, [u32; 3])>,
     /// The serial paint pass's lists, emptied (their capacity kept).
     spare_run: Run,
+    /// Whether the capsule paint pass splits its walk, as measured.
+    split: SplitChoice,
     /// Settled leaves are left unrefined (spec 8.7); off only to measure
     /// what the rule saves and to test that it changes no value.
     settling: bool,
@@ -215,6 +283,7 @@ impl Painting {
             spare_slot_a: Vec::new(),
             spare_stack: Vec::new(),
             spare_run: Run::default(),
+            split: SplitChoice::default(),
             settling: true,
         }
     }
@@ -504,10 +573,13 @@ impl Painting {
     /// the capsule reaches enough leaves.
     /// Same result and same order of every list on any pool:
     ///
-    /// 1. On more than one thread, the traversal stack is expanded top-down
-    ///    into a *front* of subtrees in the order the serial pass visits
-    ///    them (a stack pops its last entry, and a unit's children are
-    ///    visited 7 to 0), cut into runs. On one thread the stack is one run.
+    /// 1. On more than one thread, for a pass the grain finds worth
+    ///    splitting and the measured choice splits ([`SplitChoice`]; every
+    ///    such pass with `par::set_measured_split(false)`), the traversal
+    ///    stack is expanded top-down into a *front* of subtrees in the
+    ///    order the serial pass visits them (a stack pops its last entry,
+    ///    and a unit's children are visited 7 to 0), cut into runs.
+    ///    Otherwise the stack is one run.
     /// 2. The runs are walked in parallel, each exactly as the serial pass
     ///    walks it ([`walk_run`]). A leaf the stroke touched before (it has
     ///    a slot) is blended and written in place: its cell and slot belong
@@ -523,13 +595,17 @@ impl Painting {
         mut stack: Vec<(u32, [u32; 3])>,
         candidates: &mut Vec<u32>,
     ) -> Vec<(u32, [u32; 3])> {
+        let t0 = std::time::Instant::now();
         let threads = rayon::current_num_threads();
         let lat = &self.tree.lat;
-        let parallel = threads > 1 && {
+        let worth = threads > 1 && {
             let cell = lat.size_canvas[lat.target_depth(cap.r0.max(cap.r1)) as usize];
             let reach = (prim.hi - prim.lo + 2.0 * cell).max(DVec3::splat(cell));
             par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell) / WALK_GRAIN).min(1e18) as usize)
         };
+        let measured = worth && par::measured_split();
+        let parallel = worth && (!measured || self.split.choose());
+        let mut visited = 0;
         let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
         // 1. The front, in visiting order, and its runs (parallel only).
         let mut front: Vec<(u32, [u32; 3])> = Vec::new();
@@ -613,6 +689,7 @@ impl Painting {
                 self.first_write(f);
             }
             self.counters.leaves_visited += run.visited;
+            visited += run.visited;
             self.counters.leaves_hit += run.hit;
             if settles {
                 maybe.append(&mut run.needs);
@@ -628,6 +705,9 @@ impl Painting {
                 run.blocks.clear();
                 self.spare_run = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, ..Run::default() };
             }
+        }
+        if measured {
+            self.split.record(t0.elapsed().as_nanos() as f64, visited);
         }
         if !maybe.is_empty() {
             candidates.extend(self.unsettled(maybe));
@@ -1272,6 +1352,62 @@ fn stroke_maximum_with(st: &StrokeState, prims: &[Prim], x: DVec3, last: Option<
 mod tests {
     use super::*;
     use crate::noise::hash32;
+
+    /// Runs `n` passes of 1,000 leaves through a split choice whose two ways
+    /// cost `serial` and `split` ns a leaf, but a pass right after a change
+    /// of way costs `penalty` times as much (the cache lines the other way
+    /// left behind). Returns the passes split.
+    fn split_passes(choice: &mut SplitChoice, n: u64, serial: f64, split: f64, penalty: f64) -> u64 {
+        let mut splits = 0;
+        let mut last = None;
+        for _ in 0..n {
+            let s = choice.choose();
+            let cost = if s { split } else { serial } * if last.is_some_and(|l| l != s) { penalty } else { 1.0 };
+            choice.record(cost * 1000.0, 1000);
+            splits += u64::from(s);
+            last = Some(s);
+        }
+        splits
+    }
+
+    #[test]
+    fn the_split_choice_takes_the_cheaper_way_and_keeps_trying_the_other() {
+        let n = 100 * SplitChoice::PERIOD;
+        let tries = n / SplitChoice::PERIOD * SplitChoice::TRY;
+        for penalty in [1.0, 3.0] {
+            // Splitting costs a third less a leaf: split but for the tries.
+            let mut c = SplitChoice::default();
+            assert!(!c.choose(), "the first pass is not split");
+            c.record(2000.0, 1000);
+            let splits = split_passes(&mut c, n, 2.0, 1.3, penalty);
+            assert!(splits >= n - tries - 8 && splits <= n - tries + 8, "penalty {penalty}: {splits} of {n} split");
+            // Splitting costs half as much again: unsplit but for the tries.
+            let mut c = SplitChoice::default();
+            let splits = split_passes(&mut c, n, 2.0, 3.0, penalty);
+            assert!(splits >= tries - 8 && splits <= tries + 8, "penalty {penalty}: {splits} of {n} split");
+        }
+        // The costs change places: the choice follows within a few tries.
+        let mut c = SplitChoice::default();
+        split_passes(&mut c, n, 2.0, 1.3, 1.0);
+        let later = split_passes(&mut c, 20 * SplitChoice::PERIOD, 1.3, 2.0, 1.0);
+        assert!(later < 4 * SplitChoice::PERIOD, "still split {later} passes after splitting became dearer");
+    }
+
+    #[test]
+    fn passes_right_after_a_change_of_way_are_not_measured() {
+        let mut c = SplitChoice::default();
+        assert!(!c.choose());
+        // The first pass, right after no pass at all, is measured only from
+        // the SETTLE+1th in a row.
+        c.record(1e9, 1000);
+        assert_eq!(c.visits[0], 0.0);
+        for _ in 0..SplitChoice::SETTLE {
+            assert!(!c.choose());
+            c.record(1000.0, 1000);
+        }
+        assert_eq!(c.visits[0], 1000.0, "the third pass in a row is measured");
+        assert_eq!(c.ns[0], 1000.0);
+    }
 
     /// The paint and pickup blend of `StrokeState::stored`, computed channel
     /// by channel, stores the same bytes and f32 as the general form through

@@ -12,7 +12,7 @@
 //! everything runs serially with no hand-off at all.
 
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use crate::team;
 
@@ -30,6 +30,21 @@ pub fn set_grain(items: usize) {
 
 pub fn grain() -> usize {
     GRAIN.load(Ordering::Relaxed)
+}
+
+static MEASURED_SPLIT: AtomicBool = AtomicBool::new(true);
+
+/// Whether the capsule paint pass chooses by measurement to split its walk
+/// (the default) or splits it whenever the grain says it is worth it (the
+/// thread-count tests, so that every split they ask for is taken, and
+/// `octopaint bench tree --always-split`). Either way the results are the
+/// same bytes.
+pub fn set_measured_split(on: bool) {
+    MEASURED_SPLIT.store(on, Ordering::Relaxed);
+}
+
+pub fn measured_split() -> bool {
+    MEASURED_SPLIT.load(Ordering::Relaxed)
 }
 
 /// Threads a pass may use.

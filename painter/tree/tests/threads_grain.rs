@@ -39,8 +39,14 @@ fn large_batches_split_at_the_production_grain_give_the_same_bytes() {
     let one = paint_strokes(1);
     assert!(one.2 > 100_000, "the strokes should create large batches, made {} cells", one.2);
     for threads in [2, 7] {
-        let other = paint_strokes(threads);
-        assert!(one.0 == other.0, "dump differs on {threads} threads");
-        assert!(one.1 == other.1, "undo steps differ on {threads} threads");
+        // The paint pass's walk split as measured (the default), then
+        // every time the grain allows.
+        for measured in [true, false] {
+            par::set_measured_split(measured);
+            let other = paint_strokes(threads);
+            assert!(one.0 == other.0, "dump differs on {threads} threads (measured split: {measured})");
+            assert!(one.1 == other.1, "undo steps differ on {threads} threads (measured split: {measured})");
+        }
     }
+    par::set_measured_split(true);
 }
