@@ -42,12 +42,14 @@ const WALK_GRAIN: f64 = 16.0;
 
 /// Whether the capsule paint pass splits its walk across threads, chosen
 /// by measurement: each way's recent cost per leaf visited, the cheaper
-/// taken, the other tried every [`SplitChoice::EXPLORE`]th pass so that
-/// its cost stays current. Splitting pays where cores are many and a
-/// hand-off is cheap, and costs where they are few (a 2-core host: r = 10's
-/// paint passes 1.01 s split against 0.66 s not, docs/benchmarks.md,
-/// issue 15's sixteenth step); the bytes are the same either way. Only
-/// passes the grain finds worth splitting are measured.
+/// taken, the other tried for [`SplitChoice::TRY`] passes in every
+/// [`SplitChoice::PERIOD`] (the last few of them measured), so that a
+/// change of costs is followed, slowly. Splitting pays where cores are
+/// many and a hand-off is cheap, and costs where they are few (a 2-core
+/// host, two threads: r = 10's paint passes 1.01 s always split against
+/// 0.72-0.75 s as measured, docs/benchmarks.md, issue 15's sixteenth
+/// step); the bytes are the same either way. Only passes the grain finds
+/// worth splitting are measured, and each painting learns on its own.
 #[derive(Clone, Copy, Debug, Default)]
 struct SplitChoice {
     /// Nanoseconds and leaves visited of recent passes, unsplit [0] and
@@ -62,6 +64,8 @@ struct SplitChoice {
     /// The way the last pass went, and how many passes in a row went so.
     last: bool,
     streak: u32,
+    /// Splitting was the cheaper way at the last pass outside the tries.
+    cheaper: bool,
 }
 
 impl SplitChoice {
@@ -81,9 +85,13 @@ impl SplitChoice {
             false
         } else if self.visits[1] == 0.0 {
             true
+        } else if self.passes % Self::PERIOD >= Self::PERIOD - Self::TRY {
+            // The tries go the other way from the choice before them, all
+            // of them (what they measure does not switch them back).
+            !self.cheaper
         } else {
-            let cheaper = self.ns[1] * self.visits[0] < self.ns[0] * self.visits[1];
-            if self.passes % Self::PERIOD >= Self::PERIOD - Self::TRY { !cheaper } else { cheaper }
+            self.cheaper = self.ns[1] * self.visits[0] < self.ns[0] * self.visits[1];
+            self.cheaper
         };
         self.passes += 1;
         if split == self.last {
@@ -1374,17 +1382,19 @@ mod tests {
     fn the_split_choice_takes_the_cheaper_way_and_keeps_trying_the_other() {
         let n = 100 * SplitChoice::PERIOD;
         let tries = n / SplitChoice::PERIOD * SplitChoice::TRY;
+        // Costs far apart and close (10% either way), with and without a
+        // penalty for the first passes after a change of way: measuring
+        // those passes, close costs left the choice on whichever way it
+        // had, here unsplit.
         for penalty in [1.0, 3.0] {
-            // Splitting costs a third less a leaf: split but for the tries.
-            let mut c = SplitChoice::default();
-            assert!(!c.choose(), "the first pass is not split");
-            c.record(2000.0, 1000);
-            let splits = split_passes(&mut c, n, 2.0, 1.3, penalty);
-            assert!(splits >= n - tries - 8 && splits <= n - tries + 8, "penalty {penalty}: {splits} of {n} split");
-            // Splitting costs half as much again: unsplit but for the tries.
-            let mut c = SplitChoice::default();
-            let splits = split_passes(&mut c, n, 2.0, 3.0, penalty);
-            assert!(splits >= tries - 8 && splits <= tries + 8, "penalty {penalty}: {splits} of {n} split");
+            for (cheap, dear) in [(1.3, 3.0), (1.8, 2.2)] {
+                let mut c = SplitChoice::default();
+                let splits = split_passes(&mut c, n, 2.0, cheap, penalty);
+                assert!(splits >= n - tries - 8 && splits <= n - tries + 8, "split at {cheap}, penalty {penalty}: {splits} of {n}");
+                let mut c = SplitChoice::default();
+                let splits = split_passes(&mut c, n, 2.0, dear, penalty);
+                assert!(splits >= tries - 8 && splits <= tries + 8, "split at {dear}, penalty {penalty}: {splits} of {n}");
+            }
         }
         // The costs change places: the choice follows within a few tries.
         let mut c = SplitChoice::default();
@@ -1407,6 +1417,14 @@ mod tests {
         }
         assert_eq!(c.visits[0], 1000.0, "the third pass in a row is measured");
         assert_eq!(c.ns[0], 1000.0);
+        // Then split, the first way not measured yet: again only from the
+        // third split pass in a row.
+        for k in 1..=SplitChoice::SETTLE + 1 {
+            assert!(c.choose(), "split until measured");
+            c.record(500.0, 1000);
+            assert_eq!(c.visits[1] > 0.0, k > SplitChoice::SETTLE, "split pass {k} measured");
+        }
+        assert_eq!(c.ns[1], 500.0);
     }
 
     /// The paint and pickup blend of `StrokeState::stored`, computed channel
