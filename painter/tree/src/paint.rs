@@ -603,7 +603,6 @@ impl Painting {
         mut stack: Vec<(u32, [u32; 3])>,
         candidates: &mut Vec<u32>,
     ) -> Vec<(u32, [u32; 3])> {
-        let t0 = std::time::Instant::now();
         let threads = rayon::current_num_threads();
         let lat = &self.tree.lat;
         let worth = threads > 1 && {
@@ -613,7 +612,8 @@ impl Painting {
         };
         let measured = worth && par::measured_split();
         let parallel = worth && (!measured || self.split.choose());
-        let mut visited = 0;
+        // What a measured pass took, from here to its lists joined.
+        let start = measured.then(|| (std::time::Instant::now(), self.counters.leaves_visited));
         let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
         // 1. The front, in visiting order, and its runs (parallel only).
         let mut front: Vec<(u32, [u32; 3])> = Vec::new();
@@ -697,7 +697,6 @@ impl Painting {
                 self.first_write(f);
             }
             self.counters.leaves_visited += run.visited;
-            visited += run.visited;
             self.counters.leaves_hit += run.hit;
             if settles {
                 maybe.append(&mut run.needs);
@@ -714,8 +713,8 @@ impl Painting {
                 self.spare_run = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, ..Run::default() };
             }
         }
-        if measured {
-            self.split.record(t0.elapsed().as_nanos() as f64, visited);
+        if let Some((t0, visited)) = start {
+            self.split.record(t0.elapsed().as_nanos() as f64, self.counters.leaves_visited - visited);
         }
         if !maybe.is_empty() {
             candidates.extend(self.unsettled(maybe));
