@@ -35,13 +35,9 @@ if [ -z "${THREADS:-}" ]; then
     for ((t = 2; t < cores; t *= 2)); do THREADS="$THREADS $t"; done
     [ "$cores" -gt 1 ] && THREADS="$THREADS $cores"
 fi
-read -r -a threads <<< "$THREADS"
-for t in "${threads[@]}"; do
-    [[ "$t" =~ ^[1-9][0-9]*$ ]] || { echo "THREADS: '$t' is not a thread count" >&2; exit 2; }
-done
-# Ascending, each once, from 1, as tree_vs_openvdb.sh takes them: one
-# thread is every table's baseline.
-mapfile -t threads < <(printf '%s\n' 1 "${threads[@]}" | sort -nu)
+# shellcheck source=thread_counts.sh
+. "$here/thread_counts.sh"
+thread_counts "$THREADS"
 export THREADS="${threads[*]}"
 
 if [ -z "${OCTOPAINT:-}" ]; then

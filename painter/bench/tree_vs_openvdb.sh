@@ -37,12 +37,9 @@ mkdir -p "$build"
 radii=("$@")
 [ ${#radii[@]} -eq 0 ] && radii=(4 10 32)
 cores=$(nproc)
-read -r -a threads <<< "${THREADS:-1 $cores}"
-for t in "${threads[@]}"; do
-    [[ "$t" =~ ^[1-9][0-9]*$ ]] || { echo "THREADS: '$t' is not a thread count" >&2; exit 2; }
-done
-# Ascending, each once, from 1: one thread is every table's baseline.
-mapfile -t threads < <(printf '%s\n' 1 "${threads[@]}" | sort -nu)
+# shellcheck source=thread_counts.sh
+. "$here/thread_counts.sh"
+thread_counts "${THREADS:-1 $cores}"
 context="${CONTEXT:-1}"
 
 stamp="${OPENVDB_STAMP:-}"
