@@ -11,7 +11,7 @@
 
 use glam::DVec3;
 
-use crate::brush::{self, Capsule, CapsulePoint, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
+use crate::brush::{self, Capsule, CapsulePoint, Stamp, StampReach, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::clean::clean;
 use crate::history::History;
 use crate::lanes::{self, LANES};
@@ -294,8 +294,10 @@ pub struct Painting {
     spare_stack: Vec<(u32, [u32; 3])>,
     /// The serial paint pass's lists, emptied (their capacity kept).
     spare_run: Run,
-    /// Whether the capsule paint pass splits its walk, as measured.
+    /// Whether the paint pass of one capsule, and of one stamp, splits its
+    /// walk, as measured (their costs a leaf differ).
     split: SplitChoice,
+    split_stamp: SplitChoice,
     /// Settled leaves are left unrefined (spec 8.7); off only to measure
     /// what the rule saves and to test that it changes no value.
     settling: bool,
@@ -322,6 +324,7 @@ impl Painting {
             spare_stack: Vec::new(),
             spare_run: Run::default(),
             split: SplitChoice::default(),
+            split_stamp: SplitChoice::default(),
             settling: true,
         }
     }
@@ -548,10 +551,19 @@ impl Painting {
         }
         let mut candidates = Vec::new();
         let st = self.stroke.as_ref().expect("stroke");
-        if let [prim @ Prim { geo: Geometry::Capsule(cap), .. }] = &st.prims[first..] {
-            let (cap, prim) = (*cap, *prim);
-            self.spare_stack = self.paint_pass_capsule(&cap, &prim, stack, &mut candidates);
-            return candidates;
+        match &st.prims[first..] {
+            [prim @ Prim { geo: Geometry::Capsule(cap), .. }] => {
+                let (cap, prim) = (*cap, *prim);
+                self.spare_stack = self.paint_pass_one(&cap, &prim, stack, &mut candidates);
+                return candidates;
+            }
+            [prim @ Prim { geo: Geometry::Stamp(s), .. }] => {
+                let (b, prim) = (&st.brush, *prim);
+                let walk = StampWalk { s: *s, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)) };
+                self.spare_stack = self.paint_pass_one(&walk, &prim, stack, &mut candidates);
+                return candidates;
+            }
+            _ => {}
         }
         let (mut visited, mut hit) = (0u64, 0u64);
         // Candidates to test for settling (spec 8.7), as the capsule pass
@@ -603,12 +615,14 @@ impl Painting {
         candidates
     }
 
-    /// The paint pass of a segment that is one capsule (every sphere
-    /// stroke): the same traversal and decisions as the general pass, with
-    /// the projection of each cell centre on the capsule computed once for
-    /// reach, refinement and coverage, a unit of 8 leaves at a time (in
-    /// vector lanes, [`crate::lanes`]), and on the current rayon pool when
-    /// the capsule reaches enough leaves.
+    /// The paint pass of a segment that is one primitive: a capsule (every
+    /// sphere stroke) or one stamp (most segments of a stamped stroke, whose
+    /// stamps lie half a radius apart or more). The same traversal and
+    /// decisions as the general pass, with the projection of each cell
+    /// centre on a capsule computed once for reach, refinement and coverage,
+    /// a capsule's unit of 8 leaves at a time (in vector lanes,
+    /// [`crate::lanes`]), and on the current rayon pool when the primitive
+    /// reaches enough leaves.
     /// Same result and same order of every list on any pool:
     ///
     /// 1. On more than one thread, for a pass the grain finds worth
@@ -626,9 +640,9 @@ impl Painting {
     /// 3. In the runs' order, serially: the first-touched leaves get their
     ///    slots and are written (journalled in the serial order), the dirty
     ///    blocks are marked, and the candidates are joined.
-    fn paint_pass_capsule(
+    fn paint_pass_one<W: Walk>(
         &mut self,
-        cap: &Capsule,
+        cap: &W,
         prim: &Prim,
         mut stack: Vec<(u32, [u32; 3])>,
         candidates: &mut Vec<u32>,
@@ -636,12 +650,13 @@ impl Painting {
         let threads = rayon::current_num_threads();
         let lat = &self.tree.lat;
         let worth = threads > 1 && {
-            let cell = lat.size_canvas[lat.target_depth(cap.r0.max(cap.r1)) as usize];
+            let cell = lat.size_canvas[lat.target_depth(cap.largest_radius()) as usize];
             let reach = (prim.hi - prim.lo + 2.0 * cell).max(DVec3::splat(cell));
             par::worth((reach.x / cell * (reach.y / cell) * (reach.z / cell) / WALK_GRAIN).min(1e18) as usize)
         };
         let measured = worth && par::measured_split();
-        let parallel = worth && (!measured || self.split.choose());
+        let choice = if W::CAPSULE { &mut self.split } else { &mut self.split_stamp };
+        let parallel = worth && (!measured || choice.choose());
         // What a measured pass took, from here to its lists joined.
         let start = measured.then(|| (std::time::Instant::now(), self.counters.leaves_visited));
         let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
@@ -716,6 +731,7 @@ impl Painting {
             vec![walk_run(&ctx, Run { stack: std::mem::take(&mut stack), ..std::mem::take(&mut self.spare_run) })]
         };
         // 3. In order, serially.
+
         let settles = st.settles;
         let mut maybe = Vec::new();
         for mut run in runs {
@@ -744,7 +760,8 @@ impl Painting {
             }
         }
         if let Some((t0, visited)) = start {
-            self.split.record(t0.elapsed().as_nanos() as f64, self.counters.leaves_visited - visited);
+            let choice = if W::CAPSULE { &mut self.split } else { &mut self.split_stamp };
+            choice.record(t0.elapsed().as_nanos() as f64, self.counters.leaves_visited - visited);
         }
         if !maybe.is_empty() {
             candidates.extend(self.unsettled(maybe));
@@ -1079,11 +1096,11 @@ impl<T> Disjoint<T> {
 
 /// What a run of the capsule paint pass reads, and the vectors it writes
 /// in place (see [`Painting::paint_pass_capsule`]).
-struct RunContext<'a> {
+struct RunContext<'a, W> {
     tree: &'a Tree,
     st: &'a StrokeState,
     slot_of: &'a SlotMap,
-    cap: &'a Capsule,
+    cap: &'a W,
     prim: &'a Prim,
     hardness: f64,
     sigma_gate: bool,
@@ -1093,13 +1110,117 @@ struct RunContext<'a> {
     slots: Disjoint<Slot>,
 }
 
-impl RunContext<'_> {
-    /// The capsule's coverage·flow at `x`, which projects to `cp`: 0
+impl<W: Walk> RunContext<'_, W> {
+    /// The primitive's coverage·flow at `x`, which projects to `cp`: 0
     /// outside the primitive's box (spec 8.5). [`lanes::unit_coverage`]
-    /// computes the same for a unit's 8 children.
+    /// computes the same for a capsule at a unit's 8 children.
     #[inline]
-    fn coverage(&self, x: DVec3, cp: &CapsulePoint) -> f64 {
-        if self.prim.holds(x) { self.cap.coverage_at(cp, self.hardness) } else { 0.0 }
+    fn coverage(&self, x: DVec3, cp: &W::Point) -> f64 {
+        if self.prim.holds(x) { self.cap.coverage_at(x, cp, self.hardness) } else { 0.0 }
+    }
+}
+
+/// The one primitive of a segment that [`walk_run`] paints with: a capsule
+/// or a stamp, each through the same tests as the general pass.
+trait Walk: Sync {
+    /// Capsule walks and stamp walks keep their own split choices.
+    const CAPSULE: bool;
+    /// What a cell centre's tests share (a capsule's projection).
+    type Point: Copy;
+    fn project(&self, x: DVec3) -> Self::Point;
+    /// A cell of half-diagonal `h` at a centre that projects to `p` is
+    /// within reach (spec 8.7).
+    fn within_reach(&self, p: &Self::Point, h: f64) -> bool;
+    /// The radius that sets the target depth there.
+    fn radius(&self, p: &Self::Point) -> f64;
+    /// The largest radius anywhere (the parallel split's grain).
+    fn largest_radius(&self) -> f64;
+    /// Coverage·flow at `x`, which projects to `p`, inside the primitive's
+    /// box; a NaN or a value below TINY paints nothing.
+    fn coverage_at(&self, x: DVec3, p: &Self::Point, hardness: f64) -> f64;
+    /// [`Walk::within_reach`] of the 8 centres `xs` as a mask (bit k: lane k).
+    fn unit_reach(&self, xs: &[DVec3; LANES], h: f64) -> u8 {
+        (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k)
+    }
+    /// The coverage of a unit's 8 leaves at once, where a kernel does it.
+    fn unit_coverage(&self, _prim: &Prim, _hardness: f64, _xs: &[DVec3; LANES], _h: f64) -> Option<lanes::UnitCoverage> {
+        None
+    }
+}
+
+impl Walk for Capsule {
+    const CAPSULE: bool = true;
+    type Point = CapsulePoint;
+    #[inline(always)]
+    fn project(&self, x: DVec3) -> CapsulePoint {
+        Capsule::project(self, x)
+    }
+    #[inline(always)]
+    fn within_reach(&self, p: &CapsulePoint, h: f64) -> bool {
+        Capsule::within_reach(self, p, h)
+    }
+    #[inline(always)]
+    fn radius(&self, p: &CapsulePoint) -> f64 {
+        p.r
+    }
+    fn largest_radius(&self) -> f64 {
+        self.r0.max(self.r1)
+    }
+    #[inline(always)]
+    fn coverage_at(&self, _x: DVec3, p: &CapsulePoint, hardness: f64) -> f64 {
+        Capsule::coverage_at(self, p, hardness)
+    }
+    #[inline(always)]
+    fn unit_reach(&self, xs: &[DVec3; LANES], h: f64) -> u8 {
+        lanes::unit_reach(self, xs, h).unwrap_or_else(|| (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k))
+    }
+    #[inline(always)]
+    fn unit_coverage(&self, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<lanes::UnitCoverage> {
+        lanes::unit_coverage(self, prim, hardness, xs, h)
+    }
+}
+
+/// A stamp with its brush's shape constants: [`Stamp::reach`] and the
+/// coverage `stroke_maximum_with` takes of one stamp (the noise factor at
+/// the point mirrored by the stamp's copy, for a noise brush).
+struct StampWalk {
+    s: Stamp,
+    shape: Shape,
+    aspect: [f64; 3],
+    reach: StampReach,
+    hardness: f64,
+    noise: Option<(Box<[u16; 512]>, Brush)>,
+}
+
+impl Walk for StampWalk {
+    const CAPSULE: bool = false;
+    type Point = DVec3;
+    #[inline(always)]
+    fn project(&self, x: DVec3) -> DVec3 {
+        x
+    }
+    #[inline(always)]
+    fn within_reach(&self, x: &DVec3, h: f64) -> bool {
+        self.s.reach(self.shape, self.aspect, &self.reach, *x, h)
+    }
+    #[inline(always)]
+    fn radius(&self, _x: &DVec3) -> f64 {
+        self.s.r
+    }
+    fn largest_radius(&self) -> f64 {
+        self.s.r
+    }
+    #[inline(always)]
+    fn coverage_at(&self, x: DVec3, _p: &DVec3, hardness: f64) -> f64 {
+        debug_assert_eq!(hardness, self.hardness);
+        let c = brush::coverage_profile(self.s.gauge(self.shape, self.aspect, x), self.hardness) * self.s.f;
+        match &self.noise {
+            Some((perm, b)) => {
+                let at = if self.s.mirror == 0 { x } else { crate::stroke::mirrored(x, self.s.mirror, b.mirror.expect("a copy has a mirror").centre) };
+                c * brush::noise_factor(perm, b, at)
+            }
+            None => c,
+        }
     }
 }
 
@@ -1112,7 +1233,7 @@ impl RunContext<'_> {
 /// leaves is done at once: the serial pass would pop them next, 7 to 0,
 /// with nothing between, and their projections are independent, so the
 /// processor overlaps their divisions and square roots.
-fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
+fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
     let (tree, cap) = (ctx.tree, ctx.cap);
     let lat = &tree.lat;
     let mut stack = std::mem::take(&mut out.stack);
@@ -1133,7 +1254,7 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
                 continue;
             }
             if fc == NONE {
-                leaf(ctx, &mut out, c, d, x, cp.r, h, ctx.coverage(x, &cp));
+                leaf(ctx, &mut out, c, d, x, cap.radius(&cp), h, ctx.coverage(x, &cp));
                 continue;
             }
         }
@@ -1142,8 +1263,7 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
         let xs: [DVec3; LANES] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
         let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
         if unit.iter().any(|&g| g != NONE) {
-            let reach = lanes::unit_reach(cap, &xs, h1)
-                .unwrap_or_else(|| (0..LANES).fold(0, |m, k| m | u8::from(cap.within_reach(&cap.project(xs[k]), h1)) << k));
+            let reach = cap.unit_reach(&xs, h1);
             for k in 0..UNIT {
                 if reach >> k & 1 == 1 {
                     stack.push((fc + k, tree.child_origin(o, d, k)));
@@ -1151,7 +1271,7 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
             }
             continue;
         }
-        if let Some(u) = lanes::unit_coverage(cap, ctx.prim, ctx.hardness, &xs, h1) {
+        if let Some(u) = cap.unit_coverage(ctx.prim, ctx.hardness, &xs, h1) {
             for k in (0..LANES).rev() {
                 if u.reach[k] {
                     leaf(ctx, &mut out, fc + k as u32, d1, xs[k], u.r[k], h1, u.a[k]);
@@ -1159,10 +1279,10 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
             }
             continue;
         }
-        let cps: [CapsulePoint; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
+        let cps: [W::Point; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
         for k in (0..LANES).rev() {
             if cap.within_reach(&cps[k], h1) {
-                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cps[k].r, h1, ctx.coverage(xs[k], &cps[k]));
+                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cap.radius(&cps[k]), h1, ctx.coverage(xs[k], &cps[k]));
             }
         }
     }
@@ -1176,7 +1296,7 @@ fn walk_run(ctx: &RunContext, mut out: Run) -> Run {
 /// serial part) and whether it is a candidate for refinement.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn leaf(ctx: &RunContext, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
+fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
     out.visited += 1;
     // SAFETY (every `Disjoint` access here): `c` is a live cell of this
     // run's subtrees, which no other run holds, and its slot is its own;
