@@ -126,6 +126,25 @@ impl Tree {
         t
     }
 
+    /// A copy of the pools and lattice alone: no free-unit list, journal or
+    /// change marks. What a dump reads (spec 11.1), for a thread that
+    /// writes one while painting goes on; not a tree to paint on.
+    pub fn pools_copy(&self) -> Tree {
+        Tree {
+            lat: self.lat.clone(),
+            capacity: self.capacity,
+            parent: self.parent.clone(),
+            first_child: self.first_child.clone(),
+            depth: self.depth.clone(),
+            rgb: self.rgb.clone(),
+            sigma: self.sigma.clone(),
+            free_units: BTreeSet::new(),
+            changes: Changes::new(0),
+            journal: None,
+            spare_journal: Journal::default(),
+        }
+    }
+
     /// A tree from its pools (a saved document), refused unless it is a
     /// valid tree for `canvas` (every check of `check::check_tree` and the
     /// allocator's). The error names the first problem.

@@ -5,12 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::dump::dump_bytes_with;
+use crate::dump::write_dump;
 use octopaint_platform::durable;
-use crate::g3::g3_table;
 use crate::layers::Document;
 use crate::paint::Painting;
-use crate::pool::FREE;
+use crate::pool::{FREE, Tree};
 use crate::trace::{Brush, Camera, Event, EventKind, Light, Mirror, Trace};
 
 #[derive(Debug, Default)]
@@ -106,18 +105,17 @@ pub fn replay_document(
             }
             EventKind::Snapshot(name) => {
                 if let Some(d) = out_dir {
-                    let bytes = if trace.version == 2 {
-                        doc.dump_bytes()
-                    } else {
-                        let painting = &mut doc.current_mut().painting;
-                        let g3 = match obs.dump_g3(painting)? {
-                            Some(g3) => g3,
-                            None => g3_table(&painting.tree),
-                        };
-                        dump_bytes_with(&painting.tree, &g3)
-                    };
                     let path = d.join(format!("{name}.npz"));
-                    writer.write(path.clone(), bytes)?;
+                    if trace.version == 2 {
+                        writer.write(path.clone(), doc.dump_bytes())?;
+                    } else {
+                        // The writer thread computes the dump from a copy
+                        // of the pools (16 bytes a cell, a few ms) while
+                        // the events after the snapshot run.
+                        let painting = &mut doc.current_mut().painting;
+                        let g3 = obs.dump_g3(painting)?;
+                        writer.write_tree(path.clone(), painting.tree.pools_copy(), g3)?;
+                    }
                     stats.written.push(path);
                 }
             }
@@ -146,8 +144,8 @@ pub fn replay_document(
 }
 
 /// Writes dumps on a thread of its own, one at a time: a dump's durable
-/// write (most of it is the file's sync) goes on while the events after its
-/// snapshot run. The next snapshot, the end of the replay, or dropping the
+/// write (most of it is the file's sync), and for a tree given by its
+/// pools the dump itself, go on while the events after its snapshot run. The next snapshot, the end of the replay, or dropping the
 /// writer (an error elsewhere) waits for the one in flight, so a failed
 /// write is reported before anything else is written, and no temporary
 /// file is left behind by a thread cut short.
@@ -161,6 +159,18 @@ impl DumpWriter {
     fn write(&mut self, path: PathBuf, bytes: Vec<u8>) -> std::io::Result<()> {
         self.finish()?;
         let h = std::thread::Builder::new().name("dump writer".into()).spawn(move || durable::write(&path, &bytes))?;
+        self.pending = Some(h);
+        Ok(())
+    }
+
+    /// Wait for the dump in flight, then start writing the dump of `tree`
+    /// (its pools) with the g3 table `g3` (None: the CPU port's) to `path`,
+    /// streamed into the file.
+    fn write_tree(&mut self, path: PathBuf, tree: Tree, g3: Option<Vec<[u32; 3]>>) -> std::io::Result<()> {
+        self.finish()?;
+        let h = std::thread::Builder::new()
+            .name("dump writer".into())
+            .spawn(move || durable::write_with(&path, |w| write_dump(w, &tree, g3.as_deref()).map(drop)).map(drop))?;
         self.pending = Some(h);
         Ok(())
     }
@@ -183,6 +193,39 @@ impl Drop for DumpWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A snapshot's dump, computed on the writer thread from a copy of the
+    /// pools and streamed into its file, has the bytes of the tree's dump
+    /// made in memory on the painting thread, at the snapshot and at the
+    /// end; a stroke painted after the first snapshot does not reach it.
+    #[test]
+    fn snapshots_written_from_the_pools_are_the_trees_dumps() {
+        let trace = concat!(
+            r#"{"format": "ddo-trace", "version": 1, "canvas": {"roots": [2, 1, 1], "max_depth": 7, "root_size": 1.0, "capacity": 65536}}"#, "\n",
+            r#"{"ev": "brush", "t": 0.1, "shape": "sphere", "mode": "paint", "radius": 0.2, "color": [0.9, 0.3, 0.1], "opacity": 0.9, "hardness": 0.6}"#, "\n",
+            r#"{"ev": "stroke_begin", "t": 0.2}"#, "\n",
+            r#"{"ev": "sample", "t": 0.2, "p": [0.5, 0.5, 0.5]}"#, "\n",
+            r#"{"ev": "sample", "t": 0.3, "p": [1.2, 0.4, 0.5]}"#, "\n",
+            r#"{"ev": "stroke_end", "t": 0.4}"#, "\n",
+            r#"{"ev": "snapshot", "t": 0.5, "name": "first"}"#, "\n",
+            r#"{"ev": "brush", "t": 0.6, "shape": "box", "mode": "recolor", "radius": 0.15, "color": [0.1, 0.8, 0.2], "opacity": 0.7, "hardness": 0.5}"#, "\n",
+            r#"{"ev": "stroke_begin", "t": 0.7}"#, "\n",
+            r#"{"ev": "sample", "t": 0.7, "p": [0.6, 0.5, 0.5]}"#, "\n",
+            r#"{"ev": "sample", "t": 0.8, "p": [1.0, 0.6, 0.4]}"#, "\n",
+            r#"{"ev": "stroke_end", "t": 0.9}"#, "\n",
+            r#"{"ev": "snapshot", "t": 1.0, "name": "last"}"#, "\n",
+        );
+        let trace = crate::trace::parse_trace_bytes(trace.as_bytes()).unwrap();
+        let first: Vec<_> = trace.events.iter().take_while(|e| !matches!(e.kind, EventKind::Snapshot(_))).cloned().collect();
+        let (_, before) = replay(&crate::trace::Trace { events: first, ..trace.clone() }, None, &mut ()).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let (stats, after) = replay(&trace, Some(dir.path()), &mut ()).unwrap();
+        assert_eq!(stats.written, [dir.path().join("first.npz"), dir.path().join("last.npz")]);
+        let (a, b) = (std::fs::read(&stats.written[0]).unwrap(), std::fs::read(&stats.written[1]).unwrap());
+        assert_eq!(a, crate::dump::dump_bytes(&before.tree));
+        assert_eq!(b, crate::dump::dump_bytes(&after.tree));
+        assert_ne!(a, b, "the second stroke changed the tree");
+    }
 
     /// A dump that cannot be written is reported when the next snapshot
     /// (or the end) comes, before that one is started; a writer dropped
