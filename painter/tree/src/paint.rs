@@ -731,7 +731,6 @@ impl Painting {
             vec![walk_run(&ctx, Run { stack: std::mem::take(&mut stack), ..std::mem::take(&mut self.spare_run) })]
         };
         // 3. In order, serially.
-
         let settles = st.settles;
         let mut maybe = Vec::new();
         for mut run in runs {
