@@ -230,7 +230,7 @@ pub struct Stamp {
 impl Stamp {
     /// Local coordinates of canvas point `x` (spec 8.2, summed left to right).
     #[inline]
-    fn local(&self, x: DVec3) -> DVec3 {
+    pub fn local(&self, x: DVec3) -> DVec3 {
         self.rot.transpose_mul_vec3(x - self.c)
     }
 
@@ -249,7 +249,13 @@ impl Stamp {
         if shape == Shape::Noise {
             return self.dist(x) / self.r;
         }
-        let l = self.local(x);
+        self.gauge_local(shape, aspect, self.local(x))
+    }
+
+    /// [`Stamp::gauge`] of a shape other than noise, given the point's
+    /// local coordinates `l` ([`Stamp::local`]).
+    #[inline]
+    pub fn gauge_local(&self, shape: Shape, aspect: [f64; 3], l: DVec3) -> f64 {
         let nx = l.x / (aspect[0] * self.r);
         let ny = l.y / (aspect[1] * self.r);
         let nz = l.z / (aspect[2] * self.r);
@@ -266,12 +272,18 @@ impl Stamp {
     /// Within reach of a cell with half-diagonal `h` at `x` (spec 8.7).
     #[inline]
     pub fn reach(&self, shape: Shape, aspect: [f64; 3], geo: &StampReach, x: DVec3, h: f64) -> bool {
-        let r = self.r;
         if shape == Shape::Noise {
-            return self.dist(x) - r <= h;
+            return self.dist(x) - self.r <= h;
         }
+        self.reach_local(shape, aspect, geo, self.local(x), h)
+    }
+
+    /// [`Stamp::reach`] of a shape other than noise, given the point's
+    /// local coordinates `l` ([`Stamp::local`]).
+    #[inline]
+    pub fn reach_local(&self, shape: Shape, aspect: [f64; 3], geo: &StampReach, l: DVec3, h: f64) -> bool {
+        let r = self.r;
         let [ax, ay, az] = aspect;
-        let l = self.local(x);
         if shape == Shape::Box {
             return l.x.abs() <= ax * r + h && l.y.abs() <= ay * r + h && l.z.abs() <= az * r + h;
         }

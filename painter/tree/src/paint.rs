@@ -1193,32 +1193,37 @@ struct StampWalk {
 
 impl Walk for StampWalk {
     const CAPSULE: bool = false;
-    type Point = DVec3;
+    /// The point and, but for a noise stamp, its local coordinates: reach
+    /// and coverage share one transform.
+    type Point = (DVec3, DVec3);
     #[inline(always)]
-    fn project(&self, x: DVec3) -> DVec3 {
-        x
+    fn project(&self, x: DVec3) -> (DVec3, DVec3) {
+        (x, if self.noise.is_some() { x } else { self.s.local(x) })
     }
     #[inline(always)]
-    fn within_reach(&self, x: &DVec3, h: f64) -> bool {
-        self.s.reach(self.shape, self.aspect, &self.reach, *x, h)
+    fn within_reach(&self, &(x, l): &(DVec3, DVec3), h: f64) -> bool {
+        match self.noise {
+            Some(_) => self.s.reach(self.shape, self.aspect, &self.reach, x, h),
+            None => self.s.reach_local(self.shape, self.aspect, &self.reach, l, h),
+        }
     }
     #[inline(always)]
-    fn radius(&self, _x: &DVec3) -> f64 {
+    fn radius(&self, _p: &(DVec3, DVec3)) -> f64 {
         self.s.r
     }
     fn largest_radius(&self) -> f64 {
         self.s.r
     }
     #[inline(always)]
-    fn coverage_at(&self, x: DVec3, _p: &DVec3, hardness: f64) -> f64 {
+    fn coverage_at(&self, x: DVec3, &(_, l): &(DVec3, DVec3), hardness: f64) -> f64 {
         debug_assert_eq!(hardness, self.hardness);
-        let c = brush::coverage_profile(self.s.gauge(self.shape, self.aspect, x), self.hardness) * self.s.f;
         match &self.noise {
             Some((perm, b)) => {
+                let c = brush::coverage_profile(self.s.gauge(self.shape, self.aspect, x), self.hardness) * self.s.f;
                 let at = if self.s.mirror == 0 { x } else { crate::stroke::mirrored(x, self.s.mirror, b.mirror.expect("a copy has a mirror").centre) };
                 c * brush::noise_factor(perm, b, at)
             }
-            None => c,
+            None => brush::coverage_profile(self.s.gauge_local(self.shape, self.aspect, l), self.hardness) * self.s.f,
         }
     }
 }
