@@ -68,6 +68,34 @@ pub struct Args {
     /// The same tree either way.
     #[arg(long)]
     always_split: bool,
+    /// The brush's shape: spheres paint a capsule a sample; the other shapes
+    /// stamp every half radius of the path (spacing 0.5, as far apart as the
+    /// samples: about one stamp a sample, the walk of one stamp), turned to
+    /// identity. Spacing matters to spheres not at all. The OpenVDB
+    /// peer paints spheres only, so only `sphere` writes `--write-strokes`.
+    #[arg(long, value_enum, default_value_t = BenchShape::Sphere)]
+    shape: BenchShape,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum BenchShape {
+    Sphere,
+    Box,
+    Cylinder,
+    Cone,
+    Noise,
+}
+
+impl BenchShape {
+    fn shape(self) -> Shape {
+        match self {
+            BenchShape::Sphere => Shape::Sphere,
+            BenchShape::Box => Shape::Box,
+            BenchShape::Cylinder => Shape::Cylinder,
+            BenchShape::Cone => Shape::Cone,
+            BenchShape::Noise => Shape::Noise,
+        }
+    }
 }
 
 /// Max depth of the benchmark canvas: one root of 2^11 finest cells a side.
@@ -89,7 +117,9 @@ fn stroke_set(a: &Args) -> StrokeSet {
     let mut samples = Vec::new();
     for s in 0..a.strokes {
         let colour = [unit(1, s), unit(2, s), unit(3, s)];
-        brushes.push(Brush::new(Shape::Sphere, Mode::Paint, r, colour, 0.8, a.hardness));
+        let mut brush = Brush::new(a.shape.shape(), Mode::Paint, r, colour, 0.8, a.hardness);
+        brush.spacing = 0.5;
+        brushes.push(brush);
         // A smooth random walk: the heading turns a little at every sample.
         let margin = 4.0 * r + 64.0;
         let mut p = [0, 1, 2].map(|k| margin + unit(10 + k, s) * (SIDE - 2.0 * margin));
@@ -174,6 +204,7 @@ fn digest(p: &Painting) -> u64 {
 pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
     anyhow::ensure!((0.0..=1.0).contains(&a.hardness), "--hardness must be in [0, 1]");
+    anyhow::ensure!(a.write_strokes.is_none() || a.shape == BenchShape::Sphere, "--write-strokes writes sphere strokes only (the OpenVDB peer paints spheres)");
     let set = stroke_set(a);
     if let Some(p) = &a.write_strokes {
         write_strokes(&set, p)?;
@@ -207,13 +238,14 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let per_s = |count: u64, ns: u64| if ns == 0 { 0.0 } else { count as f64 / (ns as f64 * 1e-9) };
     let json = format!(
         concat!(
-            "{{\"impl\": \"octopaint\", \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
+            "{{\"impl\": \"octopaint\", \"shape\": \"{}\", \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
             "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, \"slot_map_mib\": {:.2}, ",
             "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"measured_split\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
+        format!("{:?}", a.shape.shape()).to_lowercase(),
         a.radius,
         a.strokes,
         a.samples,

@@ -1,7 +1,9 @@
-//! The 8 children of a unit against capsules, 4 points a vector register
-//! (AVX): the paint pass's projection, reach test and coverage of a unit
-//! whose children are all leaves, and the stroke maximum of a unit's new
-//! children. Every lane goes through the IEEE operations of the scalar
+//! The 8 children of a unit against capsules and stamps, 4 points a vector
+//! register (AVX): the paint pass's projection, reach test and coverage of
+//! a unit whose children are all leaves, and the stroke maximum of a unit's
+//! new children, for capsules (sphere brushes) and for the stamps of box,
+//! cylinder and cone brushes (noise stamps keep their scalar noise factor).
+//! Every lane goes through the IEEE operations of the scalar
 //! forms in [`crate::brush`] in the same order (a division is a division,
 //! a square root a square root, nothing fused), so each lane holds the bits
 //! the scalar form gives: the tests below compare them on random and
@@ -12,8 +14,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::DVec3;
 
-use crate::brush::Capsule;
+use crate::brush::{Capsule, Stamp, StampReach};
 use crate::stroke::Prim;
+use crate::trace::Shape;
 
 /// Points a kernel takes: a unit's children.
 pub const LANES: usize = 8;
@@ -79,6 +82,43 @@ pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LAN
     None
 }
 
+/// A stamp of a box, cylinder or cone brush (`shape`, `aspect`, `geo`) at a
+/// unit's 8 children, as [`UnitCoverage`]: per lane [`Stamp::reach`],
+/// [`Stamp::gauge`] through `coverage_profile` times the stamp's flow (0
+/// outside the primitive's box), and the stamp's radius. None for a noise
+/// stamp (its noise factor stays scalar) and where the kernels do not run.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+pub fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<UnitCoverage> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if shape != Shape::Noise && shape != Shape::Sphere && available() {
+            // SAFETY: the processor has AVX.
+            return Some(unsafe { avx::unit_stamp(st, shape, aspect, geo, prim, hardness, xs, h) });
+        }
+    }
+    let _ = (st, shape, aspect, geo, prim, hardness, xs, h);
+    None
+}
+
+/// The stroke maximum over `prims` (box, cylinder or cone stamps of a
+/// brush of `shape` and `aspect`, in stroke order; anything else panics)
+/// at a unit's 8 centres `xs`, as the scalar stroke maximum gives it: per
+/// lane `a` (0 or at least TINY) and the first primitive attaining it (any
+/// when `a` is 0). None for noise brushes and where the kernels do not run.
+#[inline]
+pub fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardness: f64, xs: &[DVec3; LANES]) -> Option<([f64; LANES], [u32; LANES])> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if shape != Shape::Noise && shape != Shape::Sphere && available() {
+            // SAFETY: the processor has AVX.
+            return Some(unsafe { avx::unit_stamp_maximum(prims, shape, aspect, hardness, xs) });
+        }
+    }
+    let _ = (prims, shape, aspect, hardness, xs);
+    None
+}
+
 /// [`Capsule::within_reach`] of `cap` at the centres `xs` of cells of
 /// half-diagonal `h`, as a mask (bit k: lane k within reach): the paint
 /// pass's test of a unit's children that are not all leaves.
@@ -119,8 +159,9 @@ mod avx {
     use glam::DVec3;
 
     use super::{LANES, UnitCoverage, UnitMaximum};
-    use crate::brush::{Capsule, TINY};
+    use crate::brush::{Capsule, Stamp, StampReach, TINY};
     use crate::stroke::{Geometry, Prim};
+    use crate::trace::Shape;
 
     /// `Capsule::project` of 4 points.
     struct Projection {
@@ -220,7 +261,20 @@ mod avx {
     #[target_feature(enable = "avx")]
     fn coverage(c: &Capsule, p: &Projection, hardness: f64) -> __m256d {
         let flow = _mm256_add_pd(splat(c.f0), _mm256_mul_pd(splat(c.f1 - c.f0), p.u));
-        let rho = _mm256_div_pd(p.dist, p.r);
+        let profile = profile(_mm256_div_pd(p.dist, p.r), hardness);
+        let cov = _mm256_mul_pd(profile, flow);
+        if c.open {
+            // Behind an open start: exactly 0 (spec 8.3).
+            zero_where(_mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_setzero_pd()), cov)
+        } else {
+            cov
+        }
+    }
+
+    /// `coverage_profile(rho, hardness)`, as selects.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn profile(rho: __m256d, hardness: f64) -> __m256d {
         let span = 1.0 - hardness;
         let safe = if span > 0.0 { span } else { 1.0 };
         let above = _mm256_sub_pd(splat(1.0), rho);
@@ -230,14 +284,7 @@ mod avx {
         let t = clamp01(if power_of_two(safe) { _mm256_mul_pd(above, splat(1.0 / safe)) } else { _mm256_div_pd(above, splat(safe)) });
         let smooth = _mm256_mul_pd(_mm256_mul_pd(t, t), _mm256_sub_pd(splat(3.0), _mm256_mul_pd(splat(2.0), t)));
         let profile = select(_mm256_cmp_pd::<_CMP_LE_OQ>(rho, splat(hardness)), splat(1.0), smooth);
-        let profile = zero_where(_mm256_cmp_pd::<_CMP_GE_OQ>(rho, splat(1.0)), profile);
-        let cov = _mm256_mul_pd(profile, flow);
-        if c.open {
-            // Behind an open start: exactly 0 (spec 8.3).
-            zero_where(_mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_setzero_pd()), cov)
-        } else {
-            cov
-        }
+        zero_where(_mm256_cmp_pd::<_CMP_GE_OQ>(rho, splat(1.0)), profile)
     }
 
     /// `Capsule::within_reach` for cells of half-diagonal `h`: a mask.
@@ -304,6 +351,107 @@ mod avx {
             bits |= (_mm256_movemask_pd(within_reach(cap, &p, h)) as u8) << (4 * i);
         }
         bits
+    }
+
+    /// `f64::max` as Rust computes it: a NaN argument gives the other.
+    /// (`maxpd` gives its second operand when either is NaN.)
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn max_nan_ignored(a: __m256d, b: __m256d) -> __m256d {
+        select(_mm256_cmp_pd::<_CMP_UNORD_Q>(b, b), a, _mm256_max_pd(a, b))
+    }
+
+    /// `sqrt(s)` where `s > 0`, else +0 (a NaN `s` included).
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn sqrt_positive(s: __m256d) -> __m256d {
+        _mm256_and_pd(_mm256_sqrt_pd(s), _mm256_cmp_pd::<_CMP_GT_OQ>(s, _mm256_setzero_pd()))
+    }
+
+    /// A stamp's local coordinates and gauge at 4 points
+    /// (`Stamp::local`, then `Stamp::gauge_local`): `(rho, lz, radial,
+    /// cone side)`, the last three for the reach test.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn stamp_gauge(st: &Stamp, shape: Shape, aspect: [f64; 3], x: __m256d, y: __m256d, z: __m256d) -> (__m256d, [__m256d; 3], __m256d, __m256d) {
+        let r = st.r;
+        let (arx, ary, arz) = (aspect[0] * r, aspect[1] * r, aspect[2] * r);
+        // x − c, then each row's dot product, summed left to right.
+        let (vx, vy, vz) = (_mm256_sub_pd(x, splat(st.c.x)), _mm256_sub_pd(y, splat(st.c.y)), _mm256_sub_pd(z, splat(st.c.z)));
+        let dot = |m: DVec3| _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(splat(m.x), vx), _mm256_mul_pd(splat(m.y), vy)), _mm256_mul_pd(splat(m.z), vz));
+        let l = [dot(st.rot.x_axis), dot(st.rot.y_axis), dot(st.rot.z_axis)];
+        let (nx, ny, nz) = (_mm256_div_pd(l[0], splat(arx)), _mm256_div_pd(l[1], splat(ary)), _mm256_div_pd(l[2], splat(arz)));
+        if shape == Shape::Box {
+            let rho = max_nan_ignored(max_nan_ignored(abs(nx), abs(ny)), abs(nz));
+            return (rho, l, _mm256_setzero_pd(), _mm256_setzero_pd());
+        }
+        let radial = sqrt_positive(_mm256_add_pd(_mm256_mul_pd(nx, nx), _mm256_mul_pd(ny, ny)));
+        let cone_side = _mm256_add_pd(_mm256_mul_pd(splat(2.0), radial), nz);
+        let rho = if shape == Shape::Cylinder { max_nan_ignored(radial, abs(nz)) } else { max_nan_ignored(abs(nz), cone_side) };
+        (rho, l, radial, cone_side)
+    }
+
+    #[target_feature(enable = "avx")]
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> UnitCoverage {
+        let pts = points(xs);
+        let r = st.r;
+        let (arx, ary, arz) = (aspect[0] * r, aspect[1] * r, aspect[2] * r);
+        let mut o = UnitCoverage { r: [r; LANES], reach: [false; LANES], a: [0.0; LANES] };
+        for i in 0..2 {
+            let (x, y, z) = (pts.x[i], pts.y[i], pts.z[i]);
+            let (rho, l, radial, cone_side) = stamp_gauge(st, shape, aspect, x, y, z);
+            // `Stamp::reach_local`, from the same coordinates and quotients.
+            let le = |a: __m256d, b: f64| _mm256_cmp_pd::<_CMP_LE_OQ>(a, splat(b));
+            let reach = if shape == Shape::Box {
+                _mm256_and_pd(_mm256_and_pd(le(abs(l[0]), arx + h), le(abs(l[1]), ary + h)), le(abs(l[2]), arz + h))
+            } else {
+                let inside = _mm256_and_pd(le(radial, 1.0 + h / (geo.m * r)), le(abs(l[2]), arz + h));
+                if shape == Shape::Cylinder { inside } else { _mm256_and_pd(inside, le(cone_side, 1.0 + h * geo.lip / r)) }
+            };
+            store_mask(&mut o.reach, i, reach);
+            // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
+            store(&mut o.a, i, _mm256_and_pd(_mm256_mul_pd(profile(rho, hardness), splat(st.f)), holds(prim, x, y, z)));
+        }
+        o
+    }
+
+    /// The stroke maximum over stamps (box, cylinder or cone) at a unit's
+    /// 8 centres, as `stroke_maximum_with` gives it: `a` 0 or at least
+    /// TINY, a NaN coverage poisoning the lane to 0, and the first stamp
+    /// attaining it.
+    #[target_feature(enable = "avx")]
+    pub(super) fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardness: f64, xs: &[DVec3; LANES]) -> ([f64; LANES], [u32; LANES]) {
+        let pts = points(xs);
+        // The centres' box, NaN coordinates left out, as in unit_maximum.
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for x in xs {
+            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
+            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
+        }
+        let (mut a, mut k) = ([0.0; LANES], [0.0; LANES]);
+        for half in 0..2 {
+            let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
+            let mut best = _mm256_setzero_pd();
+            let mut best_k = _mm256_setzero_pd();
+            let mut nan = _mm256_setzero_pd();
+            for (i, p) in prims.iter().enumerate() {
+                if !p.overlaps(lo, hi) {
+                    continue; // its box holds none of the 8 centres
+                }
+                let Geometry::Stamp(st) = &p.geo else { panic!("unit_stamp_maximum takes stamps only") };
+                let cov = _mm256_mul_pd(profile(stamp_gauge(st, shape, aspect, x, y, z).0, hardness), splat(st.f));
+                let inside = holds(p, x, y, z);
+                nan = _mm256_or_pd(nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
+                let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, best));
+                best = select(up, cov, best);
+                best_k = select(up, splat(i as f64), best_k);
+            }
+            let zero = _mm256_or_pd(nan, _mm256_cmp_pd::<_CMP_LT_OQ>(best, splat(TINY)));
+            store(&mut a, half, _mm256_andnot_pd(zero, best));
+            store(&mut k, half, best_k);
+        }
+        (a, k.map(|v| v as u32))
     }
 
     #[target_feature(enable = "avx")]
@@ -447,6 +595,103 @@ mod tests {
             }
         }
         assert!(compared > 100_000);
+    }
+
+    /// The stamp kernel is the scalar reach and coverage of box, cylinder
+    /// and cone stamps, lane for lane and bit for bit: random turns and
+    /// aspects, units inside, across and outside the stamps and their boxes,
+    /// NaN lanes, several hardnesses.
+    #[test]
+    fn unit_stamp_is_the_scalar_stamp_reach_and_coverage() {
+        let mut seed = 17;
+        let mut compared = 0;
+        let mut covered = 0;
+        for _ in 0..3000 {
+            let shape = [Shape::Box, Shape::Cylinder, Shape::Cone][(unit(&mut seed) * 3.0) as usize];
+            let aspect = [0.3 + unit(&mut seed), 0.3 + unit(&mut seed), 0.3 + unit(&mut seed)];
+            let q = [unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5];
+            let r = 0.05 + unit(&mut seed) * 3.0;
+            let st = Stamp { c: jitter(&mut seed) * 50.0, r, f: [1.0, 0.85, unit(&mut seed), 0.0][(unit(&mut seed) * 4.0) as usize], rot: crate::brush::quat_to_matrix(q), mirror: 0 };
+            let (lo, hi) = st.bounds(crate::brush::stamp_extent(shape, aspect));
+            let prim = Prim { geo: Geometry::Stamp(st), colour: [1.0; 3], lo, hi };
+            let geo = StampReach::new(aspect);
+            let hardness = [0.55, 0.0, 0.5, 1.0, unit(&mut seed)][(unit(&mut seed) * 5.0) as usize];
+            for _ in 0..6 {
+                let s = r * [0.05, 0.3, 1.0][(unit(&mut seed) * 3.0) as usize];
+                let at = st.c + jitter(&mut seed) * r * 2.0;
+                let xs = centres(&mut seed, at, s);
+                let h = s * 0.8660254037844386;
+                let Some(u) = unit_stamp(&st, shape, aspect, &geo, &prim, hardness, &xs, h) else { return assert!(!available()) };
+                for (l, &x) in xs.iter().enumerate() {
+                    let a = if prim.holds(x) { crate::brush::coverage_profile(st.gauge(shape, aspect, x), hardness) * st.f } else { 0.0 };
+                    assert_eq!((u.reach[l], u.a[l].to_bits(), u.r[l]), (st.reach(shape, aspect, &geo, x, h), a.to_bits(), r), "{shape:?} lane {l} at {x:?}: {} against {a}", u.a[l]);
+                    compared += 1;
+                    covered += usize::from(a > 0.0);
+                }
+            }
+        }
+        assert!(compared > 100_000 && covered > 10_000, "{compared} lanes, {covered} covered");
+        assert!(unit_stamp(&Stamp { c: DVec3::ZERO, r: 1.0, f: 1.0, rot: glam::DMat3::IDENTITY, mirror: 0 }, Shape::Noise, [1.0; 3], &StampReach::new([1.0; 3]), &capsules(&mut seed, 1)[0], 0.5, &[DVec3::ZERO; LANES], 1.0).is_none());
+    }
+
+    /// The stamps' stroke maximum at a unit's children is the scalar one:
+    /// the first stamp attaining the largest coverage among those whose
+    /// boxes hold the centre, below TINY 0, a NaN coverage (a NaN flow)
+    /// poisoning the lane.
+    #[test]
+    fn unit_stamp_maximum_is_the_scalar_stroke_maximum() {
+        let mut seed = 23;
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let shape = [Shape::Box, Shape::Cylinder, Shape::Cone][(unit(&mut seed) * 3.0) as usize];
+            let aspect = [0.3 + unit(&mut seed), 0.3 + unit(&mut seed), 0.3 + unit(&mut seed)];
+            let hardness = [0.55, 0.0, 1.0, unit(&mut seed)][(unit(&mut seed) * 4.0) as usize];
+            let r = 0.5 + unit(&mut seed) * 2.0;
+            let centre = jitter(&mut seed) * 20.0;
+            let prims: Vec<Prim> = (0..1 + (unit(&mut seed) * 6.0) as usize)
+                .map(|_| {
+                    let q = [unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5];
+                    let f = match (unit(&mut seed) * 30.0) as u32 {
+                        0 => f64::NAN,
+                        1 => 0.0,
+                        2 => 1e-13,
+                        _ => unit(&mut seed),
+                    };
+                    let st = Stamp { c: centre + jitter(&mut seed) * r, r: r * (0.5 + unit(&mut seed)), f, rot: crate::brush::quat_to_matrix(q), mirror: 0 };
+                    let (lo, hi) = st.bounds(crate::brush::stamp_extent(shape, aspect));
+                    Prim { geo: Geometry::Stamp(st), colour: [unit(&mut seed), 0.5, 0.25], lo, hi }
+                })
+                .collect();
+            let at = centre + jitter(&mut seed) * r * 2.0;
+            let size = r * [0.1, 0.4][(unit(&mut seed) * 2.0) as usize];
+            let xs = centres(&mut seed, at, size);
+            let Some((a, k)) = unit_stamp_maximum(&prims, shape, aspect, hardness, &xs) else { return assert!(!available()) };
+            for (l, &x) in xs.iter().enumerate() {
+                let (mut best, mut at) = (0.0, 0);
+                let mut poisoned = false;
+                for (i, p) in prims.iter().enumerate() {
+                    let Geometry::Stamp(st) = &p.geo else { unreachable!() };
+                    if !p.holds(x) {
+                        continue;
+                    }
+                    let c = crate::brush::coverage_profile(st.gauge(shape, aspect, x), hardness) * st.f;
+                    if c.is_nan() {
+                        poisoned = true;
+                        break;
+                    }
+                    if c > best {
+                        (best, at) = (c, i);
+                    }
+                }
+                let want = if poisoned || best < crate::brush::TINY { 0.0 } else { best };
+                assert_eq!(a[l].to_bits(), want.to_bits(), "{shape:?} lane {l} at {x:?}: {} against {want}", a[l]);
+                if want > 0.0 {
+                    assert_eq!(k[l] as usize, at);
+                    hits += 1;
+                }
+            }
+        }
+        assert!(hits > 3000, "{hits} lanes covered");
     }
 
     #[test]

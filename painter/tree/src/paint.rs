@@ -559,7 +559,7 @@ impl Painting {
             }
             [prim @ Prim { geo: Geometry::Stamp(s), .. }] => {
                 let (b, prim) = (&st.brush, *prim);
-                let walk = StampWalk { s: *s, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)) };
+                let walk = StampWalk { s: *s, prim, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)) };
                 self.spare_stack = self.paint_pass_one(&walk, &prim, stack, &mut candidates);
                 return candidates;
             }
@@ -905,6 +905,35 @@ impl Painting {
                 per_unit = out;
                 &per_unit
             }
+            None if cells.len().is_multiple_of(LANES)
+                && lanes::available()
+                && matches!(st.brush.shape, Shape::Box | Shape::Cylinder | Shape::Cone)
+                && near.iter().all(|p| matches!(p.geo, Geometry::Stamp(_))) =>
+            {
+                // Box, cylinder and cone stamps: a unit's 8 children at once
+                // in vector lanes, their parent's before-value found once,
+                // and for a segment of one stamp its reach from the same
+                // kernel as the paint pass's.
+                let b = &st.brush;
+                let seg_stamp = match seg {
+                    [prim @ Prim { geo: Geometry::Stamp(s), .. }] => Some((*s, *prim)),
+                    _ => None,
+                };
+                let mut out = vec![FirstWrite::NONE; cells.len()];
+                par::for_groups(cells, &mut out, LANES, |u, out| {
+                    let (c0, _, d) = u[0];
+                    let before = self.before_value(self.tree.parent[c0 as usize]);
+                    let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
+                    let (a, k) = lanes::unit_stamp_maximum(&near, b.shape, b.aspect, b.hardness, &xs).expect("lanes available");
+                    let h = lat.reach_radius[d as usize];
+                    let seg = seg_stamp.map(|(s, prim)| lanes::unit_stamp(&s, b.shape, b.aspect, &st.stamp_reach, &prim, b.hardness, &xs, h).expect("lanes available"));
+                    for (l, o) in out.iter_mut().enumerate() {
+                        *o = nc.decide(u[l].0, xs[l], d, before, a[l], k[l] as usize, seg.as_ref().map(|u| (u.reach[l], u.r[l])));
+                    }
+                });
+                per_unit = out;
+                &per_unit
+            }
             _ => {
                 per_cell = par::map(cells, |&(c, x, d)| {
                     let before = self.before_value(self.tree.parent[c as usize]);
@@ -1184,6 +1213,7 @@ impl Walk for Capsule {
 /// the point mirrored by the stamp's copy, for a noise brush).
 struct StampWalk {
     s: Stamp,
+    prim: Prim,
     shape: Shape,
     aspect: [f64; 3],
     reach: StampReach,
@@ -1213,6 +1243,19 @@ impl Walk for StampWalk {
     }
     fn largest_radius(&self) -> f64 {
         self.s.r
+    }
+    #[inline(always)]
+    fn unit_reach(&self, xs: &[DVec3; LANES], h: f64) -> u8 {
+        // The unit kernel's reach (its coverage is thrown away: a unit with
+        // children to descend into is far rarer than a unit of leaves).
+        match lanes::unit_stamp(&self.s, self.shape, self.aspect, &self.reach, &self.prim, self.hardness, xs, h) {
+            Some(u) => (0..LANES).fold(0, |m, k| m | u8::from(u.reach[k]) << k),
+            None => (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k),
+        }
+    }
+    #[inline(always)]
+    fn unit_coverage(&self, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<lanes::UnitCoverage> {
+        lanes::unit_stamp(&self.s, self.shape, self.aspect, &self.reach, prim, hardness, xs, h)
     }
     #[inline(always)]
     fn coverage_at(&self, x: DVec3, &(_, l): &(DVec3, DVec3), hardness: f64) -> f64 {
