@@ -69,12 +69,16 @@ pub struct Args {
     #[arg(long)]
     always_split: bool,
     /// The brush's shape: spheres paint a capsule a sample; the other shapes
-    /// stamp every half radius of the path (spacing 0.5, as far apart as the
-    /// samples: about one stamp a sample, the walk of one stamp), turned to
-    /// identity. Spacing matters to spheres not at all. The OpenVDB
+    /// stamp every `--spacing` radii of the path (by default half a radius,
+    /// as far apart as the samples: about one stamp a sample, the walk of
+    /// one stamp), turned to identity. Spacing matters to spheres not at all. The OpenVDB
     /// peer paints spheres only, so only `sphere` writes `--write-strokes`.
     #[arg(long, value_enum, default_value_t = BenchShape::Sphere)]
     shape: BenchShape,
+    /// Stamps' spacing along the path, in radii: below 0.5 a sample's
+    /// segment holds several stamps (the walk of several).
+    #[arg(long, default_value_t = 0.5)]
+    spacing: f64,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -118,7 +122,7 @@ fn stroke_set(a: &Args) -> StrokeSet {
     for s in 0..a.strokes {
         let colour = [unit(1, s), unit(2, s), unit(3, s)];
         let mut brush = Brush::new(a.shape.shape(), Mode::Paint, r, colour, 0.8, a.hardness);
-        brush.spacing = 0.5;
+        brush.spacing = a.spacing;
         brushes.push(brush);
         // A smooth random walk: the heading turns a little at every sample.
         let margin = 4.0 * r + 64.0;
@@ -204,6 +208,7 @@ fn digest(p: &Painting) -> u64 {
 pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
     anyhow::ensure!((0.0..=1.0).contains(&a.hardness), "--hardness must be in [0, 1]");
+    anyhow::ensure!(a.spacing.is_finite() && (0.05..=4.0).contains(&a.spacing), "--spacing must be in [0.05, 4] radii");
     anyhow::ensure!(a.write_strokes.is_none() || a.shape == BenchShape::Sphere, "--write-strokes writes sphere strokes only (the OpenVDB peer paints spheres)");
     let set = stroke_set(a);
     if let Some(p) = &a.write_strokes {

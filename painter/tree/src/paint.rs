@@ -563,6 +563,18 @@ impl Painting {
                 self.spare_stack = self.paint_pass_one(&walk, &prim, stack, &mut candidates);
                 return candidates;
             }
+            prims if prims.len() > 1 && prims.iter().all(|p| matches!(p.geo, Geometry::Stamp(_))) => {
+                // Several stamps: one walk over their union's box, each
+                // leaf tested against all of them.
+                let b = &st.brush;
+                let stamps: Vec<(Stamp, Prim)> = prims.iter().map(|p| if let Geometry::Stamp(s) = p.geo { (s, *p) } else { unreachable!("stamps only") }).collect();
+                let (lo, hi) = stamps.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (_, p)| (lo.min(p.lo), hi.max(p.hi)));
+                let union = Prim { lo, hi, ..prims[0] };
+                let largest = stamps.iter().fold(0.0f64, |m, (s, _)| m.max(s.r));
+                let walk = StampsWalk { stamps, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)), largest };
+                self.spare_stack = self.paint_pass_one(&walk, &union, stack, &mut candidates);
+                return candidates;
+            }
             _ => {}
         }
         let (mut visited, mut hit) = (0u64, 0u64);
@@ -1159,8 +1171,10 @@ trait Walk: Sync {
     /// A cell of half-diagonal `h` at a centre that projects to `p` is
     /// within reach (spec 8.7).
     fn within_reach(&self, p: &Self::Point, h: f64) -> bool;
-    /// The radius that sets the target depth there.
-    fn radius(&self, p: &Self::Point) -> f64;
+    /// The radius that sets the target depth there for a cell of
+    /// half-diagonal `h` within reach: the leaf is coarser than its target
+    /// depth when it is coarser than this radius's.
+    fn radius(&self, p: &Self::Point, h: f64) -> f64;
     /// The largest radius anywhere (the parallel split's grain).
     fn largest_radius(&self) -> f64;
     /// Coverage·flow at `x`, which projects to `p`, inside the primitive's
@@ -1188,7 +1202,7 @@ impl Walk for Capsule {
         Capsule::within_reach(self, p, h)
     }
     #[inline(always)]
-    fn radius(&self, p: &CapsulePoint) -> f64 {
+    fn radius(&self, p: &CapsulePoint, _h: f64) -> f64 {
         p.r
     }
     fn largest_radius(&self) -> f64 {
@@ -1238,7 +1252,7 @@ impl Walk for StampWalk {
         }
     }
     #[inline(always)]
-    fn radius(&self, _p: &(DVec3, DVec3)) -> f64 {
+    fn radius(&self, _p: &(DVec3, DVec3), _h: f64) -> f64 {
         self.s.r
     }
     fn largest_radius(&self) -> f64 {
@@ -1268,6 +1282,76 @@ impl Walk for StampWalk {
             }
             None => brush::coverage_profile(self.s.gauge_local(self.shape, self.aspect, l), self.hardness) * self.s.f,
         }
+    }
+}
+
+/// The stamps of a segment of several (a stroke whose stamps lie closer
+/// than its samples, or a mirrored one), as the general pass treats them:
+/// within reach when one of them is, coarser than the target depth when
+/// one within reach asks for a deeper one (the least radius among those
+/// within reach: the target depth only deepens as the radius shrinks),
+/// and the stroke maximum over them, where a NaN coverage paints nothing.
+/// They all paint the segment's colour.
+struct StampsWalk {
+    stamps: Vec<(Stamp, Prim)>,
+    shape: Shape,
+    aspect: [f64; 3],
+    reach: StampReach,
+    hardness: f64,
+    noise: Option<(Box<[u16; 512]>, Brush)>,
+    largest: f64,
+}
+
+impl Walk for StampsWalk {
+    const CAPSULE: bool = false;
+    type Point = DVec3;
+    #[inline(always)]
+    fn project(&self, x: DVec3) -> DVec3 {
+        x
+    }
+    #[inline(always)]
+    fn within_reach(&self, x: &DVec3, h: f64) -> bool {
+        self.stamps.iter().any(|(s, _)| s.reach(self.shape, self.aspect, &self.reach, *x, h))
+    }
+    #[inline(always)]
+    fn radius(&self, x: &DVec3, h: f64) -> f64 {
+        self.stamps.iter().filter(|(s, _)| s.reach(self.shape, self.aspect, &self.reach, *x, h)).fold(f64::INFINITY, |m, (s, _)| m.min(s.r))
+    }
+    fn largest_radius(&self) -> f64 {
+        self.largest
+    }
+    #[inline(always)]
+    fn coverage_at(&self, x: DVec3, _x: &DVec3, hardness: f64) -> f64 {
+        debug_assert_eq!(hardness, self.hardness);
+        let mut best = 0.0;
+        // The noise factor of each mirrored copy, computed when a stamp of
+        // that copy first needs it (as the general pass does: the stamps
+        // of one copy share it).
+        let mut noise = [f64::NAN; 8];
+        for (s, p) in &self.stamps {
+            if !p.holds(x) {
+                continue; // covers nothing here (spec 8.5)
+            }
+            let c = brush::coverage_profile(s.gauge(self.shape, self.aspect, x), self.hardness) * s.f;
+            let cov = match &self.noise {
+                Some((perm, b)) => {
+                    let k = usize::from(s.mirror);
+                    if noise[k].is_nan() {
+                        let at = if s.mirror == 0 { x } else { crate::stroke::mirrored(x, s.mirror, b.mirror.expect("a copy has a mirror").centre) };
+                        noise[k] = brush::noise_factor(perm, b, at);
+                    }
+                    c * noise[k]
+                }
+                None => c,
+            };
+            if cov.is_nan() {
+                return f64::NAN; // poisons the maximum: nothing painted
+            }
+            if cov > best {
+                best = cov;
+            }
+        }
+        best
     }
 }
 
@@ -1301,7 +1385,7 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
                 continue;
             }
             if fc == NONE {
-                leaf(ctx, &mut out, c, d, x, cap.radius(&cp), h, ctx.coverage(x, &cp));
+                leaf(ctx, &mut out, c, d, x, cap.radius(&cp, h), h, ctx.coverage(x, &cp));
                 continue;
             }
         }
@@ -1329,7 +1413,7 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
         let cps: [W::Point; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
         for k in (0..LANES).rev() {
             if cap.within_reach(&cps[k], h1) {
-                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cap.radius(&cps[k]), h1, ctx.coverage(xs[k], &cps[k]));
+                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cap.radius(&cps[k], h1), h1, ctx.coverage(xs[k], &cps[k]));
             }
         }
     }
