@@ -28,7 +28,7 @@ use anyhow::Context;
 use octopaint_tree::noise::hash32;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::{FREE, Tree};
-use octopaint_tree::trace::{Brush, Canvas, Mode, Sample, Shape};
+use octopaint_tree::trace::{Brush, Canvas, Mirror, Mode, Sample, Shape};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -79,6 +79,11 @@ pub struct Args {
     /// segment holds several stamps (the walk of several).
     #[arg(long, default_value_t = 0.5)]
     spacing: f64,
+    /// Mirror every stroke through the canvas's middle plane across x
+    /// (spec 8.11): each segment holds the stroke's primitives and their
+    /// copies'.
+    #[arg(long)]
+    mirror: bool,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -123,6 +128,9 @@ fn stroke_set(a: &Args) -> StrokeSet {
         let colour = [unit(1, s), unit(2, s), unit(3, s)];
         let mut brush = Brush::new(a.shape.shape(), Mode::Paint, r, colour, 0.8, a.hardness);
         brush.spacing = a.spacing;
+        if a.mirror {
+            brush.mirror = Some(Mirror { axes: [true, false, false], centre: [SIDE / 2.0; 3] });
+        }
         brushes.push(brush);
         // A smooth random walk: the heading turns a little at every sample.
         let margin = 4.0 * r + 64.0;
@@ -209,7 +217,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
     anyhow::ensure!((0.0..=1.0).contains(&a.hardness), "--hardness must be in [0, 1]");
     anyhow::ensure!(a.spacing.is_finite() && (0.05..=4.0).contains(&a.spacing), "--spacing must be in [0.05, 4] radii");
-    anyhow::ensure!(a.write_strokes.is_none() || a.shape == BenchShape::Sphere, "--write-strokes writes sphere strokes only (the OpenVDB peer paints spheres)");
+    anyhow::ensure!(a.write_strokes.is_none() || (a.shape == BenchShape::Sphere && !a.mirror), "--write-strokes writes unmirrored sphere strokes only (what the OpenVDB peer paints)");
     let set = stroke_set(a);
     if let Some(p) = &a.write_strokes {
         write_strokes(&set, p)?;
@@ -243,7 +251,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let per_s = |count: u64, ns: u64| if ns == 0 { 0.0 } else { count as f64 / (ns as f64 * 1e-9) };
     let json = format!(
         concat!(
-            "{{\"impl\": \"octopaint\", \"shape\": \"{}\", \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
+            "{{\"impl\": \"octopaint\", \"shape\": \"{}\", \"mirror\": {}, \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
             "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
@@ -251,6 +259,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"measured_split\": {}, \"tree_digest\": \"{:016x}\"}}"
         ),
         format!("{:?}", a.shape.shape()).to_lowercase(),
+        a.mirror,
         a.radius,
         a.strokes,
         a.samples,

@@ -563,6 +563,17 @@ impl Painting {
                 self.spare_stack = self.paint_pass_one(&walk, &prim, stack, &mut candidates);
                 return candidates;
             }
+            prims if prims.len() > 1 && prims.iter().all(|p| matches!(p.geo, Geometry::Capsule(_))) => {
+                // Several capsules (a mirrored sphere stroke): one walk over
+                // their union's box, each leaf tested against all of them.
+                let caps: Vec<(Capsule, Prim)> = prims.iter().map(|p| if let Geometry::Capsule(c) = p.geo { (c, *p) } else { unreachable!("capsules only") }).collect();
+                let (lo, hi) = caps.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (_, p)| (lo.min(p.lo), hi.max(p.hi)));
+                let union = Prim { lo, hi, ..prims[0] };
+                let largest = caps.iter().fold(0.0f64, |m, (c, _)| m.max(c.r0).max(c.r1));
+                let walk = CapsulesWalk { caps, hardness: st.brush.hardness, largest };
+                self.spare_stack = self.paint_pass_one(&walk, &union, stack, &mut candidates);
+                return candidates;
+            }
             prims if prims.len() > 1 && prims.iter().all(|p| matches!(p.geo, Geometry::Stamp(_))) => {
                 // Several stamps: one walk over their union's box, each
                 // leaf tested against all of them.
@@ -1344,6 +1355,56 @@ impl Walk for StampsWalk {
                 }
                 None => c,
             };
+            if cov.is_nan() {
+                return f64::NAN; // poisons the maximum: nothing painted
+            }
+            if cov > best {
+                best = cov;
+            }
+        }
+        best
+    }
+}
+
+/// The capsules of a segment of several (a mirrored sphere stroke: one a
+/// copy), as the general pass treats them: within reach when one of them
+/// is, coarser than the target depth when one within reach asks for a
+/// deeper one (the least radius at the projections among those within
+/// reach), and the stroke maximum over them, where a NaN coverage paints
+/// nothing. They all paint the segment's colour.
+struct CapsulesWalk {
+    caps: Vec<(Capsule, Prim)>,
+    hardness: f64,
+    largest: f64,
+}
+
+impl Walk for CapsulesWalk {
+    const CAPSULE: bool = false;
+    type Point = DVec3;
+    #[inline(always)]
+    fn project(&self, x: DVec3) -> DVec3 {
+        x
+    }
+    #[inline(always)]
+    fn within_reach(&self, x: &DVec3, h: f64) -> bool {
+        self.caps.iter().any(|(c, _)| c.reach(*x, h).0)
+    }
+    #[inline(always)]
+    fn radius(&self, x: &DVec3, h: f64) -> f64 {
+        self.caps.iter().map(|(c, _)| c.reach(*x, h)).filter(|&(within, _)| within).fold(f64::INFINITY, |m, (_, r)| m.min(r))
+    }
+    fn largest_radius(&self) -> f64 {
+        self.largest
+    }
+    #[inline(always)]
+    fn coverage_at(&self, x: DVec3, _x: &DVec3, hardness: f64) -> f64 {
+        debug_assert_eq!(hardness, self.hardness);
+        let mut best = 0.0;
+        for (c, p) in &self.caps {
+            if !p.holds(x) {
+                continue; // covers nothing here (spec 8.5)
+            }
+            let cov = c.coverage(x, self.hardness);
             if cov.is_nan() {
                 return f64::NAN; // poisons the maximum: nothing painted
             }
