@@ -670,24 +670,6 @@ impl Tree {
         step
     }
 
-    /// A tree with this one's records and nothing else: no journal, change
-    /// log or free units ([`History::full_steps`] undoes steps on it).
-    fn records_copy(&self) -> Tree {
-        Tree {
-            lat: self.lat.clone(),
-            capacity: self.capacity,
-            parent: self.parent.clone(),
-            first_child: self.first_child.clone(),
-            depth: self.depth.clone(),
-            rgb: self.rgb.clone(),
-            sigma: self.sigma.clone(),
-            free_units: Default::default(),
-            changes: crate::dirty::Changes::new(0),
-            journal: None,
-            spare_journal: Journal::default(),
-        }
-    }
-
     /// The records and used length of `apply_step(step, false)`, written
     /// straight into the columns of a [`Tree::records_copy`].
     fn undo_records(&mut self, step: &UndoStep) {

@@ -126,10 +126,12 @@ impl Tree {
         t
     }
 
-    /// A copy of the pools and lattice alone: no free-unit list, journal or
-    /// change marks. What a dump reads (spec 11.1), for a thread that
-    /// writes one while painting goes on; not a tree to paint on.
-    pub fn pools_copy(&self) -> Tree {
+    /// A tree with this one's records and lattice and nothing else: no
+    /// free-unit list, journal or change marks. What a dump reads (spec
+    /// 11.1), for a thread that writes one while painting goes on, and what
+    /// [`crate::history::History::full_steps`] undoes steps on; not a tree
+    /// to paint on.
+    pub fn records_copy(&self) -> Tree {
         Tree {
             lat: self.lat.clone(),
             capacity: self.capacity,

@@ -114,7 +114,7 @@ pub fn replay_document(
                         // the events after the snapshot run.
                         let painting = &mut doc.current_mut().painting;
                         let g3 = obs.dump_g3(painting)?;
-                        writer.write_tree(path.clone(), painting.tree.pools_copy(), g3)?;
+                        writer.write_tree(path.clone(), painting.tree.records_copy(), g3)?;
                     }
                     stats.written.push(path);
                 }
@@ -157,21 +157,20 @@ struct DumpWriter {
 impl DumpWriter {
     /// Wait for the dump in flight, then start writing `bytes` to `path`.
     fn write(&mut self, path: PathBuf, bytes: Vec<u8>) -> std::io::Result<()> {
-        self.finish()?;
-        let h = std::thread::Builder::new().name("dump writer".into()).spawn(move || durable::write(&path, &bytes))?;
-        self.pending = Some(h);
-        Ok(())
+        self.start(move || durable::write(&path, &bytes))
     }
 
     /// Wait for the dump in flight, then start writing the dump of `tree`
-    /// (its pools) with the g3 table `g3` (None: the CPU port's) to `path`,
-    /// streamed into the file.
+    /// (a copy of its records) with the g3 table `g3` (None: the CPU
+    /// port's) to `path`, streamed into the file.
     fn write_tree(&mut self, path: PathBuf, tree: Tree, g3: Option<Vec<[u32; 3]>>) -> std::io::Result<()> {
+        self.start(move || durable::write_with(&path, |w| write_dump(w, &tree, g3.as_deref()).map(drop)).map(drop))
+    }
+
+    /// Wait for the dump in flight, then run `job` on the writer's thread.
+    fn start(&mut self, job: impl FnOnce() -> std::io::Result<()> + Send + 'static) -> std::io::Result<()> {
         self.finish()?;
-        let h = std::thread::Builder::new()
-            .name("dump writer".into())
-            .spawn(move || durable::write_with(&path, |w| write_dump(w, &tree, g3.as_deref()).map(drop)).map(drop))?;
-        self.pending = Some(h);
+        self.pending = Some(std::thread::Builder::new().name("dump writer".into()).spawn(job)?);
         Ok(())
     }
 
