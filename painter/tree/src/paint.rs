@@ -555,93 +555,36 @@ impl Painting {
             [prim @ Prim { geo: Geometry::Capsule(cap), .. }] => {
                 let (cap, prim) = (*cap, *prim);
                 self.spare_stack = self.paint_pass_one(&cap, &prim, stack, &mut candidates);
-                return candidates;
+                candidates
             }
             [prim @ Prim { geo: Geometry::Stamp(s), .. }] => {
                 let (b, prim) = (&st.brush, *prim);
                 let walk = StampWalk { s: *s, prim, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)) };
                 self.spare_stack = self.paint_pass_one(&walk, &prim, stack, &mut candidates);
-                return candidates;
+                candidates
             }
-            prims if prims.len() > 1 && prims.iter().all(|p| matches!(p.geo, Geometry::Capsule(_))) => {
-                // Several capsules (a mirrored sphere stroke): one walk over
-                // their union's box, each leaf tested against all of them.
-                let caps: Vec<(Capsule, Prim)> = prims.iter().map(|p| if let Geometry::Capsule(c) = p.geo { (c, *p) } else { unreachable!("capsules only") }).collect();
-                let (lo, hi) = caps.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (_, p)| (lo.min(p.lo), hi.max(p.hi)));
+            prims => {
+                // Several primitives (a stroke whose stamps lie closer than
+                // its samples, a mirrored stroke): one walk over their
+                // union's box, each leaf tested against all of them.
+                let (lo, hi) = prims.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p.lo), hi.max(p.hi)));
                 let union = Prim { lo, hi, ..prims[0] };
-                let largest = caps.iter().fold(0.0f64, |m, (c, _)| m.max(c.r0).max(c.r1));
-                let walk = CapsulesWalk { caps, hardness: st.brush.hardness, largest };
+                let largest = prims.iter().fold(0.0f64, |m, p| match &p.geo {
+                    Geometry::Capsule(c) => m.max(c.r0).max(c.r1),
+                    Geometry::Stamp(s) => m.max(s.r),
+                });
+                let walk = SegmentWalk { seg: prims.to_vec(), brush: st.brush, perm: st.perm.clone(), reach: st.stamp_reach, largest };
                 self.spare_stack = self.paint_pass_one(&walk, &union, stack, &mut candidates);
-                return candidates;
-            }
-            prims if prims.len() > 1 && prims.iter().all(|p| matches!(p.geo, Geometry::Stamp(_))) => {
-                // Several stamps: one walk over their union's box, each
-                // leaf tested against all of them.
-                let b = &st.brush;
-                let stamps: Vec<(Stamp, Prim)> = prims.iter().map(|p| if let Geometry::Stamp(s) = p.geo { (s, *p) } else { unreachable!("stamps only") }).collect();
-                let (lo, hi) = stamps.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (_, p)| (lo.min(p.lo), hi.max(p.hi)));
-                let union = Prim { lo, hi, ..prims[0] };
-                let largest = stamps.iter().fold(0.0f64, |m, (s, _)| m.max(s.r));
-                let walk = StampsWalk { stamps, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)), largest };
-                self.spare_stack = self.paint_pass_one(&walk, &union, stack, &mut candidates);
-                return candidates;
-            }
-            _ => {}
-        }
-        let (mut visited, mut hit) = (0u64, 0u64);
-        // Candidates to test for settling (spec 8.7), as the capsule pass
-        // does: a mirrored sphere stroke has a capsule per copy here.
-        let settles = self.stroke.as_ref().expect("stroke").settles;
-        let mut maybe = Vec::new();
-        while let Some((c, o)) = stack.pop() {
-            let d = u32::from(self.tree.depth[c as usize]);
-            let x = self.tree.lat.centre(o, d);
-            let h = self.tree.lat.reach_radius[d as usize];
-            let fc = self.tree.first_child[c as usize];
-            let st = self.stroke.as_ref().expect("stroke");
-            let seg = &st.prims[first..];
-            let (reach, needs_depth) = segment_reach(&self.tree, st, seg, x, d, h, fc == NONE);
-            if !reach {
-                continue;
-            }
-            if fc != NONE {
-                for k in 0..UNIT {
-                    stack.push((fc + k, self.tree.child_origin(o, d, k)));
-                }
-                continue;
-            }
-            visited += 1;
-            let mut needs = needs_depth;
-            if matches!(st.brush.mode, Mode::Erase | Mode::Recolor) && !(self.tree.sigma[c as usize] > 0.0) {
-                needs = false; // nothing there to change (spec 8.7)
-            }
-            let (a, k) = stroke_maximum(st, seg, x);
-            if a > 0.0 {
-                hit += 1;
-                let colour = seg[k].colour;
-                self.apply(c, a, colour);
-            }
-            if needs {
-                if settles {
-                    maybe.push((c, x, h));
-                } else {
-                    candidates.push(c);
-                }
+                candidates
             }
         }
-        self.counters.leaves_visited += visited;
-        self.counters.leaves_hit += hit;
-        self.spare_stack = stack;
-        if !maybe.is_empty() {
-            candidates.extend(self.unsettled(maybe));
-        }
-        candidates
     }
 
-    /// The paint pass of a segment that is one primitive: a capsule (every
-    /// sphere stroke) or one stamp (most segments of a stamped stroke, whose
-    /// stamps lie half a radius apart or more). The same traversal and
-    /// decisions as the general pass, with the projection of each cell
+    /// The paint pass of a segment, walked with `cap`: one capsule (every
+    /// sphere stroke), one stamp (most segments of a stamped stroke, whose
+    /// stamps lie half a radius apart or more), or several primitives
+    /// ([`SegmentWalk`]). The top-down traversal of spec 8.7, each leaf
+    /// within reach painted (spec 8.8), with the projection of each cell
     /// centre on a capsule computed once for reach, refinement and coverage,
     /// a capsule's unit of 8 leaves at a time (in vector lanes,
     /// [`crate::lanes`]), and on the current rayon pool when the primitive
@@ -998,7 +941,7 @@ impl Painting {
 
     /// A leaf's first write in the stroke, decided already by a paint-pass
     /// run: its slot with its before-value, its maximum when `a` rose above
-    /// 0 (as [`Painting::apply`] would set it), and the stored value. (A
+    /// 0 (the slot's maximum starts at 0), and the stored value. (A
     /// round's new children: [`Painting::first_writes_of_new_children`].)
     fn first_write(&mut self, w: &FirstWrite) {
         let slot = self.record(w.c, w.before_rgb, w.before_sigma) as usize;
@@ -1090,28 +1033,6 @@ impl Painting {
         self.slot_of.set(c, slot);
         slot
     }
-
-    /// Raise `c`'s stroke maximum to `a` if larger, and then write
-    /// `blend(before, K, a)` with the colour K of the primitive that raised it.
-    fn apply(&mut self, c: u32, a: f64, colour: [f64; 3]) {
-        let existing = self.slot_of.get(c);
-        let slot = if existing == NONE {
-            let (rgb, sigma) = (self.tree.rgb[c as usize], self.tree.sigma[c as usize]);
-            self.record(c, rgb, sigma)
-        } else {
-            existing
-        };
-        let st = self.stroke.as_mut().expect("stroke");
-        let slot_a = &mut st.slot_a[slot as usize];
-        if !(a > *slot_a) {
-            return;
-        }
-        *slot_a = a;
-        let s = &st.slots[slot as usize];
-        let (rgb, sigma) = st.stored(s.before_rgb, s.before_sigma, colour, a);
-        self.tree.set_value(c, rgb, sigma);
-        self.counters.cells_written += 1;
-    }
 }
 
 /// A vector's elements, written by the parallel paint pass through a raw
@@ -1171,8 +1092,9 @@ impl<W: Walk> RunContext<'_, W> {
     }
 }
 
-/// The one primitive of a segment that [`walk_run`] paints with: a capsule
-/// or a stamp, each through the same tests as the general pass.
+/// What [`walk_run`] paints a segment with: one capsule, one stamp, or the
+/// segment's primitives together, each through the tests of spec 8.7 and
+/// the stroke maximum of spec 8.8.
 trait Walk: Sync {
     /// Capsule walks and stamp walks keep their own split choices.
     const CAPSULE: bool;
@@ -1296,24 +1218,24 @@ impl Walk for StampWalk {
     }
 }
 
-/// The stamps of a segment of several (a stroke whose stamps lie closer
-/// than its samples, or a mirrored one), as the general pass treats them:
+/// The primitives of a segment of several (a stroke whose stamps lie
+/// closer than its samples, a mirrored stroke: a capsule or stamps a copy),
+/// through the rules a round's new children are decided by
+/// ([`segment_reach`], [`stroke_maximum_of`]):
 /// within reach when one of them is, coarser than the target depth when
 /// one within reach asks for a deeper one (the least radius among those
-/// within reach: the target depth only deepens as the radius shrinks),
-/// and the stroke maximum over them, where a NaN coverage paints nothing.
-/// They all paint the segment's colour.
-struct StampsWalk {
-    stamps: Vec<(Stamp, Prim)>,
-    shape: Shape,
-    aspect: [f64; 3],
+/// within reach: the target depth only deepens as the radius shrinks), and
+/// the stroke maximum over them, where a NaN coverage paints nothing. They
+/// all paint the segment's colour.
+struct SegmentWalk {
+    seg: Vec<Prim>,
+    brush: Brush,
+    perm: Box<[u16; 512]>,
     reach: StampReach,
-    hardness: f64,
-    noise: Option<(Box<[u16; 512]>, Brush)>,
     largest: f64,
 }
 
-impl Walk for StampsWalk {
+impl Walk for SegmentWalk {
     const CAPSULE: bool = false;
     type Point = DVec3;
     #[inline(always)]
@@ -1322,97 +1244,19 @@ impl Walk for StampsWalk {
     }
     #[inline(always)]
     fn within_reach(&self, x: &DVec3, h: f64) -> bool {
-        self.stamps.iter().any(|(s, _)| s.reach(self.shape, self.aspect, &self.reach, *x, h))
+        self.seg.iter().any(|p| prim_reach(&self.brush, &self.reach, p, *x, h).0)
     }
     #[inline(always)]
     fn radius(&self, x: &DVec3, h: f64) -> f64 {
-        self.stamps.iter().filter(|(s, _)| s.reach(self.shape, self.aspect, &self.reach, *x, h)).fold(f64::INFINITY, |m, (s, _)| m.min(s.r))
+        self.seg.iter().map(|p| prim_reach(&self.brush, &self.reach, p, *x, h)).filter(|&(within, _)| within).fold(f64::INFINITY, |m, (_, r)| m.min(r))
     }
     fn largest_radius(&self) -> f64 {
         self.largest
     }
     #[inline(always)]
     fn coverage_at(&self, x: DVec3, _x: &DVec3, hardness: f64) -> f64 {
-        debug_assert_eq!(hardness, self.hardness);
-        let mut best = 0.0;
-        // The noise factor of each mirrored copy, computed when a stamp of
-        // that copy first needs it (as the general pass does: the stamps
-        // of one copy share it).
-        let mut noise = [f64::NAN; 8];
-        for (s, p) in &self.stamps {
-            if !p.holds(x) {
-                continue; // covers nothing here (spec 8.5)
-            }
-            let c = brush::coverage_profile(s.gauge(self.shape, self.aspect, x), self.hardness) * s.f;
-            let cov = match &self.noise {
-                Some((perm, b)) => {
-                    let k = usize::from(s.mirror);
-                    if noise[k].is_nan() {
-                        let at = if s.mirror == 0 { x } else { crate::stroke::mirrored(x, s.mirror, b.mirror.expect("a copy has a mirror").centre) };
-                        noise[k] = brush::noise_factor(perm, b, at);
-                    }
-                    c * noise[k]
-                }
-                None => c,
-            };
-            if cov.is_nan() {
-                return f64::NAN; // poisons the maximum: nothing painted
-            }
-            if cov > best {
-                best = cov;
-            }
-        }
-        best
-    }
-}
-
-/// The capsules of a segment of several (a mirrored sphere stroke: one a
-/// copy), as the general pass treats them: within reach when one of them
-/// is, coarser than the target depth when one within reach asks for a
-/// deeper one (the least radius at the projections among those within
-/// reach), and the stroke maximum over them, where a NaN coverage paints
-/// nothing. They all paint the segment's colour.
-struct CapsulesWalk {
-    caps: Vec<(Capsule, Prim)>,
-    hardness: f64,
-    largest: f64,
-}
-
-impl Walk for CapsulesWalk {
-    const CAPSULE: bool = false;
-    type Point = DVec3;
-    #[inline(always)]
-    fn project(&self, x: DVec3) -> DVec3 {
-        x
-    }
-    #[inline(always)]
-    fn within_reach(&self, x: &DVec3, h: f64) -> bool {
-        self.caps.iter().any(|(c, _)| c.reach(*x, h).0)
-    }
-    #[inline(always)]
-    fn radius(&self, x: &DVec3, h: f64) -> f64 {
-        self.caps.iter().map(|(c, _)| c.reach(*x, h)).filter(|&(within, _)| within).fold(f64::INFINITY, |m, (_, r)| m.min(r))
-    }
-    fn largest_radius(&self) -> f64 {
-        self.largest
-    }
-    #[inline(always)]
-    fn coverage_at(&self, x: DVec3, _x: &DVec3, hardness: f64) -> f64 {
-        debug_assert_eq!(hardness, self.hardness);
-        let mut best = 0.0;
-        for (c, p) in &self.caps {
-            if !p.holds(x) {
-                continue; // covers nothing here (spec 8.5)
-            }
-            let cov = c.coverage(x, self.hardness);
-            if cov.is_nan() {
-                return f64::NAN; // poisons the maximum: nothing painted
-            }
-            if cov > best {
-                best = cov;
-            }
-        }
-        best
+        debug_assert_eq!(hardness, self.brush.hardness);
+        stroke_maximum_of(&self.brush, &self.perm, &self.seg, x, None).0
     }
 }
 
@@ -1628,10 +1472,7 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
     let mut reach = false;
     let mut needs = false;
     for p in seg {
-        let (r_in, r) = match &p.geo {
-            Geometry::Capsule(cap) => cap.reach(x, h),
-            Geometry::Stamp(s) => (s.reach(st.brush.shape, st.brush.aspect, &st.stamp_reach, x, h), s.r),
-        };
+        let (r_in, r) = prim_reach(&st.brush, &st.stamp_reach, p, x, h);
         if r_in {
             reach = true;
             if !want_needs {
@@ -1646,19 +1487,31 @@ fn segment_reach(tree: &Tree, st: &StrokeState, seg: &[Prim], x: DVec3, d: u32, 
     (reach, needs)
 }
 
-/// The stroke maximum of coverage·flow over `prims` at `x` and the first
-/// primitive attaining it; below TINY it is 0, and a NaN coverage poisons
-/// the maximum to 0 (as the reference's max does).
+/// Whether a cell of half-diagonal `h` at `x` is within reach of primitive
+/// `p` of a stroke with brush `b` (spec 8.7), and the radius that sets the
+/// target depth there.
 #[inline]
-fn stroke_maximum(st: &StrokeState, prims: &[Prim], x: DVec3) -> (f64, usize) {
-    stroke_maximum_with(st, prims, x, None)
+fn prim_reach(b: &Brush, geo: &StampReach, p: &Prim, x: DVec3, h: f64) -> (bool, f64) {
+    match &p.geo {
+        Geometry::Capsule(cap) => cap.reach(x, h),
+        Geometry::Stamp(s) => (s.reach(b.shape, b.aspect, geo, x, h), s.r),
+    }
 }
 
-/// [`stroke_maximum`], given the projection of `x` on the last primitive of
-/// `prims` when that one is a capsule (the caller has it already).
+/// The stroke maximum of coverage·flow over `prims` at `x` and the first
+/// primitive attaining it; below TINY it is 0, and a NaN coverage poisons
+/// the maximum to 0 (as the reference's max does). `last` is the projection
+/// of `x` on the last primitive of `prims` when that one is a capsule and
+/// the caller has it already.
 #[inline]
 fn stroke_maximum_with(st: &StrokeState, prims: &[Prim], x: DVec3, last: Option<&CapsulePoint>) -> (f64, usize) {
-    let b = &st.brush;
+    stroke_maximum_of(&st.brush, &st.perm, prims, x, last)
+}
+
+/// [`stroke_maximum_with`] for a stroke with brush `b` and noise
+/// permutation `perm`.
+#[inline]
+fn stroke_maximum_of(b: &Brush, perm: &[u16; 512], prims: &[Prim], x: DVec3, last: Option<&CapsulePoint>) -> (f64, usize) {
     // Noise per mirror copy, each at x mirrored by it (spec 8.11), computed
     // when a stamp of that copy first needs it.
     let mut noise = [f64::NAN; 8];
@@ -1666,7 +1519,7 @@ fn stroke_maximum_with(st: &StrokeState, prims: &[Prim], x: DVec3, last: Option<
         let k = usize::from(mask);
         if noise[k].is_nan() {
             let at = if mask == 0 { x } else { crate::stroke::mirrored(x, mask, b.mirror.expect("a copy has a mirror").centre) };
-            noise[k] = brush::noise_factor(&st.perm, b, at);
+            noise[k] = brush::noise_factor(perm, b, at);
         }
         noise[k]
     };
