@@ -416,6 +416,56 @@ mod avx {
         o
     }
 
+    /// The centres' box, NaN coordinates left out (f64::min, unlike
+    /// glam's, ignores a NaN): a NaN centre holds nothing anyway.
+    fn centre_box(xs: &[DVec3; LANES]) -> (DVec3, DVec3) {
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for x in xs {
+            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
+            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
+        }
+        (lo, hi)
+    }
+
+    /// A stroke maximum under way at 4 points, as `stroke_maximum_with`
+    /// folds it: the largest coverage so far and the index of the first
+    /// primitive attaining it (a later one must exceed it), and the lanes a
+    /// NaN coverage has poisoned.
+    struct Maximum {
+        best: __m256d,
+        best_k: __m256d,
+        nan: __m256d,
+    }
+
+    impl Maximum {
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn new() -> Maximum {
+            Maximum { best: _mm256_setzero_pd(), best_k: _mm256_setzero_pd(), nan: _mm256_setzero_pd() }
+        }
+
+        /// Fold in primitive `i`'s coverage `cov`, in the lanes its box
+        /// holds (`inside`).
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn fold(&mut self, i: usize, cov: __m256d, inside: __m256d) {
+            self.nan = _mm256_or_pd(self.nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
+            let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, self.best));
+            self.best = select(up, cov, self.best);
+            self.best_k = select(up, splat(i as f64), self.best_k);
+        }
+
+        /// Store the maximum (0 below TINY and where poisoned) and its
+        /// primitive's index into lanes `4·half..` of `a` and `k`.
+        #[inline]
+        #[target_feature(enable = "avx")]
+        fn store(self, a: &mut [f64; LANES], k: &mut [f64; LANES], half: usize) {
+            let zero = _mm256_or_pd(self.nan, _mm256_cmp_pd::<_CMP_LT_OQ>(self.best, splat(TINY)));
+            store(a, half, _mm256_andnot_pd(zero, self.best));
+            store(k, half, self.best_k);
+        }
+    }
+
     /// The stroke maximum over stamps (box, cylinder or cone) at a unit's
     /// 8 centres, as `stroke_maximum_with` gives it: `a` 0 or at least
     /// TINY, a NaN coverage poisoning the lane to 0, and the first stamp
@@ -423,33 +473,20 @@ mod avx {
     #[target_feature(enable = "avx")]
     pub(super) fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardness: f64, xs: &[DVec3; LANES]) -> ([f64; LANES], [u32; LANES]) {
         let pts = points(xs);
-        // The centres' box, NaN coordinates left out, as in unit_maximum.
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for x in xs {
-            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
-            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
-        }
+        let (lo, hi) = centre_box(xs);
         let (mut a, mut k) = ([0.0; LANES], [0.0; LANES]);
         for half in 0..2 {
             let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
-            let mut best = _mm256_setzero_pd();
-            let mut best_k = _mm256_setzero_pd();
-            let mut nan = _mm256_setzero_pd();
+            let mut m = Maximum::new();
             for (i, p) in prims.iter().enumerate() {
                 if !p.overlaps(lo, hi) {
                     continue; // its box holds none of the 8 centres
                 }
                 let Geometry::Stamp(st) = &p.geo else { panic!("unit_stamp_maximum takes stamps only") };
                 let cov = _mm256_mul_pd(profile(stamp_gauge(st, shape, aspect, x, y, z).0, hardness), splat(st.f));
-                let inside = holds(p, x, y, z);
-                nan = _mm256_or_pd(nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
-                let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, best));
-                best = select(up, cov, best);
-                best_k = select(up, splat(i as f64), best_k);
+                m.fold(i, cov, holds(p, x, y, z));
             }
-            let zero = _mm256_or_pd(nan, _mm256_cmp_pd::<_CMP_LT_OQ>(best, splat(TINY)));
-            store(&mut a, half, _mm256_andnot_pd(zero, best));
-            store(&mut k, half, best_k);
+            m.store(&mut a, &mut k, half);
         }
         (a, k.map(|v| v as u32))
     }
@@ -457,13 +494,7 @@ mod avx {
     #[target_feature(enable = "avx")]
     pub(super) fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> UnitMaximum {
         let pts = points(xs);
-        // The centres' box, NaN coordinates left out (f64::min, unlike
-        // glam's, ignores a NaN): a NaN centre holds nothing anyway.
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for x in xs {
-            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
-            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
-        }
+        let (lo, hi) = centre_box(xs);
         let mut o = UnitMaximum { a: [0.0; LANES], k: [0; LANES], seg_r: [0.0; LANES], seg_reach: [false; LANES] };
         let mut k = [0.0; LANES];
         for half in 0..2 {
@@ -471,9 +502,7 @@ mod avx {
             let sp = project(seg, x, y, z);
             store(&mut o.seg_r, half, sp.r);
             store_mask(&mut o.seg_reach, half, within_reach(seg, &sp, h));
-            let mut best = _mm256_setzero_pd();
-            let mut best_k = _mm256_setzero_pd();
-            let mut nan = _mm256_setzero_pd();
+            let mut m = Maximum::new();
             for (i, p) in prims.iter().enumerate() {
                 if !p.overlaps(lo, hi) {
                     continue; // its box holds none of the 8 centres
@@ -486,18 +515,9 @@ mod avx {
                     own = project(cap, x, y, z);
                     &own
                 };
-                let cov = coverage(cap, pr, hardness);
-                let inside = holds(p, x, y, z);
-                // A NaN coverage poisons the lane; the first primitive
-                // attaining the maximum keeps it (a later one must exceed it).
-                nan = _mm256_or_pd(nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
-                let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, best));
-                best = select(up, cov, best);
-                best_k = select(up, splat(i as f64), best_k);
+                m.fold(i, coverage(cap, pr, hardness), holds(p, x, y, z));
             }
-            let zero = _mm256_or_pd(nan, _mm256_cmp_pd::<_CMP_LT_OQ>(best, splat(TINY)));
-            store(&mut o.a, half, _mm256_andnot_pd(zero, best));
-            store(&mut k, half, best_k);
+            m.store(&mut o.a, &mut k, half);
         }
         o.k = k.map(|v| v as u32);
         o
