@@ -1092,6 +1092,13 @@ impl<W: Walk> RunContext<'_, W> {
     }
 }
 
+/// [`Walk::within_reach`] of the 8 centres `xs`, one at a time, as a mask
+/// (bit k: lane k): the walk's test where no kernel does it.
+#[inline(always)]
+fn reach_each<W: Walk + ?Sized>(w: &W, xs: &[DVec3; LANES], h: f64) -> u8 {
+    (0..LANES).fold(0, |m, k| m | u8::from(w.within_reach(&w.project(xs[k]), h)) << k)
+}
+
 /// What [`walk_run`] paints a segment with: one capsule, one stamp, or the
 /// segment's primitives together, each through the tests of spec 8.7 and
 /// the stroke maximum of spec 8.8.
@@ -1115,7 +1122,7 @@ trait Walk: Sync {
     fn coverage_at(&self, x: DVec3, p: &Self::Point, hardness: f64) -> f64;
     /// [`Walk::within_reach`] of the 8 centres `xs` as a mask (bit k: lane k).
     fn unit_reach(&self, xs: &[DVec3; LANES], h: f64) -> u8 {
-        (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k)
+        reach_each(self, xs, h)
     }
     /// The coverage of a unit's 8 leaves at once, where a kernel does it.
     fn unit_coverage(&self, _prim: &Prim, _hardness: f64, _xs: &[DVec3; LANES], _h: f64) -> Option<lanes::UnitCoverage> {
@@ -1147,7 +1154,7 @@ impl Walk for Capsule {
     }
     #[inline(always)]
     fn unit_reach(&self, xs: &[DVec3; LANES], h: f64) -> u8 {
-        lanes::unit_reach(self, xs, h).unwrap_or_else(|| (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k))
+        lanes::unit_reach(self, xs, h).unwrap_or_else(|| reach_each(self, xs, h))
     }
     #[inline(always)]
     fn unit_coverage(&self, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<lanes::UnitCoverage> {
@@ -1197,7 +1204,7 @@ impl Walk for StampWalk {
         // children to descend into is far rarer than a unit of leaves).
         match lanes::unit_stamp(&self.s, self.shape, self.aspect, &self.reach, &self.prim, self.hardness, xs, h) {
             Some(u) => (0..LANES).fold(0, |m, k| m | u8::from(u.reach[k]) << k),
-            None => (0..LANES).fold(0, |m, k| m | u8::from(self.within_reach(&self.project(xs[k]), h)) << k),
+            None => reach_each(self, xs, h),
         }
     }
     #[inline(always)]
