@@ -14,6 +14,11 @@ use crate::pool::NONE;
 /// Cells a page: 4 KiB of entries.
 pub const PAGE: usize = 1024;
 
+/// Pages are reset whole when they hold at least PAGE / DENSE slots on
+/// average: a fill of a page costs about as much as this many scattered
+/// stores.
+const DENSE: usize = 16;
+
 /// A page not in use.
 const NO_PAGE: u32 = u32::MAX;
 
@@ -69,11 +74,21 @@ impl SlotMap {
     }
 
     /// Forget every slot: `cells` are the cells given one (their entries
-    /// go back to NONE), and every page goes to the free list.
-    pub fn clear(&mut self, cells: impl IntoIterator<Item = u32>) {
-        for c in cells {
-            let at = self.page_at[c as usize / PAGE];
-            self.entries[at as usize * PAGE + c as usize % PAGE] = NONE;
+    /// go back to NONE), and every page goes to the free list. Where the
+    /// cells fill their pages densely (a stroke's new units lie side by
+    /// side), each page is reset whole, a fill of 4 KiB, rather than one
+    /// scattered store a cell.
+    pub fn clear(&mut self, cells: impl ExactSizeIterator<Item = u32>) {
+        if cells.len() >= self.in_use.len() * (PAGE / DENSE) {
+            for &p in &self.in_use {
+                let at = self.page_at[p as usize] as usize;
+                self.entries[at * PAGE..][..PAGE].fill(NONE);
+            }
+        } else {
+            for c in cells {
+                let at = self.page_at[c as usize / PAGE];
+                self.entries[at as usize * PAGE + c as usize % PAGE] = NONE;
+            }
         }
         for &p in &self.in_use {
             let at = std::mem::replace(&mut self.page_at[p as usize], NO_PAGE);
@@ -109,7 +124,7 @@ mod tests {
         assert_eq!(m.get(2 * PAGE as u32), NONE, "a page never used");
         let pages = m.entries.len() / PAGE;
         assert_eq!(pages, 4, "pages 0, 1, 3 and 68");
-        m.clear(cells);
+        m.clear(cells.into_iter());
         for &c in &cells {
             assert_eq!(m.get(c), NONE);
         }
@@ -120,5 +135,33 @@ mod tests {
         assert_eq!(m.entries.len() / PAGE, pages, "no new page while free ones remain");
         assert_eq!(m.get(10_000 + PAGE as u32), 1);
         assert_eq!(m.get(5), NONE, "an old page's entry does not come back");
+    }
+
+    #[test]
+    fn pages_filled_densely_are_reset_whole_and_come_back_empty() {
+        let mut m = SlotMap::default();
+        // Two pages nearly full and one with a single slot: dense enough
+        // for the whole-page reset.
+        let cells: Vec<u32> = (0..2 * PAGE as u32 - 3).chain([5 * PAGE as u32 + 9]).collect();
+        for (s, &c) in cells.iter().enumerate() {
+            m.set(c, s as u32);
+        }
+        assert!(cells.len() >= m.in_use.len() * (PAGE / DENSE), "the dense path is taken");
+        m.clear(cells.iter().copied());
+        assert!(m.entries.iter().all(|&e| e == NONE), "every entry reset");
+        for &c in &cells {
+            assert_eq!(m.get(c), NONE);
+        }
+        // A sparse stroke next: one slot a page, reset one by one, on the
+        // pages the dense one gave back.
+        let sparse = [7u32, PAGE as u32 + 7, 9 * PAGE as u32 + 7];
+        for (s, &c) in sparse.iter().enumerate() {
+            m.set(c, s as u32);
+        }
+        assert_eq!(m.entries.len() / PAGE, 3, "pages reused");
+        assert_eq!(m.get(9 * PAGE as u32 + 7), 2);
+        assert_eq!(m.get(9 * PAGE as u32 + 8), NONE);
+        m.clear(sparse.into_iter());
+        assert!(m.entries.iter().all(|&e| e == NONE), "every entry reset");
     }
 }
