@@ -11,21 +11,31 @@
 
 use crate::lattice::FACES;
 use crate::par;
-use crate::pool::{FREE, NONE, Tree};
+use crate::pool::{FREE, NONE, Tree, UNIT};
 
 /// Collapse to the fixpoint, starting from the parents of `touched`.
 /// Returns the number of collapses.
 pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
-    let mut work: Vec<u32> = touched
-        .into_iter()
-        .filter(|&c| (c as usize) < tree.depth.len() && tree.depth[c as usize] != FREE)
-        .map(|c| tree.parent[c as usize])
-        .filter(|&p| p != NONE)
-        .collect();
+    // Siblings are touched together (a new unit's 8 children one after
+    // another): a cell of the unit just seen has its parent (units are
+    // allocated, freed and parented whole), so only the first of a run is
+    // looked up, which leaves far less to read and to sort.
+    let mut work = Vec::new();
+    let mut last_unit = u32::MAX;
+    for c in touched {
+        if c / UNIT == last_unit {
+            continue;
+        }
+        last_unit = c / UNIT;
+        if (c as usize) < tree.depth.len() && tree.depth[c as usize] != FREE {
+            let p = tree.parent[c as usize];
+            if p != NONE {
+                work.push(p);
+            }
+        }
+    }
     let mut collapses = 0;
     loop {
-        // Siblings are touched together: dropping their repeated parent
-        // first leaves far less to sort.
         work.dedup();
         par::sort_dedup(&mut work);
         // Decided in parallel (reads only), collapsed in order.
