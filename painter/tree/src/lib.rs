@@ -42,6 +42,7 @@ pub mod lattice;
 pub mod layers;
 pub mod noise;
 pub mod paint;
+pub mod pager;
 pub mod par;
 pub mod team;
 pub mod pool;

@@ -49,7 +49,7 @@ pub fn measured_split() -> bool {
 
 /// Threads a pass may use.
 #[inline]
-fn threads() -> usize {
+pub fn threads() -> usize {
     rayon::current_num_threads()
 }
 

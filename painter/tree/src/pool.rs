@@ -26,6 +26,7 @@ use std::collections::BTreeSet;
 use crate::dirty::Changes;
 use crate::history::Journal;
 use crate::lattice::Lattice;
+use crate::pager::{Pager, spare};
 use crate::trace::Canvas;
 
 /// "No cell".
@@ -84,9 +85,15 @@ impl Refusal {
     }
 }
 
+/// Pool growths of at least this many cells (4 MiB of the pools) have
+/// their new pages mapped in by the pager ([`crate::pager`]).
+const PAGER_CELLS: usize = 1 << 18;
+
 /// A root array of octrees with pooled cells.
 #[derive(Clone)]
 pub struct Tree {
+    /// First, so that it is dropped (waiting for its job) before the pools.
+    pub(crate) pager: Pager,
     pub lat: Lattice,
     /// The cell budget: `n_used + 8 <= capacity` after any allocation.
     pub capacity: u32,
@@ -108,6 +115,7 @@ impl Tree {
         let lat = Lattice::new(canvas);
         let p = lat.padded as usize;
         let mut t = Tree {
+            pager: Pager::default(),
             capacity: canvas.capacity,
             parent: vec![NONE; p],
             first_child: vec![NONE; p],
@@ -133,6 +141,7 @@ impl Tree {
     /// to paint on.
     pub fn records_copy(&self) -> Tree {
         Tree {
+            pager: Pager::default(),
             lat: self.lat.clone(),
             capacity: self.capacity,
             parent: self.parent.clone(),
@@ -373,19 +382,32 @@ impl Tree {
         Ok(n)
     }
 
+    /// The cells every pool holds without reallocating.
+    fn pools_capacity(&self) -> usize {
+        let caps = [self.parent.capacity(), self.first_child.capacity(), self.depth.capacity(), self.rgb.capacity(), self.sigma.capacity()];
+        caps.into_iter().min().unwrap_or(0)
+    }
+
     /// Grow by one unit. A full pool grows by a quarter of its length (at
     /// least a unit), not Vec's doubling, so the pools never allocate more
     /// than 1.25 times the cells in use (big reallocations move pages
     /// rather than copy them).
     fn grow_by_unit(&mut self) -> Result<(), std::collections::TryReserveError> {
         let u = UNIT as usize;
-        if self.parent.len() + u > self.parent.capacity() {
+        if self.parent.len() + u > self.pools_capacity() {
             let extra = (self.parent.len() / 4).max(u);
+            self.pager.wait();
             self.parent.try_reserve_exact(extra)?;
             self.first_child.try_reserve_exact(extra)?;
             self.depth.try_reserve_exact(extra)?;
             self.rgb.try_reserve_exact(extra)?;
             self.sigma.try_reserve_exact(extra)?;
+            // New capacity worth a thread's start (tens of microseconds) is
+            // mapped in ahead when passes may use more than one thread.
+            if crate::par::threads() > 1 && extra >= PAGER_CELLS {
+                let ranges = vec![spare(&self.parent), spare(&self.first_child), spare(&self.depth), spare(&self.rgb), spare(&self.sigma)];
+                self.pager.populate(ranges);
+            }
         }
         self.parent.extend_from_slice(&[NONE; UNIT as usize]);
         self.first_child.extend_from_slice(&[NONE; UNIT as usize]);
@@ -468,6 +490,9 @@ impl Tree {
         let n = n as usize;
         if n > self.parent.len() {
             let extra = n - self.parent.len();
+            if n > self.pools_capacity() {
+                self.pager.wait(); // the pools move
+            }
             self.parent.reserve_exact(extra);
             self.first_child.reserve_exact(extra);
             self.depth.reserve_exact(extra);
@@ -483,6 +508,7 @@ impl Tree {
         // use (cleaning, undo), keeping an eighth to grow into.
         if self.parent.capacity() > n + n / 4 + 4096 {
             let keep = n + n / 8;
+            self.pager.wait(); // the pools move
             self.parent.shrink_to(keep);
             self.first_child.shrink_to(keep);
             self.depth.shrink_to(keep);
