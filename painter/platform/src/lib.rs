@@ -5,7 +5,7 @@
 //! | module | concern | Linux and macOS | Windows |
 //! | --- | --- | --- | --- |
 //! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`, `FlushFileBuffers`; the folder's ACL |
-//! | [`memory`] | the process's peak resident memory | `VmHWM` in /proc (Linux; none on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`) |
+//! | [`memory`] | the process's peak resident memory; pages mapped in ahead of their first write | `VmHWM` in /proc, `madvise(MADV_POPULATE_WRITE)` (Linux; neither on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`); no mapping ahead |
 //! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` (`$HOME/Octopaint` without a Documents folder) | the Documents known folder + `Octopaint` |
 //! | [`stdio`] | a reader that closes standard output early | the default SIGPIPE: the process ends quietly | a panic message (no such signal) |
 //!
