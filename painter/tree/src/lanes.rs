@@ -475,17 +475,20 @@ mod avx {
         let pts = points(xs);
         let (lo, hi) = centre_box(xs);
         let (mut a, mut k) = ([0.0; LANES], [0.0; LANES]);
-        for half in 0..2 {
-            let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
-            let mut m = Maximum::new();
-            for (i, p) in prims.iter().enumerate() {
-                if !p.overlaps(lo, hi) {
-                    continue; // its box holds none of the 8 centres
-                }
-                let Geometry::Stamp(st) = &p.geo else { panic!("unit_stamp_maximum takes stamps only") };
+        // Stamp by stamp, both halves: a box is tested once a unit.
+        let mut m = [Maximum::new(), Maximum::new()];
+        for (i, p) in prims.iter().enumerate() {
+            if !p.overlaps(lo, hi) {
+                continue; // its box holds none of the 8 centres
+            }
+            let Geometry::Stamp(st) = &p.geo else { panic!("unit_stamp_maximum takes stamps only") };
+            for (half, m) in m.iter_mut().enumerate() {
+                let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
                 let cov = _mm256_mul_pd(profile(stamp_gauge(st, shape, aspect, x, y, z).0, hardness), splat(st.f));
                 m.fold(i, cov, holds(p, x, y, z));
             }
+        }
+        for (half, m) in m.into_iter().enumerate() {
             m.store(&mut a, &mut k, half);
         }
         (a, k.map(|v| v as u32))
@@ -497,26 +500,32 @@ mod avx {
         let (lo, hi) = centre_box(xs);
         let mut o = UnitMaximum { a: [0.0; LANES], k: [0; LANES], seg_r: [0.0; LANES], seg_reach: [false; LANES] };
         let mut k = [0.0; LANES];
+        let sp = [0, 1].map(|half| project(seg, pts.x[half], pts.y[half], pts.z[half]));
         for half in 0..2 {
-            let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
-            let sp = project(seg, x, y, z);
-            store(&mut o.seg_r, half, sp.r);
-            store_mask(&mut o.seg_reach, half, within_reach(seg, &sp, h));
-            let mut m = Maximum::new();
-            for (i, p) in prims.iter().enumerate() {
-                if !p.overlaps(lo, hi) {
-                    continue; // its box holds none of the 8 centres
-                }
-                let Geometry::Capsule(cap) = &p.geo else { panic!("unit_maximum takes capsules only") };
+            store(&mut o.seg_r, half, sp[half].r);
+            store_mask(&mut o.seg_reach, half, within_reach(seg, &sp[half], h));
+        }
+        // Primitive by primitive, both halves: a box is tested once a unit.
+        let mut m = [Maximum::new(), Maximum::new()];
+        for (i, p) in prims.iter().enumerate() {
+            if !p.overlaps(lo, hi) {
+                continue; // its box holds none of the 8 centres
+            }
+            let Geometry::Capsule(cap) = &p.geo else { panic!("unit_maximum takes capsules only") };
+            let last = seg_is_last && i + 1 == prims.len();
+            for (half, m) in m.iter_mut().enumerate() {
+                let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
                 let own;
-                let pr = if seg_is_last && i + 1 == prims.len() {
-                    &sp
+                let pr = if last {
+                    &sp[half]
                 } else {
                     own = project(cap, x, y, z);
                     &own
                 };
                 m.fold(i, coverage(cap, pr, hardness), holds(p, x, y, z));
             }
+        }
+        for (half, m) in m.into_iter().enumerate() {
             m.store(&mut o.a, &mut k, half);
         }
         o.k = k.map(|v| v as u32);
