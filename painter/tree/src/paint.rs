@@ -933,9 +933,13 @@ impl Painting {
         // `record` gives a slot the maximum 0, and `first_write` raises it
         // when `a` is above 0.
         st.slot_a.extend(values.iter().map(|w| if w.a > 0.0 { w.a } else { 0.0 }));
-        for (i, w) in values.iter().enumerate() {
-            self.slot_of.set(w.c, (first + i) as u32);
-            self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
+        // A round's new cells are whole units, each its 8 children in order.
+        for (i, u) in values.chunks_exact(UNIT as usize).enumerate() {
+            debug_assert!(u.iter().enumerate().all(|(k, w)| w.c == u[0].c + k as u32) && u[0].c % UNIT == 0);
+            self.slot_of.set_unit(u[0].c, (first + i * UNIT as usize) as u32);
+            for w in u {
+                self.tree.set_new_child_value(w.c, w.rgb, w.sigma);
+            }
         }
     }
 

@@ -57,6 +57,21 @@ impl SlotMap {
         self.entries[at as usize * PAGE + c as usize % PAGE] = s;
     }
 
+    /// Give the 8 cells of `unit` (a multiple of 8) the slots `s..s + 8`:
+    /// one page holds them all (a page is a whole number of units).
+    #[inline]
+    pub fn set_unit(&mut self, unit: u32, s: u32) {
+        const { assert!(PAGE % 8 == 0) };
+        debug_assert!(unit % 8 == 0);
+        let p = unit as usize / PAGE;
+        let at = match self.page_at.get(p) {
+            Some(&at) if at != NO_PAGE => at,
+            _ => self.new_page(p),
+        };
+        let e: &mut [u32; 8] = (&mut self.entries[at as usize * PAGE + unit as usize % PAGE..][..8]).try_into().expect("8 entries");
+        *e = std::array::from_fn(|k| s + k as u32);
+    }
+
     /// A place for page `p`: a free one, else a new one at the end.
     #[cold]
     fn new_page(&mut self, p: usize) -> u32 {
@@ -125,6 +140,19 @@ mod tests {
         let pages = m.entries.len() / PAGE;
         assert_eq!(pages, 4, "pages 0, 1, 3 and 68");
         m.clear(cells.into_iter());
+        // A unit's 8 slots at once, on a page of its own and on one in use.
+        m.set(16 * PAGE as u32 + 3, 99);
+        m.set_unit(16 * PAGE as u32 + 8, 40);
+        m.set_unit(40 * PAGE as u32 + 1016, 50);
+        for k in 0..8 {
+            assert_eq!(m.get(16 * PAGE as u32 + 8 + k), 40 + k);
+            assert_eq!(m.get(40 * PAGE as u32 + 1016 + k), 50 + k);
+        }
+        assert_eq!(m.get(16 * PAGE as u32 + 3), 99);
+        assert_eq!(m.get(16 * PAGE as u32 + 16), NONE);
+        assert_eq!(m.get(41 * PAGE as u32), NONE);
+        let given: Vec<u32> = (0..8).map(|k| 16 * PAGE as u32 + 8 + k).chain([16 * PAGE as u32 + 3]).chain((0..8).map(|k| 40 * PAGE as u32 + 1016 + k)).collect();
+        m.clear(given.into_iter());
         for &c in &cells {
             assert_eq!(m.get(c), NONE);
         }
