@@ -8,6 +8,10 @@ pub fn peak_rss_kib() -> Option<u64> {
     imp::peak_rss_kib()
 }
 
+/// Whether [`populate_for_write`] can do anything here (Linux); elsewhere
+/// callers need not prepare a call.
+pub const POPULATES: bool = cfg!(target_os = "linux");
+
 /// Map in the pages of the `len` bytes at `addr` (the whole pages inside
 /// them) as their first write would, without writing: afterwards a write
 /// there takes no page fault. The memory's content is unchanged, so

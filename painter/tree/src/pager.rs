@@ -100,7 +100,11 @@ mod tests {
                     t.sigma[u + k] = v as f32;
                 }
             }
-            assert!(jobs >= 3, "{jobs} pager jobs");
+            if octopaint_platform::memory::POPULATES {
+                assert!(jobs >= 3, "{jobs} pager jobs");
+            } else {
+                assert_eq!(jobs, 0, "a pager job where pages cannot be mapped in ahead");
+            }
             t.pager.wait();
             for i in 0..units {
                 let u = (first + i * UNIT) as usize;
@@ -113,7 +117,8 @@ mod tests {
         });
     }
 
-    /// On one thread the pools grow with no pager job.
+    /// On one thread the pools grow with no pager job (nor anywhere the
+    /// platform cannot map pages in ahead).
     #[test]
     fn one_thread_starts_no_pager_job() {
         let canvas = Canvas { roots: [1, 1, 1], max_depth: 12, root_size: 1.0, capacity: 1 << 22 };

@@ -404,7 +404,7 @@ impl Tree {
             self.sigma.try_reserve_exact(extra)?;
             // New capacity worth a thread's start (tens of microseconds) is
             // mapped in ahead when passes may use more than one thread.
-            if crate::par::threads() > 1 && extra >= PAGER_CELLS {
+            if octopaint_platform::memory::POPULATES && crate::par::threads() > 1 && extra >= PAGER_CELLS {
                 let ranges = vec![spare(&self.parent), spare(&self.first_child), spare(&self.depth), spare(&self.rgb), spare(&self.sigma)];
                 self.pager.populate(ranges);
             }
