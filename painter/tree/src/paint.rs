@@ -1301,7 +1301,7 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
                 continue;
             }
             if fc == NONE {
-                leaf(ctx, &mut out, c, d, x, cap.radius(&cp, h), h, ctx.coverage(x, &cp));
+                leaf(ctx, &mut out, c, ctx.slot_of.get(c), d, x, cap.radius(&cp, h), h, ctx.coverage(x, &cp));
                 continue;
             }
         }
@@ -1318,10 +1318,12 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
             }
             continue;
         }
+        // The unit's slots, found with one page lookup.
+        let slots = ctx.slot_of.unit(fc).copied().unwrap_or([NONE; LANES]);
         if let Some(u) = cap.unit_coverage(ctx.prim, ctx.hardness, &xs, h1) {
             for k in (0..LANES).rev() {
                 if u.reach[k] {
-                    leaf(ctx, &mut out, fc + k as u32, d1, xs[k], u.r[k], h1, u.a[k]);
+                    leaf(ctx, &mut out, fc + k as u32, slots[k], d1, xs[k], u.r[k], h1, u.a[k]);
                 }
             }
             continue;
@@ -1329,7 +1331,7 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
         let cps: [W::Point; LANES] = std::array::from_fn(|k| cap.project(xs[k]));
         for k in (0..LANES).rev() {
             if cap.within_reach(&cps[k], h1) {
-                leaf(ctx, &mut out, fc + k as u32, d1, xs[k], cap.radius(&cps[k], h1), h1, ctx.coverage(xs[k], &cps[k]));
+                leaf(ctx, &mut out, fc + k as u32, slots[k], d1, xs[k], cap.radius(&cps[k], h1), h1, ctx.coverage(xs[k], &cps[k]));
             }
         }
     }
@@ -1337,13 +1339,13 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
     out
 }
 
-/// A leaf within reach of the capsule, with coverage·flow `a` there (0
-/// outside the primitive's box) and the capsule's radius `r` at its
-/// projection: its write (in place when its slot exists, else kept for the
+/// A leaf within reach of the capsule, with its slot (NONE: untouched in
+/// this stroke), coverage·flow `a` there (0 outside the primitive's box)
+/// and the capsule's radius `r` at its projection: its write (in place when its slot exists, else kept for the
 /// serial part) and whether it is a candidate for refinement.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
+fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, slot: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
     out.visited += 1;
     // SAFETY (every `Disjoint` access here): `c` is a live cell of this
     // run's subtrees, which no other run holds, and its slot is its own;
@@ -1353,7 +1355,7 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, d: u32, x: DVec3, r
     if a >= TINY {
         out.hit += 1;
         let colour = ctx.prim.colour;
-        match ctx.slot_of.get(c) {
+        match slot {
             NONE => {
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);

@@ -46,6 +46,17 @@ impl SlotMap {
         }
     }
 
+    /// The slots of the 8 cells of `unit` (a multiple of 8), None when
+    /// none of them has one: one page lookup for the 8.
+    #[inline(always)]
+    pub fn unit(&self, unit: u32) -> Option<&[u32; 8]> {
+        debug_assert!(unit % 8 == 0);
+        match self.page_at.get(unit as usize / PAGE) {
+            Some(&at) if at != NO_PAGE => Some((&self.entries[at as usize * PAGE + unit as usize % PAGE..][..8]).try_into().expect("8 entries")),
+            _ => None,
+        }
+    }
+
     /// Give `c` the slot `s` (not NONE).
     #[inline]
     pub fn set(&mut self, c: u32, s: u32) {
@@ -148,6 +159,9 @@ mod tests {
             assert_eq!(m.get(16 * PAGE as u32 + 8 + k), 40 + k);
             assert_eq!(m.get(40 * PAGE as u32 + 1016 + k), 50 + k);
         }
+        assert_eq!(m.unit(16 * PAGE as u32 + 8), Some(&[40, 41, 42, 43, 44, 45, 46, 47]));
+        assert_eq!(m.unit(16 * PAGE as u32), Some(&[NONE, NONE, NONE, 99, NONE, NONE, NONE, NONE]));
+        assert_eq!(m.unit(17 * PAGE as u32), None, "a page not in use");
         assert_eq!(m.get(16 * PAGE as u32 + 3), 99);
         assert_eq!(m.get(16 * PAGE as u32 + 16), NONE);
         assert_eq!(m.get(41 * PAGE as u32), NONE);
