@@ -1341,8 +1341,9 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
 
 /// A leaf within reach of the capsule, with its slot (NONE: untouched in
 /// this stroke), coverage·flow `a` there (0 outside the primitive's box)
-/// and the capsule's radius `r` at its projection: its write (in place when its slot exists, else kept for the
-/// serial part) and whether it is a candidate for refinement.
+/// and the capsule's radius `r` at its projection: its write (in place
+/// when its slot exists, else kept for the serial part) and whether it is
+/// a candidate for refinement.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, slot: u32, d: u32, x: DVec3, r: f64, h: f64, a: f64) {
