@@ -72,15 +72,20 @@ mod tests {
     use crate::pool::{Tree, UNIT};
     use crate::trace::Canvas;
 
+    /// `f` on a new tree of one root and `capacity` cells, in a pool of
+    /// `threads` threads (which decides whether growths start jobs).
+    fn on_threads(threads: usize, capacity: u32, f: impl FnOnce(&mut Tree) + Send) {
+        let canvas = Canvas { roots: [1, 1, 1], max_depth: 12, root_size: 1.0, capacity };
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| f(&mut Tree::new(&canvas)));
+    }
+
     /// The pools grow past several pager jobs on two threads while every
     /// new unit is written at once: the pages mapped in behind the writes
     /// keep every byte, through the reallocations that wait for the jobs.
     #[test]
     fn pools_grown_with_the_pager_keep_every_cell() {
-        let canvas = Canvas { roots: [1, 1, 1], max_depth: 12, root_size: 1.0, capacity: 1 << 23 };
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        pool.install(|| {
-            let mut t = Tree::new(&canvas);
+        on_threads(2, 1 << 23, |t| {
             let first = t.n_used();
             let mut jobs = 0;
             let mut capacity = t.parent.capacity();
@@ -121,10 +126,7 @@ mod tests {
     /// platform cannot map pages in ahead).
     #[test]
     fn one_thread_starts_no_pager_job() {
-        let canvas = Canvas { roots: [1, 1, 1], max_depth: 12, root_size: 1.0, capacity: 1 << 22 };
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        pool.install(|| {
-            let mut t = Tree::new(&canvas);
+        on_threads(1, 1 << 22, |t| {
             for _ in 0..(2_000_000 / UNIT) {
                 t.allocate_unit().unwrap();
                 assert!(t.pager.job.is_none());

@@ -36,51 +36,59 @@ pub struct SlotMap {
 }
 
 impl SlotMap {
-    /// `c`'s slot, NONE when it has none.
+    /// Where `c`'s entry lies in `entries`, None when its page has no place.
     #[inline(always)]
-    pub fn get(&self, c: u32) -> u32 {
-        let p = c as usize / PAGE;
-        match self.page_at.get(p) {
-            Some(&at) if at != NO_PAGE => self.entries[at as usize * PAGE + c as usize % PAGE],
-            _ => NONE,
+    fn entry(&self, c: u32) -> Option<usize> {
+        match self.page_at.get(c as usize / PAGE) {
+            Some(&at) if at != NO_PAGE => Some(at as usize * PAGE + c as usize % PAGE),
+            _ => None,
         }
     }
 
+    /// Where `c`'s entry lies in `entries`, its page given a place if it
+    /// has none.
+    #[inline(always)]
+    fn entry_or_new(&mut self, c: u32) -> usize {
+        let p = c as usize / PAGE;
+        let at = match self.page_at.get(p) {
+            Some(&at) if at != NO_PAGE => at,
+            _ => self.new_page(p),
+        };
+        at as usize * PAGE + c as usize % PAGE
+    }
+
+    /// `c`'s slot, NONE when it has none.
+    #[inline(always)]
+    pub fn get(&self, c: u32) -> u32 {
+        self.entry(c).map_or(NONE, |e| self.entries[e])
+    }
+
     /// The slots of the 8 cells of `unit` (a multiple of 8), None when
-    /// none of them has one: one page lookup for the 8.
+    /// none of them has one: one page lookup for the 8 (a page is a whole
+    /// number of units).
     #[inline(always)]
     pub fn unit(&self, unit: u32) -> Option<&[u32; 8]> {
+        const { assert!(PAGE % 8 == 0) };
         debug_assert!(unit % 8 == 0);
-        match self.page_at.get(unit as usize / PAGE) {
-            Some(&at) if at != NO_PAGE => Some((&self.entries[at as usize * PAGE + unit as usize % PAGE..][..8]).try_into().expect("8 entries")),
-            _ => None,
-        }
+        self.entry(unit).map(|e| (&self.entries[e..][..8]).try_into().expect("8 entries"))
     }
 
     /// Give `c` the slot `s` (not NONE).
     #[inline]
     pub fn set(&mut self, c: u32, s: u32) {
-        let p = c as usize / PAGE;
-        let at = match self.page_at.get(p) {
-            Some(&at) if at != NO_PAGE => at,
-            _ => self.new_page(p),
-        };
-        self.entries[at as usize * PAGE + c as usize % PAGE] = s;
+        let e = self.entry_or_new(c);
+        self.entries[e] = s;
     }
 
-    /// Give the 8 cells of `unit` (a multiple of 8) the slots `s..s + 8`:
-    /// one page holds them all (a page is a whole number of units).
+    /// Give the 8 cells of `unit` (a multiple of 8) the slots `s..s + 8`,
+    /// with one page lookup.
     #[inline]
     pub fn set_unit(&mut self, unit: u32, s: u32) {
         const { assert!(PAGE % 8 == 0) };
         debug_assert!(unit % 8 == 0);
-        let p = unit as usize / PAGE;
-        let at = match self.page_at.get(p) {
-            Some(&at) if at != NO_PAGE => at,
-            _ => self.new_page(p),
-        };
-        let e: &mut [u32; 8] = (&mut self.entries[at as usize * PAGE + unit as usize % PAGE..][..8]).try_into().expect("8 entries");
-        *e = std::array::from_fn(|k| s + k as u32);
+        let e = self.entry_or_new(unit);
+        let unit_entries: &mut [u32; 8] = (&mut self.entries[e..][..8]).try_into().expect("8 entries");
+        *unit_entries = std::array::from_fn(|k| s + k as u32);
     }
 
     /// A place for page `p`: a free one, else a new one at the end.
@@ -105,19 +113,18 @@ impl SlotMap {
     /// side), each page is reset whole, a fill of 4 KiB, rather than one
     /// scattered store a cell.
     pub fn clear(&mut self, cells: impl ExactSizeIterator<Item = u32>) {
-        if cells.len() >= self.in_use.len() * (PAGE / DENSE) {
-            for &p in &self.in_use {
-                let at = self.page_at[p as usize] as usize;
-                self.entries[at * PAGE..][..PAGE].fill(NONE);
-            }
-        } else {
+        let whole_pages = cells.len() >= self.in_use.len() * (PAGE / DENSE);
+        if !whole_pages {
             for c in cells {
-                let at = self.page_at[c as usize / PAGE];
-                self.entries[at as usize * PAGE + c as usize % PAGE] = NONE;
+                let e = self.entry(c).expect("a cell given a slot has a page");
+                self.entries[e] = NONE;
             }
         }
         for &p in &self.in_use {
             let at = std::mem::replace(&mut self.page_at[p as usize], NO_PAGE);
+            if whole_pages {
+                self.entries[at as usize * PAGE..][..PAGE].fill(NONE);
+            }
             debug_assert!(self.entries[at as usize * PAGE..][..PAGE].iter().all(|&e| e == NONE), "a page went back with a slot in it");
             self.free.push(at);
         }
