@@ -1,9 +1,13 @@
-//! The 8 children of a unit against capsules and stamps, 4 points a vector
-//! register (AVX): the paint pass's projection, reach test and coverage of
-//! a unit whose children are all leaves, and the stroke maximum of a unit's
+//! The 8 children of a unit against capsules and stamps, at once in vector
+//! registers: the paint pass's projection, reach test and coverage of a
+//! unit whose children are all leaves, and the stroke maximum of a unit's
 //! new children, for capsules (sphere brushes) and for the stamps of box,
 //! cylinder and cone brushes (noise stamps keep their scalar noise factor).
-//! Every lane goes through the IEEE operations of the scalar
+//!
+//! 8 lanes fill two AVX registers of 4; each kernel is written over the
+//! 8-lane operations of `avx` (`V`, its comparison mask `M`, and `add`,
+//! `select`, `bits` and the rest), so both halves go through each step
+//! together. Every lane goes through the IEEE operations of the scalar
 //! forms in [`crate::brush`] in the same order (a division is a division,
 //! a square root a square root, nothing fused), so each lane holds the bits
 //! the scalar form gives: the tests below compare them on random and
@@ -23,25 +27,27 @@ pub const LANES: usize = 8;
 
 /// A capsule at a unit's 8 children (the paint pass): per lane, the local
 /// radius `r(u)` at the projection, whether a cell of half-diagonal `h`
-/// there is within reach ([`Capsule::within_reach`]), and its coverage·flow
-/// `a` ([`Capsule::coverage_at`], 0 outside the primitive's box).
+/// there is within reach ([`Capsule::within_reach`]; bit k of `reach`:
+/// lane k), and its coverage·flow `a` ([`Capsule::coverage_at`], 0 outside
+/// the primitive's box).
 #[derive(Clone, Copy, Debug)]
 pub struct UnitCoverage {
     pub r: [f64; LANES],
-    pub reach: [bool; LANES],
+    pub reach: u8,
     pub a: [f64; LANES],
 }
 
 /// The stroke maximum at a unit's 8 new children: per lane what
 /// `stroke_maximum_with` gives (`a`, 0 or at least TINY, and the first
 /// primitive `k` attaining it, any when `a` is 0), and for the segment's
-/// capsule the local radius and reach, as in [`UnitCoverage`].
+/// capsule the local radius and reach (bit k: lane k), as in
+/// [`UnitCoverage`].
 #[derive(Clone, Copy, Debug)]
 pub struct UnitMaximum {
     pub a: [f64; LANES],
     pub k: [u32; LANES],
     pub seg_r: [f64; LANES],
-    pub seg_reach: [bool; LANES],
+    pub seg_reach: u8,
 }
 
 static ENABLED: AtomicBool = AtomicBool::new(true);
@@ -67,19 +73,27 @@ pub fn available() -> bool {
     }
 }
 
+/// Some of `avx::$kernel(args)` where the kernels run, else None.
+macro_rules! kernel {
+    ($kernel:ident($($arg:expr),* $(,)?)) => {{
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY: the processor has AVX.
+            available().then(|| unsafe { avx::$kernel($($arg),*) })
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = ($($arg),*);
+            None
+        }
+    }};
+}
+
 /// The paint pass's [`UnitCoverage`] of `cap` (the primitive `prim`) at
 /// the centres `xs`, for cells of half-diagonal `h`.
 #[inline]
 pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<UnitCoverage> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if available() {
-            // SAFETY: the processor has AVX.
-            return Some(unsafe { avx::unit_coverage(cap, prim, hardness, xs, h) });
-        }
-    }
-    let _ = (cap, prim, hardness, xs, h);
-    None
+    kernel!(unit_coverage(cap, prim, hardness, xs, h))
 }
 
 /// A stamp of a box, cylinder or cone brush (`shape`, `aspect`, `geo`) at a
@@ -90,15 +104,10 @@ pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LAN
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<UnitCoverage> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if shape != Shape::Noise && shape != Shape::Sphere && available() {
-            // SAFETY: the processor has AVX.
-            return Some(unsafe { avx::unit_stamp(st, shape, aspect, geo, prim, hardness, xs, h) });
-        }
+    if shape == Shape::Noise || shape == Shape::Sphere {
+        return None;
     }
-    let _ = (st, shape, aspect, geo, prim, hardness, xs, h);
-    None
+    kernel!(unit_stamp(st, shape, aspect, geo, prim, hardness, xs, h))
 }
 
 /// The stroke maximum over `prims` (box, cylinder or cone stamps of a
@@ -108,15 +117,10 @@ pub fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, 
 /// when `a` is 0). None for noise brushes and where the kernels do not run.
 #[inline]
 pub fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardness: f64, xs: &[DVec3; LANES]) -> Option<([f64; LANES], [u32; LANES])> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if shape != Shape::Noise && shape != Shape::Sphere && available() {
-            // SAFETY: the processor has AVX.
-            return Some(unsafe { avx::unit_stamp_maximum(prims, shape, aspect, hardness, xs) });
-        }
+    if shape == Shape::Noise || shape == Shape::Sphere {
+        return None;
     }
-    let _ = (prims, shape, aspect, hardness, xs);
-    None
+    kernel!(unit_stamp_maximum(prims, shape, aspect, hardness, xs))
 }
 
 /// [`Capsule::within_reach`] of `cap` at the centres `xs` of cells of
@@ -124,15 +128,7 @@ pub fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardne
 /// pass's test of a unit's children that are not all leaves.
 #[inline]
 pub fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> Option<u8> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if available() {
-            // SAFETY: the processor has AVX.
-            return Some(unsafe { avx::unit_reach(cap, xs, h) });
-        }
-    }
-    let _ = (cap, xs, h);
-    None
+    kernel!(unit_reach(cap, xs, h))
 }
 
 /// The [`UnitMaximum`] over `prims` (capsules, in stroke order; a stamp
@@ -141,252 +137,370 @@ pub fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> Option<u8> {
 /// too (its projection then serves both).
 #[inline]
 pub fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> Option<UnitMaximum> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if available() {
-            // SAFETY: the processor has AVX.
-            return Some(unsafe { avx::unit_maximum(prims, hardness, seg, seg_is_last, xs, h) });
-        }
-    }
-    let _ = (prims, hardness, seg, seg_is_last, xs, h);
-    None
+    kernel!(unit_maximum(prims, hardness, seg, seg_is_last, xs, h))
 }
 
+/// `v` is a power of two whose reciprocal is a normal number too.
+#[inline]
+fn power_of_two(v: f64) -> bool {
+    v.is_normal() && v > 0.0 && v.to_bits() & ((1u64 << 52) - 1) == 0 && (1.0 / v).is_normal()
+}
+
+/// The centres' box, NaN coordinates left out (f64::min, unlike glam's,
+/// ignores a NaN): a NaN centre holds nothing anyway.
+fn centre_box(xs: &[DVec3; LANES]) -> (DVec3, DVec3) {
+    let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+    for x in xs {
+        lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
+        hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
+    }
+    (lo, hi)
+}
+
+/// The lane operations at AVX: 8 lanes in two registers of 4, a mask a
+/// vector whose lanes are all ones or all zeros.
 #[cfg(target_arch = "x86_64")]
 mod avx {
     use std::arch::x86_64::*;
 
     use glam::DVec3;
 
-    use super::{LANES, UnitCoverage, UnitMaximum};
+    use super::{LANES, UnitCoverage, UnitMaximum, centre_box, power_of_two};
     use crate::brush::{Capsule, Stamp, StampReach, TINY};
     use crate::stroke::{Geometry, Prim};
     use crate::trace::Shape;
 
-    /// `Capsule::project` of 4 points.
-    struct Projection {
-        dist: __m256d,
-        u: __m256d,
-        r: __m256d,
-        t: __m256d,
-        w1: __m256d,
+    #[derive(Clone, Copy)]
+    struct V([__m256d; 2]);
+
+    type M = V;
+
+    /// Both halves through `f`.
+    #[inline(always)]
+    fn each(a: V, f: impl Fn(__m256d) -> __m256d) -> V {
+        V([f(a.0[0]), f(a.0[1])])
     }
 
-    /// The lanes' coordinates, 4 points a register.
-    struct Points {
-        x: [__m256d; 2],
-        y: [__m256d; 2],
-        z: [__m256d; 2],
+    #[inline(always)]
+    fn both(a: V, b: V, f: impl Fn(__m256d, __m256d) -> __m256d) -> V {
+        V([f(a.0[0], b.0[0]), f(a.0[1], b.0[1])])
     }
 
     #[inline]
     #[target_feature(enable = "avx")]
-    fn splat(v: f64) -> __m256d {
-        _mm256_set1_pd(v)
+    fn lanes(xs: &[DVec3; LANES], f: fn(&DVec3) -> f64) -> V {
+        let half = |i: usize| _mm256_set_pd(f(&xs[i + 3]), f(&xs[i + 2]), f(&xs[i + 1]), f(&xs[i]));
+        V([half(0), half(4)])
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn splat(v: f64) -> V {
+        V([_mm256_set1_pd(v); 2])
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn zero() -> V {
+        V([_mm256_setzero_pd(); 2])
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn no_lanes() -> M {
+        zero()
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn add(a: V, b: V) -> V {
+        both(a, b, |a, b| _mm256_add_pd(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn sub(a: V, b: V) -> V {
+        both(a, b, |a, b| _mm256_sub_pd(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn mul(a: V, b: V) -> V {
+        both(a, b, |a, b| _mm256_mul_pd(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn div(a: V, b: V) -> V {
+        both(a, b, |a, b| _mm256_div_pd(a, b))
+    }
+
+    /// `maxpd`: the second operand when either is NaN.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn max(a: V, b: V) -> V {
+        both(a, b, |a, b| _mm256_max_pd(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn sqrt(a: V) -> V {
+        each(a, |a| _mm256_sqrt_pd(a))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn abs(a: V) -> V {
+        each(a, |a| _mm256_and_pd(a, _mm256_castsi256_pd(_mm256_set1_epi64x(i64::MAX))))
+    }
+
+    /// The sign bit flipped.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn neg(a: V) -> V {
+        each(a, |a| _mm256_xor_pd(a, _mm256_set1_pd(-0.0)))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn lt(a: V, b: V) -> M {
+        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_LT_OQ>(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn le(a: V, b: V) -> M {
+        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_LE_OQ>(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn gt(a: V, b: V) -> M {
+        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_GT_OQ>(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn ge(a: V, b: V) -> M {
+        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_GE_OQ>(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn unord(a: V, b: V) -> M {
+        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_UNORD_Q>(a, b))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn and(m: M, n: M) -> M {
+        both(m, n, |m, n| _mm256_and_pd(m, n))
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn or(m: M, n: M) -> M {
+        both(m, n, |m, n| _mm256_or_pd(m, n))
+    }
+
+    /// `n` and not `m`.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn and_not(m: M, n: M) -> M {
+        both(m, n, |m, n| _mm256_andnot_pd(m, n))
+    }
+
+    /// `v` where `m` is set, else +0.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn keep(m: M, v: V) -> V {
+        and(m, v)
+    }
+
+    /// `v`, with +0 where `m` is set.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn zero_where(m: M, v: V) -> V {
+        and_not(m, v)
+    }
+
+    /// `set` where `m` is set, else `clear`. Written with bitwise
+    /// operations, not `blendv`: a comparison's lanes are all ones or all
+    /// zeros, which the compiler does not see through a `blendv` under AVX
+    /// without AVX2 (it tests each lane's sign with 128-bit integer
+    /// compares instead, and the kernels ran 10% slower).
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn select(m: M, set: V, clear: V) -> V {
+        or(and(m, set), and_not(m, clear))
+    }
+
+    /// Bit k: lane k of `m` is set.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn bits(m: M) -> u8 {
+        (_mm256_movemask_pd(m.0[0]) | _mm256_movemask_pd(m.0[1]) << 4) as u8
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn store(out: &mut [f64; LANES], v: V) {
+        // SAFETY: 4 lanes at 0 and at 4 of an array of 8.
+        unsafe {
+            _mm256_storeu_pd(out.as_mut_ptr(), v.0[0]);
+            _mm256_storeu_pd(out.as_mut_ptr().add(4), v.0[1]);
+        }
+    }
+
+
+    /// `Capsule::project` of 8 points.
+    struct Projection {
+        dist: V,
+        u: V,
+        r: V,
+        t: V,
+        w1: V,
+    }
+
+    /// The lanes' coordinates.
+    struct Points {
+        x: V,
+        y: V,
+        z: V,
     }
 
     #[inline]
     #[target_feature(enable = "avx")]
     fn points(xs: &[DVec3; LANES]) -> Points {
-        let half = |i: usize, f: fn(&DVec3) -> f64| _mm256_set_pd(f(&xs[i + 3]), f(&xs[i + 2]), f(&xs[i + 1]), f(&xs[i]));
-        Points {
-            x: [half(0, |p| p.x), half(4, |p| p.x)],
-            y: [half(0, |p| p.y), half(4, |p| p.y)],
-            z: [half(0, |p| p.z), half(4, |p| p.z)],
-        }
-    }
-
-    /// `set` where the comparison mask `m` is set, else `clear`. Written
-    /// with bitwise operations, not `blendv`: a comparison's lanes are all
-    /// ones or all zeros, which the compiler does not see through a
-    /// `blendv` under AVX without AVX2 (it tests each lane's sign with
-    /// 128-bit integer compares instead, and the kernels ran 10% slower).
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn select(m: __m256d, set: __m256d, clear: __m256d) -> __m256d {
-        _mm256_or_pd(_mm256_and_pd(m, set), _mm256_andnot_pd(m, clear))
-    }
-
-    /// `v`, with +0 where the comparison mask `m` is set.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn zero_where(m: __m256d, v: __m256d) -> __m256d {
-        _mm256_andnot_pd(m, v)
+        Points { x: lanes(xs, |p| p.x), y: lanes(xs, |p| p.y), z: lanes(xs, |p| p.z) }
     }
 
     /// `v.clamp(0.0, 1.0)` as Rust computes it: below 0 gives 0, above 1
     /// gives 1, NaN stays NaN.
     #[inline]
     #[target_feature(enable = "avx")]
-    fn clamp01(v: __m256d) -> __m256d {
-        let v = zero_where(_mm256_cmp_pd::<_CMP_LT_OQ>(v, _mm256_setzero_pd()), v);
-        select(_mm256_cmp_pd::<_CMP_GT_OQ>(v, splat(1.0)), splat(1.0), v)
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn abs(v: __m256d) -> __m256d {
-        _mm256_and_pd(v, _mm256_castsi256_pd(_mm256_set1_epi64x(i64::MAX)))
-    }
-
-    /// `Capsule::project`, operation for operation.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn project(c: &Capsule, x: __m256d, y: __m256d, z: __m256d) -> Projection {
-        let (p0, d) = (c.p0, c.d);
-        let wx = _mm256_sub_pd(x, splat(p0.x));
-        let wy = _mm256_sub_pd(y, splat(p0.y));
-        let wz = _mm256_sub_pd(z, splat(p0.z));
-        let t = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(wx, splat(d.x)), _mm256_mul_pd(wy, splat(d.y))), _mm256_mul_pd(wz, splat(d.z)));
-        let u = if c.dd >= TINY { clamp01(_mm256_div_pd(t, splat(c.dd))) } else { _mm256_setzero_pd() };
-        let ex = _mm256_sub_pd(x, _mm256_add_pd(splat(p0.x), _mm256_mul_pd(splat(d.x), u)));
-        let ey = _mm256_sub_pd(y, _mm256_add_pd(splat(p0.y), _mm256_mul_pd(splat(d.y), u)));
-        let ez = _mm256_sub_pd(z, _mm256_add_pd(splat(p0.z), _mm256_mul_pd(splat(d.z), u)));
-        let s = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ex, ex), _mm256_mul_pd(ey, ey)), _mm256_mul_pd(ez, ez));
-        // sqrt where s > 0, else +0 (and for a NaN s).
-        let dist = _mm256_and_pd(_mm256_sqrt_pd(s), _mm256_cmp_pd::<_CMP_GT_OQ>(s, _mm256_setzero_pd()));
-        let r = _mm256_add_pd(splat(c.r0), _mm256_mul_pd(splat(c.r1 - c.r0), u));
-        let w1 = _mm256_add_pd(_mm256_add_pd(abs(wx), abs(wy)), abs(wz));
-        Projection { dist, u, r, t, w1 }
-    }
-
-    /// `v` is a power of two whose reciprocal is a normal number too.
-    #[inline]
-    fn power_of_two(v: f64) -> bool {
-        v.is_normal() && v > 0.0 && v.to_bits() & ((1u64 << 52) - 1) == 0 && (1.0 / v).is_normal()
-    }
-
-    /// `Capsule::coverage_at` (with `coverage_profile`), as selects.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn coverage(c: &Capsule, p: &Projection, hardness: f64) -> __m256d {
-        let flow = _mm256_add_pd(splat(c.f0), _mm256_mul_pd(splat(c.f1 - c.f0), p.u));
-        let profile = profile(_mm256_div_pd(p.dist, p.r), hardness);
-        let cov = _mm256_mul_pd(profile, flow);
-        if c.open {
-            // Behind an open start: exactly 0 (spec 8.3).
-            zero_where(_mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_setzero_pd()), cov)
-        } else {
-            cov
-        }
-    }
-
-    /// `coverage_profile(rho, hardness)`, as selects.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn profile(rho: __m256d, hardness: f64) -> __m256d {
-        let span = 1.0 - hardness;
-        let safe = if span > 0.0 { span } else { 1.0 };
-        let above = _mm256_sub_pd(splat(1.0), rho);
-        // Dividing by a power of two is multiplying by its reciprocal, bit
-        // for bit (both round the same exact quotient): hardness 0 and 0.5
-        // (1 and 1/2 here) save a division a lane.
-        let t = clamp01(if power_of_two(safe) { _mm256_mul_pd(above, splat(1.0 / safe)) } else { _mm256_div_pd(above, splat(safe)) });
-        let smooth = _mm256_mul_pd(_mm256_mul_pd(t, t), _mm256_sub_pd(splat(3.0), _mm256_mul_pd(splat(2.0), t)));
-        let profile = select(_mm256_cmp_pd::<_CMP_LE_OQ>(rho, splat(hardness)), splat(1.0), smooth);
-        zero_where(_mm256_cmp_pd::<_CMP_GE_OQ>(rho, splat(1.0)), profile)
-    }
-
-    /// `Capsule::within_reach` for cells of half-diagonal `h`: a mask.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn within_reach(c: &Capsule, p: &Projection, h: f64) -> __m256d {
-        let near = _mm256_cmp_pd::<_CMP_LE_OQ>(_mm256_sub_pd(p.dist, p.r), splat(h * c.slack));
-        if !c.open {
-            return near;
-        }
-        // -(h·dn + 1e-12·(w1 + h)·dn); the negation flips the sign bit.
-        let margin = _mm256_add_pd(splat(h * c.dn), _mm256_mul_pd(_mm256_mul_pd(splat(1e-12), _mm256_add_pd(p.w1, splat(h))), splat(c.dn)));
-        let behind = _mm256_cmp_pd::<_CMP_LT_OQ>(p.t, _mm256_xor_pd(margin, splat(-0.0)));
-        _mm256_andnot_pd(behind, near)
-    }
-
-    /// `Prim::holds` of 4 points: a mask.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn holds(p: &Prim, x: __m256d, y: __m256d, z: __m256d) -> __m256d {
-        let le = |a: __m256d, b: __m256d| _mm256_cmp_pd::<_CMP_LE_OQ>(a, b);
-        let lo = _mm256_and_pd(_mm256_and_pd(le(splat(p.lo.x), x), le(splat(p.lo.y), y)), le(splat(p.lo.z), z));
-        let hi = _mm256_and_pd(_mm256_and_pd(le(x, splat(p.hi.x)), le(y, splat(p.hi.y))), le(z, splat(p.hi.z)));
-        _mm256_and_pd(lo, hi)
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn store(out: &mut [f64; LANES], half: usize, v: __m256d) {
-        // SAFETY: 4 lanes at 4·half of an array of 8.
-        unsafe { _mm256_storeu_pd(out.as_mut_ptr().add(4 * half), v) }
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn store_mask(out: &mut [bool; LANES], half: usize, m: __m256d) {
-        let bits = _mm256_movemask_pd(m);
-        for l in 0..4 {
-            out[4 * half + l] = bits >> l & 1 == 1;
-        }
-    }
-
-    #[target_feature(enable = "avx")]
-    pub(super) fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> UnitCoverage {
-        let pts = points(xs);
-        let mut o = UnitCoverage { r: [0.0; LANES], reach: [false; LANES], a: [0.0; LANES] };
-        for i in 0..2 {
-            let (x, y, z) = (pts.x[i], pts.y[i], pts.z[i]);
-            let p = project(cap, x, y, z);
-            store(&mut o.r, i, p.r);
-            store_mask(&mut o.reach, i, within_reach(cap, &p, h));
-            // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
-            store(&mut o.a, i, _mm256_and_pd(coverage(cap, &p, hardness), holds(prim, x, y, z)));
-        }
-        o
-    }
-
-    #[target_feature(enable = "avx")]
-    pub(super) fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> u8 {
-        let pts = points(xs);
-        let mut bits = 0;
-        for i in 0..2 {
-            let p = project(cap, pts.x[i], pts.y[i], pts.z[i]);
-            bits |= (_mm256_movemask_pd(within_reach(cap, &p, h)) as u8) << (4 * i);
-        }
-        bits
-    }
-
-    /// `f64::max` as Rust computes it: a NaN argument gives the other.
-    /// (`maxpd` gives its second operand when either is NaN.)
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn max_nan_ignored(a: __m256d, b: __m256d) -> __m256d {
-        select(_mm256_cmp_pd::<_CMP_UNORD_Q>(b, b), a, _mm256_max_pd(a, b))
+    fn clamp01(v: V) -> V {
+        let v = zero_where(lt(v, zero()), v);
+        select(gt(v, splat(1.0)), splat(1.0), v)
     }
 
     /// `sqrt(s)` where `s > 0`, else +0 (a NaN `s` included).
     #[inline]
     #[target_feature(enable = "avx")]
-    fn sqrt_positive(s: __m256d) -> __m256d {
-        _mm256_and_pd(_mm256_sqrt_pd(s), _mm256_cmp_pd::<_CMP_GT_OQ>(s, _mm256_setzero_pd()))
+    fn sqrt_positive(s: V) -> V {
+        keep(gt(s, zero()), sqrt(s))
     }
 
-    /// A stamp's local coordinates and gauge at 4 points
+    /// `f64::max` as Rust computes it: a NaN argument gives the other.
+    /// (`max` gives its second operand when either is NaN.)
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn max_nan_ignored(a: V, b: V) -> V {
+        select(unord(b, b), a, max(a, b))
+    }
+
+    /// `Capsule::project`, operation for operation.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn project(c: &Capsule, p: &Points) -> Projection {
+        let (p0, d) = (c.p0, c.d);
+        let wx = sub(p.x, splat(p0.x));
+        let wy = sub(p.y, splat(p0.y));
+        let wz = sub(p.z, splat(p0.z));
+        let t = add(add(mul(wx, splat(d.x)), mul(wy, splat(d.y))), mul(wz, splat(d.z)));
+        let u = if c.dd >= TINY { clamp01(div(t, splat(c.dd))) } else { zero() };
+        let ex = sub(p.x, add(splat(p0.x), mul(splat(d.x), u)));
+        let ey = sub(p.y, add(splat(p0.y), mul(splat(d.y), u)));
+        let ez = sub(p.z, add(splat(p0.z), mul(splat(d.z), u)));
+        let dist = sqrt_positive(add(add(mul(ex, ex), mul(ey, ey)), mul(ez, ez)));
+        let r = add(splat(c.r0), mul(splat(c.r1 - c.r0), u));
+        let w1 = add(add(abs(wx), abs(wy)), abs(wz));
+        Projection { dist, u, r, t, w1 }
+    }
+
+    /// `Capsule::coverage_at` (with `coverage_profile`), as selects.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn coverage(c: &Capsule, p: &Projection, hardness: f64) -> V {
+        let flow = add(splat(c.f0), mul(splat(c.f1 - c.f0), p.u));
+        let cov = mul(profile(div(p.dist, p.r), hardness), flow);
+        // Behind an open start: exactly 0 (spec 8.3).
+        if c.open { zero_where(lt(p.t, zero()), cov) } else { cov }
+    }
+
+    /// `coverage_profile(rho, hardness)`, as selects.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn profile(rho: V, hardness: f64) -> V {
+        let span = 1.0 - hardness;
+        let safe = if span > 0.0 { span } else { 1.0 };
+        let above = sub(splat(1.0), rho);
+        // Dividing by a power of two is multiplying by its reciprocal, bit
+        // for bit (both round the same exact quotient): hardness 0 and 0.5
+        // (1 and 1/2 here) save a division a lane.
+        let t = clamp01(if power_of_two(safe) { mul(above, splat(1.0 / safe)) } else { div(above, splat(safe)) });
+        let smooth = mul(mul(t, t), sub(splat(3.0), mul(splat(2.0), t)));
+        let profile = select(le(rho, splat(hardness)), splat(1.0), smooth);
+        zero_where(ge(rho, splat(1.0)), profile)
+    }
+
+    /// `Capsule::within_reach` for cells of half-diagonal `h`: a mask.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn within_reach(c: &Capsule, p: &Projection, h: f64) -> M {
+        let near = le(sub(p.dist, p.r), splat(h * c.slack));
+        if !c.open {
+            return near;
+        }
+        // -(h·dn + 1e-12·(w1 + h)·dn); the negation flips the sign bit.
+        let margin = add(splat(h * c.dn), mul(mul(splat(1e-12), add(p.w1, splat(h))), splat(c.dn)));
+        and_not(lt(p.t, neg(margin)), near)
+    }
+
+    /// `Prim::holds` of the lanes: a mask.
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn holds(b: &Prim, p: &Points) -> M {
+        let lo = and(and(le(splat(b.lo.x), p.x), le(splat(b.lo.y), p.y)), le(splat(b.lo.z), p.z));
+        let hi = and(and(le(p.x, splat(b.hi.x)), le(p.y, splat(b.hi.y))), le(p.z, splat(b.hi.z)));
+        and(lo, hi)
+    }
+
+    #[target_feature(enable = "avx")]
+    pub(super) fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> UnitCoverage {
+        let pts = points(xs);
+        let p = project(cap, &pts);
+        let mut o = UnitCoverage { r: [0.0; LANES], reach: bits(within_reach(cap, &p, h)), a: [0.0; LANES] };
+        store(&mut o.r, p.r);
+        // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
+        store(&mut o.a, keep(holds(prim, &pts), coverage(cap, &p, hardness)));
+        o
+    }
+
+    #[target_feature(enable = "avx")]
+    pub(super) fn unit_reach(cap: &Capsule, xs: &[DVec3; LANES], h: f64) -> u8 {
+        bits(within_reach(cap, &project(cap, &points(xs)), h))
+    }
+
+    /// A stamp's local coordinates and gauge at the lanes
     /// (`Stamp::local`, then `Stamp::gauge_local`): `(rho, lz, radial,
     /// cone side)`, the last three for the reach test.
     #[inline]
     #[target_feature(enable = "avx")]
-    fn stamp_gauge(st: &Stamp, shape: Shape, aspect: [f64; 3], x: __m256d, y: __m256d, z: __m256d) -> (__m256d, [__m256d; 3], __m256d, __m256d) {
+    fn stamp_gauge(st: &Stamp, shape: Shape, aspect: [f64; 3], p: &Points) -> (V, [V; 3], V, V) {
         let r = st.r;
         let (arx, ary, arz) = (aspect[0] * r, aspect[1] * r, aspect[2] * r);
         // x − c, then each row's dot product, summed left to right.
-        let (vx, vy, vz) = (_mm256_sub_pd(x, splat(st.c.x)), _mm256_sub_pd(y, splat(st.c.y)), _mm256_sub_pd(z, splat(st.c.z)));
-        let dot = |m: DVec3| _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(splat(m.x), vx), _mm256_mul_pd(splat(m.y), vy)), _mm256_mul_pd(splat(m.z), vz));
+        let (vx, vy, vz) = (sub(p.x, splat(st.c.x)), sub(p.y, splat(st.c.y)), sub(p.z, splat(st.c.z)));
+        let dot = |m: DVec3| add(add(mul(splat(m.x), vx), mul(splat(m.y), vy)), mul(splat(m.z), vz));
         let l = [dot(st.rot.x_axis), dot(st.rot.y_axis), dot(st.rot.z_axis)];
-        let (nx, ny, nz) = (_mm256_div_pd(l[0], splat(arx)), _mm256_div_pd(l[1], splat(ary)), _mm256_div_pd(l[2], splat(arz)));
+        let (nx, ny, nz) = (div(l[0], splat(arx)), div(l[1], splat(ary)), div(l[2], splat(arz)));
         if shape == Shape::Box {
             let rho = max_nan_ignored(max_nan_ignored(abs(nx), abs(ny)), abs(nz));
-            return (rho, l, _mm256_setzero_pd(), _mm256_setzero_pd());
+            return (rho, l, zero(), zero());
         }
-        let radial = sqrt_positive(_mm256_add_pd(_mm256_mul_pd(nx, nx), _mm256_mul_pd(ny, ny)));
-        let cone_side = _mm256_add_pd(_mm256_mul_pd(splat(2.0), radial), nz);
+        let radial = sqrt_positive(add(mul(nx, nx), mul(ny, ny)));
+        let cone_side = add(mul(splat(2.0), radial), nz);
         let rho = if shape == Shape::Cylinder { max_nan_ignored(radial, abs(nz)) } else { max_nan_ignored(abs(nz), cone_side) };
         (rho, l, radial, cone_side)
     }
@@ -397,72 +511,57 @@ mod avx {
         let pts = points(xs);
         let r = st.r;
         let (arx, ary, arz) = (aspect[0] * r, aspect[1] * r, aspect[2] * r);
-        let mut o = UnitCoverage { r: [r; LANES], reach: [false; LANES], a: [0.0; LANES] };
-        for i in 0..2 {
-            let (x, y, z) = (pts.x[i], pts.y[i], pts.z[i]);
-            let (rho, l, radial, cone_side) = stamp_gauge(st, shape, aspect, x, y, z);
-            // `Stamp::reach_local`, from the same coordinates and quotients.
-            let le = |a: __m256d, b: f64| _mm256_cmp_pd::<_CMP_LE_OQ>(a, splat(b));
-            let reach = if shape == Shape::Box {
-                _mm256_and_pd(_mm256_and_pd(le(abs(l[0]), arx + h), le(abs(l[1]), ary + h)), le(abs(l[2]), arz + h))
-            } else {
-                let inside = _mm256_and_pd(le(radial, 1.0 + h / (geo.m * r)), le(abs(l[2]), arz + h));
-                if shape == Shape::Cylinder { inside } else { _mm256_and_pd(inside, le(cone_side, 1.0 + h * geo.lip / r)) }
-            };
-            store_mask(&mut o.reach, i, reach);
-            // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
-            store(&mut o.a, i, _mm256_and_pd(_mm256_mul_pd(profile(rho, hardness), splat(st.f)), holds(prim, x, y, z)));
-        }
+        let (rho, l, radial, cone_side) = stamp_gauge(st, shape, aspect, &pts);
+        // `Stamp::reach_local`, from the same coordinates and quotients.
+        let reach = if shape == Shape::Box {
+            and(and(le(abs(l[0]), splat(arx + h)), le(abs(l[1]), splat(ary + h))), le(abs(l[2]), splat(arz + h)))
+        } else {
+            let inside = and(le(radial, splat(1.0 + h / (geo.m * r))), le(abs(l[2]), splat(arz + h)));
+            if shape == Shape::Cylinder { inside } else { and(inside, le(cone_side, splat(1.0 + h * geo.lip / r))) }
+        };
+        let mut o = UnitCoverage { r: [r; LANES], reach: bits(reach), a: [0.0; LANES] };
+        // 0 outside the primitive's box (spec 8.5): +0 where the mask is clear.
+        store(&mut o.a, keep(holds(prim, &pts), mul(profile(rho, hardness), splat(st.f))));
         o
     }
 
-    /// The centres' box, NaN coordinates left out (f64::min, unlike
-    /// glam's, ignores a NaN): a NaN centre holds nothing anyway.
-    fn centre_box(xs: &[DVec3; LANES]) -> (DVec3, DVec3) {
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-        for x in xs {
-            lo = DVec3::new(lo.x.min(x.x), lo.y.min(x.y), lo.z.min(x.z));
-            hi = DVec3::new(hi.x.max(x.x), hi.y.max(x.y), hi.z.max(x.z));
-        }
-        (lo, hi)
-    }
-
-    /// A stroke maximum under way at 4 points, as `stroke_maximum_with`
+    /// A stroke maximum under way at the lanes, as `stroke_maximum_with`
     /// folds it: the largest coverage so far and the index of the first
-    /// primitive attaining it (a later one must exceed it), and the lanes a
-    /// NaN coverage has poisoned.
+    /// primitive attaining it (a later one must exceed it), and the lanes
+    /// a NaN coverage has poisoned.
     struct Maximum {
-        best: __m256d,
-        best_k: __m256d,
-        nan: __m256d,
+        best: V,
+        best_k: V,
+        nan: M,
     }
 
     impl Maximum {
         #[inline]
         #[target_feature(enable = "avx")]
         fn new() -> Maximum {
-            Maximum { best: _mm256_setzero_pd(), best_k: _mm256_setzero_pd(), nan: _mm256_setzero_pd() }
+            Maximum { best: zero(), best_k: zero(), nan: no_lanes() }
         }
 
         /// Fold in primitive `i`'s coverage `cov`, in the lanes its box
         /// holds (`inside`).
         #[inline]
         #[target_feature(enable = "avx")]
-        fn fold(&mut self, i: usize, cov: __m256d, inside: __m256d) {
-            self.nan = _mm256_or_pd(self.nan, _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_UNORD_Q>(cov, cov)));
-            let up = _mm256_and_pd(inside, _mm256_cmp_pd::<_CMP_GT_OQ>(cov, self.best));
+        fn fold(&mut self, i: usize, cov: V, inside: M) {
+            self.nan = or(self.nan, and(inside, unord(cov, cov)));
+            let up = and(inside, gt(cov, self.best));
             self.best = select(up, cov, self.best);
             self.best_k = select(up, splat(i as f64), self.best_k);
         }
 
-        /// Store the maximum (0 below TINY and where poisoned) and its
-        /// primitive's index into lanes `4·half..` of `a` and `k`.
+        /// The maximum (0 below TINY and where poisoned) and its
+        /// primitive's index.
         #[inline]
         #[target_feature(enable = "avx")]
-        fn store(self, a: &mut [f64; LANES], k: &mut [f64; LANES], half: usize) {
-            let zero = _mm256_or_pd(self.nan, _mm256_cmp_pd::<_CMP_LT_OQ>(self.best, splat(TINY)));
-            store(a, half, _mm256_andnot_pd(zero, self.best));
-            store(k, half, self.best_k);
+        fn finish(self) -> ([f64; LANES], [u32; LANES]) {
+            let (mut a, mut k) = ([0.0; LANES], [0.0; LANES]);
+            store(&mut a, zero_where(or(self.nan, lt(self.best, splat(TINY))), self.best));
+            store(&mut k, self.best_k);
+            (a, k.map(|v| v as u32))
         }
     }
 
@@ -474,61 +573,35 @@ mod avx {
     pub(super) fn unit_stamp_maximum(prims: &[Prim], shape: Shape, aspect: [f64; 3], hardness: f64, xs: &[DVec3; LANES]) -> ([f64; LANES], [u32; LANES]) {
         let pts = points(xs);
         let (lo, hi) = centre_box(xs);
-        let (mut a, mut k) = ([0.0; LANES], [0.0; LANES]);
-        // Stamp by stamp, both halves: a box is tested once a unit.
-        let mut m = [Maximum::new(), Maximum::new()];
+        let mut m = Maximum::new();
         for (i, p) in prims.iter().enumerate() {
             if !p.overlaps(lo, hi) {
                 continue; // its box holds none of the 8 centres
             }
             let Geometry::Stamp(st) = &p.geo else { panic!("unit_stamp_maximum takes stamps only") };
-            for (half, m) in m.iter_mut().enumerate() {
-                let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
-                let cov = _mm256_mul_pd(profile(stamp_gauge(st, shape, aspect, x, y, z).0, hardness), splat(st.f));
-                m.fold(i, cov, holds(p, x, y, z));
-            }
+            let cov = mul(profile(stamp_gauge(st, shape, aspect, &pts).0, hardness), splat(st.f));
+            m.fold(i, cov, holds(p, &pts));
         }
-        for (half, m) in m.into_iter().enumerate() {
-            m.store(&mut a, &mut k, half);
-        }
-        (a, k.map(|v| v as u32))
+        m.finish()
     }
 
     #[target_feature(enable = "avx")]
     pub(super) fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: bool, xs: &[DVec3; LANES], h: f64) -> UnitMaximum {
         let pts = points(xs);
         let (lo, hi) = centre_box(xs);
-        let mut o = UnitMaximum { a: [0.0; LANES], k: [0; LANES], seg_r: [0.0; LANES], seg_reach: [false; LANES] };
-        let mut k = [0.0; LANES];
-        let sp = [0, 1].map(|half| project(seg, pts.x[half], pts.y[half], pts.z[half]));
-        for half in 0..2 {
-            store(&mut o.seg_r, half, sp[half].r);
-            store_mask(&mut o.seg_reach, half, within_reach(seg, &sp[half], h));
-        }
-        // Primitive by primitive, both halves: a box is tested once a unit.
-        let mut m = [Maximum::new(), Maximum::new()];
+        let sp = project(seg, &pts);
+        let mut o = UnitMaximum { a: [0.0; LANES], k: [0; LANES], seg_r: [0.0; LANES], seg_reach: bits(within_reach(seg, &sp, h)) };
+        store(&mut o.seg_r, sp.r);
+        let mut m = Maximum::new();
         for (i, p) in prims.iter().enumerate() {
             if !p.overlaps(lo, hi) {
                 continue; // its box holds none of the 8 centres
             }
             let Geometry::Capsule(cap) = &p.geo else { panic!("unit_maximum takes capsules only") };
-            let last = seg_is_last && i + 1 == prims.len();
-            for (half, m) in m.iter_mut().enumerate() {
-                let (x, y, z) = (pts.x[half], pts.y[half], pts.z[half]);
-                let own;
-                let pr = if last {
-                    &sp[half]
-                } else {
-                    own = project(cap, x, y, z);
-                    &own
-                };
-                m.fold(i, coverage(cap, pr, hardness), holds(p, x, y, z));
-            }
+            let cov = if seg_is_last && i + 1 == prims.len() { coverage(cap, &sp, hardness) } else { coverage(cap, &project(cap, &pts), hardness) };
+            m.fold(i, cov, holds(p, &pts));
         }
-        for (half, m) in m.into_iter().enumerate() {
-            m.store(&mut o.a, &mut k, half);
-        }
-        o.k = k.map(|v| v as u32);
+        (o.a, o.k) = m.finish();
         o
     }
 }
@@ -615,8 +688,8 @@ mod tests {
                         let cp = cap.project(*x);
                         let a = if p.holds(*x) { cap.coverage_at(&cp, hardness) } else { 0.0 };
                         assert_eq!(u.r[l].to_bits(), cp.r.to_bits(), "r {l} {x:?}");
-                        assert_eq!(u.reach[l], cap.within_reach(&cp, h), "reach {l} {x:?}");
-                        assert_eq!(reach >> l & 1 == 1, u.reach[l], "unit_reach {l} {x:?}");
+                        assert_eq!(u.reach >> l & 1 == 1, cap.within_reach(&cp, h), "reach {l} {x:?}");
+                        assert_eq!(reach, u.reach, "unit_reach {x:?}");
                         assert_eq!(u.a[l].to_bits(), a.to_bits(), "a {l} {x:?}: {} {}", u.a[l], a);
                         compared += 1;
                     }
@@ -653,7 +726,7 @@ mod tests {
                 let Some(u) = unit_stamp(&st, shape, aspect, &geo, &prim, hardness, &xs, h) else { return assert!(!available()) };
                 for (l, &x) in xs.iter().enumerate() {
                     let a = if prim.holds(x) { crate::brush::coverage_profile(st.gauge(shape, aspect, x), hardness) * st.f } else { 0.0 };
-                    assert_eq!((u.reach[l], u.a[l].to_bits(), u.r[l]), (st.reach(shape, aspect, &geo, x, h), a.to_bits(), r), "{shape:?} lane {l} at {x:?}: {} against {a}", u.a[l]);
+                    assert_eq!((u.reach >> l & 1 == 1, u.a[l].to_bits(), u.r[l]), (st.reach(shape, aspect, &geo, x, h), a.to_bits(), r), "{shape:?} lane {l} at {x:?}: {} against {a}", u.a[l]);
                     compared += 1;
                     covered += usize::from(a > 0.0);
                 }
@@ -765,7 +838,7 @@ mod tests {
                     }
                     let cp = seg.project(x);
                     assert_eq!(m.seg_r[l].to_bits(), cp.r.to_bits());
-                    assert_eq!(m.seg_reach[l], seg.within_reach(&cp, h));
+                    assert_eq!(m.seg_reach >> l & 1 == 1, seg.within_reach(&cp, h));
                 }
             }
         }

@@ -865,7 +865,7 @@ impl Painting {
                     let h = lat.reach_radius[d as usize];
                     let m = lanes::unit_maximum(&near, hardness, &cap, seg_is_last_near, &xs, h).expect("lanes available");
                     for (l, o) in out.iter_mut().enumerate() {
-                        *o = nc.decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach[l], m.seg_r[l])));
+                        *o = nc.decide(u[l].0, xs[l], d, before, m.a[l], m.k[l] as usize, Some((m.seg_reach >> l & 1 == 1, m.seg_r[l])));
                     }
                 });
                 per_unit = out;
@@ -894,7 +894,7 @@ impl Painting {
                     let h = lat.reach_radius[d as usize];
                     let seg = seg_stamp.map(|(s, prim)| lanes::unit_stamp(&s, b.shape, b.aspect, &st.stamp_reach, &prim, b.hardness, &xs, h).expect("lanes available"));
                     for (l, o) in out.iter_mut().enumerate() {
-                        *o = nc.decide(u[l].0, xs[l], d, before, a[l], k[l] as usize, seg.as_ref().map(|u| (u.reach[l], u.r[l])));
+                        *o = nc.decide(u[l].0, xs[l], d, before, a[l], k[l] as usize, seg.as_ref().map(|u| (u.reach >> l & 1 == 1, u.r[l])));
                     }
                 });
                 per_unit = out;
@@ -1207,7 +1207,7 @@ impl Walk for StampWalk {
         // The unit kernel's reach (its coverage is thrown away: a unit with
         // children to descend into is far rarer than a unit of leaves).
         match lanes::unit_stamp(&self.s, self.shape, self.aspect, &self.reach, &self.prim, self.hardness, xs, h) {
-            Some(u) => (0..LANES).fold(0, |m, k| m | u8::from(u.reach[k]) << k),
+            Some(u) => u.reach,
             None => reach_each(self, xs, h),
         }
     }
@@ -1322,7 +1322,7 @@ fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
         let slots = ctx.slot_of.unit(fc).copied().unwrap_or([NONE; LANES]);
         if let Some(u) = cap.unit_coverage(ctx.prim, ctx.hardness, &xs, h1) {
             for k in (0..LANES).rev() {
-                if u.reach[k] {
+                if u.reach >> k & 1 == 1 {
                     leaf(ctx, &mut out, fc + k as u32, slots[k], d1, xs[k], u.r[k], h1, u.a[k]);
                 }
             }
