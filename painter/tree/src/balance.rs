@@ -13,6 +13,20 @@ use crate::pool::{NONE, Refusal, Tree, UNIT};
 /// The deepest a tree can be, plus one: bounds the climb of a neighbour search.
 const MAX_PATH: usize = 32;
 
+/// A face neighbour not looked up yet.
+const UNKNOWN: u32 = NONE - 1;
+
+/// A parent's same-depth-or-coarser face neighbours, each looked up when a
+/// child first needs it ([`Tree::refine_balanced_with`]).
+struct ParentFaces {
+    parent: u32,
+    nb: [u32; 6],
+}
+
+impl ParentFaces {
+    const NONE: ParentFaces = ParentFaces { parent: NONE, nb: [UNKNOWN; 6] };
+}
+
 /// Face `f` of non-root cell `c` is inward: across it lies `c`'s sibling
 /// (its octant bit on the face's axis points into the parent).
 #[inline]
@@ -64,15 +78,43 @@ impl Tree {
     /// coarser face-neighbour leaf (spec 4.2). `new_units` receives the
     /// units in allocation order, each with its parent.
     fn refine_balanced(&mut self, l: u32, new_units: &mut Vec<(u32, u32)>) -> Result<(), Refusal> {
+        let mut faces = ParentFaces::NONE;
+        self.refine_balanced_with(l, new_units, &mut faces)
+    }
+
+    /// [`Tree::refine_balanced`], the outward face neighbours of `l` found
+    /// through `faces`, its parent's face neighbours: consecutive candidates
+    /// are often siblings, and a child's neighbour across an outward face is
+    /// its parent's neighbour, or that neighbour's child facing it (the last
+    /// step of [`Tree::neighbour`]'s descent). A parent's neighbour is
+    /// looked up once for all its children. In a balanced tree a parent's
+    /// neighbours are as deep as it is (its children are, or lie over,
+    /// leaves one level deeper), so refining leaves for balance changes no
+    /// such lookup; the lookups are dropped after one all the same.
+    fn refine_balanced_with(&mut self, l: u32, new_units: &mut Vec<(u32, u32)>, faces: &mut ParentFaces) -> Result<(), Refusal> {
         let d = self.depth[l as usize];
+        if d > 0 {
+            let p = self.parent[l as usize];
+            if faces.parent != p {
+                *faces = ParentFaces { parent: p, nb: [UNKNOWN; 6] };
+            }
+        }
         for f in 0..6 {
             // Across an inward face lies the sibling, as deep as `l`: only
             // the outward faces can hold a coarser leaf.
             if d > 0 && faces_sibling(l, f) {
                 continue;
             }
-            let nb = self.neighbour(l, f);
+            let nb = if d > 0 && faces.parent != NONE {
+                if faces.nb[f] == UNKNOWN {
+                    faces.nb[f] = self.neighbour(faces.parent, f);
+                }
+                self.step_down(faces.nb[f], d - 1, l, f)
+            } else {
+                self.neighbour(l, f)
+            };
             if nb != NONE && self.depth[nb as usize] < d && self.first_child[nb as usize] == NONE {
+                *faces = ParentFaces::NONE;
                 self.refine_balanced(nb, new_units)?;
             }
         }
@@ -80,6 +122,20 @@ impl Tree {
         self.make_children(l, unit);
         new_units.push((l, unit));
         Ok(())
+    }
+
+    /// The face neighbour of `c` across outward face `f` from its parent's,
+    /// `y` (the parent at depth `dp`): `y`'s child facing `c` when `y` is as
+    /// deep as the parent and has children, else `y` itself.
+    #[inline]
+    fn step_down(&self, y: u32, dp: u8, c: u32, f: usize) -> u32 {
+        if y == NONE || self.depth[y as usize] != dp {
+            return y;
+        }
+        match self.first_child[y as usize] {
+            NONE => y,
+            fc => fc + ((c & 7) ^ (1 << FACES[f].0)),
+        }
     }
 
     /// One round (spec 4.2): refine every candidate leaf, ascending, with
@@ -102,6 +158,7 @@ impl Tree {
     /// (spec 4.2), and no cell made in a round is refined later in it.
     pub fn refine_candidates(&mut self, sorted: &[u32], max_units: usize) -> (Vec<(u32, u32)>, usize, Option<Refusal>) {
         let mut new_units = Vec::new();
+        let mut faces = ParentFaces::NONE;
         for (i, &l) in sorted.iter().enumerate() {
             if new_units.len() >= max_units {
                 return (new_units, i, None);
@@ -109,7 +166,7 @@ impl Tree {
             if self.first_child[l as usize] != NONE {
                 continue; // refined earlier in the round, for balance
             }
-            if let Err(r) = self.refine_balanced(l, &mut new_units) {
+            if let Err(r) = self.refine_balanced_with(l, &mut new_units, &mut faces) {
                 return (new_units, i + 1, Some(r));
             }
         }
@@ -175,5 +232,65 @@ impl Tree {
     /// Mergeable and balance allows the collapse (spec 9).
     pub fn collapsible(&self, p: u32) -> bool {
         self.mergeable(p) && self.balance_allows_coarsen(p)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::noise::hash32;
+    use crate::trace::Canvas;
+
+    /// Random rounds over random leaves (runs of siblings among them, as
+    /// the paint pass gives them): the refinements with each parent's
+    /// neighbours looked up once are those of a search from each leaf
+    /// (balance holds after every round, and `step_down` from the parent's
+    /// neighbour is `neighbour` itself on every outward face of the tree).
+    #[test]
+    fn a_parents_neighbours_give_its_childrens() {
+        let mut seed = 5u32;
+        let mut next = |n: u32| {
+            seed = hash32(seed);
+            seed % n
+        };
+        for roots in [[1, 1, 1], [2, 1, 3]] {
+            let mut tree = Tree::new(&Canvas { roots, max_depth: 9, root_size: 1.0, capacity: 1 << 22 });
+            let mut checked = 0;
+            for _ in 0..12 {
+                let leaves: Vec<u32> = (0..tree.n_used()).filter(|&c| tree.depth[c as usize] != crate::pool::FREE && tree.is_leaf(c) && u32::from(tree.depth[c as usize]) < 8).collect();
+                let mut cand = Vec::new();
+                for _ in 0..(1 + leaves.len() / 6).min(300) {
+                    let l = leaves[next(leaves.len() as u32) as usize];
+                    // Its siblings too, now and then.
+                    if tree.depth[l as usize] > 0 && next(2) == 0 {
+                        cand.extend((l & !7..(l & !7) + UNIT).filter(|&s| tree.is_leaf(s)));
+                    } else {
+                        cand.push(l);
+                    }
+                }
+                let (_, refusal) = tree.refine_round(&mut cand);
+                assert!(refusal.is_none(), "{refusal:?} at {} cells", tree.n_used());
+                for c in 0..tree.n_used() {
+                    let d = tree.depth[c as usize];
+                    if d == crate::pool::FREE || d == 0 {
+                        continue;
+                    }
+                    let p = tree.parent[c as usize];
+                    for f in 0..6 {
+                        if faces_sibling(c, f) {
+                            continue;
+                        }
+                        let nb = tree.neighbour(c, f);
+                        assert_eq!(tree.step_down(tree.neighbour(p, f), d - 1, c, f), nb, "cell {c} face {f}");
+                        // 2:1 balance across the face.
+                        if nb != NONE && tree.is_leaf(c) {
+                            assert!(tree.depth[nb as usize] + 1 >= d, "cell {c} face {f}: neighbour {nb} too coarse");
+                        }
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 20_000, "{checked} faces");
+        }
     }
 }
