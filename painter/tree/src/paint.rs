@@ -1351,13 +1351,16 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, c: u32, slot: u32, d: u32, 
     // SAFETY (every `Disjoint` access here): `c` is a live cell of this
     // run's subtrees, which no other run holds, and its slot is its own;
     // the vectors do not change length while the runs go on.
-    let before_sigma = unsafe { *ctx.sigma.at(c as usize) };
-    let needs = ctx.tree.lat.coarser_than_target(d, r) && !(ctx.sigma_gate && !(before_sigma > 0.0));
+    // Its stored sigma, read where it is needed: a leaf that is neither
+    // new to the stroke nor written leaves its pools unread.
+    let sigma_now = || unsafe { *ctx.sigma.at(c as usize) };
+    let needs = ctx.tree.lat.coarser_than_target(d, r) && !(ctx.sigma_gate && !(sigma_now() > 0.0));
     if a >= TINY {
         out.hit += 1;
         let colour = ctx.prim.colour;
         match slot {
             NONE => {
+                let before_sigma = sigma_now();
                 let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
                 out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma, next: false });
