@@ -743,8 +743,13 @@ impl Painting {
         let st = self.stroke.as_ref().expect("stroke");
         let caps = capsules_near(&st.prims, leaves.iter().map(|&(_, x, h)| (x, h)));
         let caps = &caps[..];
-        // A test folds in a few capsules: about as much work as 4 cells.
-        let tests = par::map_weighted(&leaves, 4, |&(c, x, h)| self.settled(c, x, h, caps));
+        // Tests 8 at a time in vector lanes where the kernels run, the rest
+        // one at a time (a test folds in a few capsules: about as much work
+        // as 4 cells).
+        let lanes = if lanes::available() { leaves.len() / LANES * LANES } else { 0 };
+        let mut tests = vec![(false, None); lanes];
+        par::for_groups(&leaves[..lanes], &mut tests, LANES, |g, out| out.copy_from_slice(&self.settled_lanes(g.try_into().expect("8 leaves"), caps)));
+        tests.extend(par::map_weighted(&leaves[lanes..], 4, |&(c, x, h)| self.settled(c, x, h, caps)));
         let st = self.stroke.as_mut().expect("stroke");
         let upto = st.prims.len() as u32;
         let mut out = Vec::with_capacity(leaves.len());
@@ -968,19 +973,11 @@ impl Painting {
     /// the capsules added since: returned with its slot, for the caller to
     /// write.
     fn settled(&self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> (bool, Option<(u32, [f64; 2])>) {
-        let slot = self.slot_of.get(c);
-        let st = self.stroke.as_ref().expect("stroke");
-        let hardness = st.brush.hardness;
-        let (mut a_lo, mut a_hi, from) = match slot {
-            NONE => (0.0f64, 0.0f64, 0),
-            s => {
-                let s = &st.slots[s as usize];
-                (s.bounds[0], s.bounds[1], s.bounds_upto)
-            }
-        };
+        let (slot, mut a_lo, mut a_hi, from) = self.bounds_so_far(c);
         if a_lo.is_nan() {
             return (false, None);
         }
+        let hardness = self.stroke.as_ref().expect("stroke").brush.hardness;
         let (ball_lo, ball_hi) = (x - h, x + h);
         for (i, p) in caps {
             let Geometry::Capsule(cap) = &p.geo else { continue };
@@ -995,6 +992,50 @@ impl Painting {
             a_lo = a_lo.max(lo);
             a_hi = a_hi.max(hi);
         }
+        self.settled_by(c, slot, a_lo, a_hi)
+    }
+
+    /// [`Painting::settled`] of 8 leaves (cell, centre, reach radius), their
+    /// bounds folded in vector lanes (`lanes::unit_settle_bounds`; the
+    /// caller has checked that the kernels run).
+    fn settled_lanes(&self, leaves: &[(u32, DVec3, f64); LANES], caps: &[(u32, Prim)]) -> [(bool, Option<(u32, [f64; 2])>); LANES] {
+        let so_far = leaves.map(|(c, _, _)| self.bounds_so_far(c));
+        let hardness = self.stroke.as_ref().expect("stroke").brush.hardness;
+        let (lo, hi) = lanes::unit_settle_bounds(
+            caps,
+            &leaves.map(|(_, x, _)| x),
+            &leaves.map(|(_, _, h)| h),
+            &so_far.map(|(_, _, _, from)| from),
+            &so_far.map(|(_, lo, _, _)| lo),
+            &so_far.map(|(_, _, hi, _)| hi),
+            hardness,
+        )
+        .expect("the kernels run");
+        std::array::from_fn(|k| {
+            let (slot, lo0, _, _) = so_far[k];
+            if lo0.is_nan() { (false, None) } else { self.settled_by(leaves[k].0, slot, lo[k], hi[k]) }
+        })
+    }
+
+    /// `c`'s slot (NONE: untouched) and the settled test's bounds kept in
+    /// it, `(slot, a_lo, a_hi, from)`: over the stroke's first `from`
+    /// primitives.
+    #[inline]
+    fn bounds_so_far(&self, c: u32) -> (u32, f64, f64, u32) {
+        match self.slot_of.get(c) {
+            NONE => (NONE, 0.0, 0.0, 0),
+            s => {
+                let b = &self.stroke.as_ref().expect("stroke").slots[s as usize];
+                (s, b.bounds[0], b.bounds[1], b.bounds_upto)
+            }
+        }
+    }
+
+    /// The settled test's answer for `c` (slot `slot`) whose stroke maximum
+    /// lies in `[a_lo, a_hi]` (NaN: never settled), with the bounds for its
+    /// slot.
+    fn settled_by(&self, c: u32, slot: u32, a_lo: f64, a_hi: f64) -> (bool, Option<(u32, [f64; 2])>) {
+        let st = self.stroke.as_ref().expect("stroke");
         let bounds = (slot != NONE).then_some((slot, [a_lo, a_hi]));
         if a_lo.is_nan() {
             return (false, bounds);
