@@ -1,8 +1,9 @@
 //! The 8 children of a unit against capsules and stamps, at once in vector
 //! registers: the paint pass's projection, reach test and coverage of a
-//! unit whose children are all leaves, and the stroke maximum of a unit's
-//! new children, for capsules (sphere brushes) and for the stamps of box,
-//! cylinder and cone brushes (noise stamps keep their scalar noise factor).
+//! unit whose children are all leaves, the stroke maximum of a unit's new
+//! children, for capsules (sphere brushes) and for the stamps of box,
+//! cylinder and cone brushes (noise stamps keep their scalar noise factor),
+//! and the settled test's coverage bounds of 8 leaves.
 //!
 //! 8 lanes fill two AVX registers of 4; each kernel is written over the
 //! 8-lane operations of `avx` (`V`, its comparison mask `M`, and `add`,
