@@ -225,35 +225,34 @@ mod avx {
         zero()
     }
 
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn add(a: V, b: V) -> V {
-        both(a, b, |a, b| _mm256_add_pd(a, b))
+    /// Operations on both halves, one AVX instruction each.
+    macro_rules! halves {
+        ($($(#[$doc:meta])* fn $name:ident($a:ident: $ta:ty, $b:ident: $tb:ty) -> $out:ty = $op:expr;)*) => {$(
+            $(#[$doc])*
+            #[inline]
+            #[target_feature(enable = "avx")]
+            fn $name($a: $ta, $b: $tb) -> $out {
+                both($a, $b, |a, b| $op(a, b))
+            }
+        )*};
     }
 
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn sub(a: V, b: V) -> V {
-        both(a, b, |a, b| _mm256_sub_pd(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn mul(a: V, b: V) -> V {
-        both(a, b, |a, b| _mm256_mul_pd(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn div(a: V, b: V) -> V {
-        both(a, b, |a, b| _mm256_div_pd(a, b))
-    }
-
-    /// `maxpd`: the second operand when either is NaN.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn max(a: V, b: V) -> V {
-        both(a, b, |a, b| _mm256_max_pd(a, b))
+    halves! {
+        fn add(a: V, b: V) -> V = _mm256_add_pd;
+        fn sub(a: V, b: V) -> V = _mm256_sub_pd;
+        fn mul(a: V, b: V) -> V = _mm256_mul_pd;
+        fn div(a: V, b: V) -> V = _mm256_div_pd;
+        /// `maxpd`: the second operand when either is NaN.
+        fn max(a: V, b: V) -> V = _mm256_max_pd;
+        fn lt(a: V, b: V) -> M = _mm256_cmp_pd::<_CMP_LT_OQ>;
+        fn le(a: V, b: V) -> M = _mm256_cmp_pd::<_CMP_LE_OQ>;
+        fn gt(a: V, b: V) -> M = _mm256_cmp_pd::<_CMP_GT_OQ>;
+        fn ge(a: V, b: V) -> M = _mm256_cmp_pd::<_CMP_GE_OQ>;
+        fn unord(a: V, b: V) -> M = _mm256_cmp_pd::<_CMP_UNORD_Q>;
+        fn and(m: M, n: M) -> M = _mm256_and_pd;
+        fn or(m: M, n: M) -> M = _mm256_or_pd;
+        /// `n` and not `m`.
+        fn and_not(m: M, n: M) -> M = _mm256_andnot_pd;
     }
 
     #[inline]
@@ -273,55 +272,6 @@ mod avx {
     #[target_feature(enable = "avx")]
     fn neg(a: V) -> V {
         each(a, |a| _mm256_xor_pd(a, _mm256_set1_pd(-0.0)))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn lt(a: V, b: V) -> M {
-        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_LT_OQ>(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn le(a: V, b: V) -> M {
-        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_LE_OQ>(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn gt(a: V, b: V) -> M {
-        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_GT_OQ>(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn ge(a: V, b: V) -> M {
-        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_GE_OQ>(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn unord(a: V, b: V) -> M {
-        both(a, b, |a, b| _mm256_cmp_pd::<_CMP_UNORD_Q>(a, b))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn and(m: M, n: M) -> M {
-        both(m, n, |m, n| _mm256_and_pd(m, n))
-    }
-
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn or(m: M, n: M) -> M {
-        both(m, n, |m, n| _mm256_or_pd(m, n))
-    }
-
-    /// `n` and not `m`.
-    #[inline]
-    #[target_feature(enable = "avx")]
-    fn and_not(m: M, n: M) -> M {
-        both(m, n, |m, n| _mm256_andnot_pd(m, n))
     }
 
     /// `v` where `m` is set, else +0.
