@@ -608,9 +608,11 @@ mod avx {
         let (mut a_lo, mut a_hi) = (load(lo0), load(hi0));
         // The lanes still folding: not NaN.
         let mut live = le(a_lo, a_lo);
-        // The balls' box: a capsule whose box misses it meets none of them.
-        let lo = centre_box(&std::array::from_fn(|k| xs[k] - hs[k])).0;
-        let hi = centre_box(&std::array::from_fn(|k| xs[k] + hs[k])).1;
+        // A box around the 8 balls: a capsule whose box misses it meets
+        // none of them.
+        let (centres_lo, centres_hi) = centre_box(xs);
+        let h_max = hs.iter().copied().fold(0.0, f64::max);
+        let (lo, hi) = (centres_lo - h_max, centres_hi + h_max);
         for (i, p) in caps {
             let Geometry::Capsule(cap) = &p.geo else { continue };
             if !p.overlaps(lo, hi) {
@@ -900,24 +902,8 @@ mod tests {
             let hi0: [f64; LANES] = std::array::from_fn(|k| if lo0[k] > 0.0 { lo0[k] + unit(&mut seed) * 0.3 } else { 0.0 });
             let Some((lo, hi)) = unit_settle_bounds(&caps, &xs, &hs, &from, &lo0, &hi0, hardness) else { return assert!(!available()) };
             for l in 0..LANES {
-                let (mut a_lo, mut a_hi) = (lo0[l], hi0[l]);
-                if !a_lo.is_nan() {
-                    let (x, h) = (xs[l], hs[l]);
-                    for (i, p) in &caps {
-                        let Geometry::Capsule(cap) = &p.geo else { unreachable!() };
-                        if *i < from[l] || !p.overlaps(x - h, x + h) {
-                            continue;
-                        }
-                        let (c_lo, c_hi) = cap.coverage_bounds(&cap.project(x), h, hardness);
-                        if !(c_lo >= 0.0 && c_hi >= 0.0) {
-                            a_lo = f64::NAN;
-                            break;
-                        }
-                        a_lo = a_lo.max(c_lo);
-                        a_hi = a_hi.max(c_hi);
-                        folded += 1;
-                    }
-                }
+                let (a_lo, a_hi) = if lo0[l].is_nan() { (lo0[l], hi0[l]) } else { crate::paint::settle_bounds(&caps, xs[l], hs[l], from[l], lo0[l], hi0[l], hardness) };
+                folded += caps.iter().filter(|(i, p)| *i >= from[l] && p.overlaps(xs[l] - hs[l], xs[l] + hs[l])).count();
                 // Bit for bit, but for the sign of a zero (the settled test
                 // only compares the bounds, and a zero maximum blends to the
                 // before-value either way).

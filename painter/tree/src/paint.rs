@@ -746,10 +746,10 @@ impl Painting {
         // Tests 8 at a time in vector lanes where the kernels run, the rest
         // one at a time (a test folds in a few capsules: about as much work
         // as 4 cells).
-        let lanes = if lanes::available() { leaves.len() / LANES * LANES } else { 0 };
-        let mut tests = vec![(false, None); lanes];
-        par::for_groups(&leaves[..lanes], &mut tests, LANES, |g, out| out.copy_from_slice(&self.settled_lanes(g.try_into().expect("8 leaves"), caps)));
-        tests.extend(par::map_weighted(&leaves[lanes..], 4, |&(c, x, h)| self.settled(c, x, h, caps)));
+        let grouped = if lanes::available() { leaves.len() / LANES * LANES } else { 0 };
+        let mut tests = vec![(false, None); grouped];
+        par::for_groups(&leaves[..grouped], &mut tests, LANES, |g, out| out.copy_from_slice(&self.settled_lanes(g.try_into().expect("8 leaves"), caps)));
+        tests.extend(par::map_weighted(&leaves[grouped..], 4, |&(c, x, h)| self.settled(c, x, h, caps)));
         let st = self.stroke.as_mut().expect("stroke");
         let upto = st.prims.len() as u32;
         let mut out = Vec::with_capacity(leaves.len());
@@ -973,25 +973,12 @@ impl Painting {
     /// the capsules added since: returned with its slot, for the caller to
     /// write.
     fn settled(&self, c: u32, x: DVec3, h: f64, caps: &[(u32, Prim)]) -> (bool, Option<(u32, [f64; 2])>) {
-        let (slot, mut a_lo, mut a_hi, from) = self.bounds_so_far(c);
+        let (slot, a_lo, a_hi, from) = self.bounds_so_far(c);
         if a_lo.is_nan() {
             return (false, None);
         }
         let hardness = self.stroke.as_ref().expect("stroke").brush.hardness;
-        let (ball_lo, ball_hi) = (x - h, x + h);
-        for (i, p) in caps {
-            let Geometry::Capsule(cap) = &p.geo else { continue };
-            if *i < from || !p.overlaps(ball_lo, ball_hi) {
-                continue; // folded in already, or covers nothing in the ball
-            }
-            let (lo, hi) = cap.coverage_bounds(&cap.project(x), h, hardness);
-            if !(lo >= 0.0 && hi >= 0.0) {
-                a_lo = f64::NAN; // absurd input: never settled
-                break;
-            }
-            a_lo = a_lo.max(lo);
-            a_hi = a_hi.max(hi);
-        }
+        let (a_lo, a_hi) = settle_bounds(caps, x, h, from, a_lo, a_hi, hardness);
         self.settled_by(c, slot, a_lo, a_hi)
     }
 
@@ -1520,6 +1507,29 @@ fn capsules_near(prims: &[Prim], balls: impl Iterator<Item = (DVec3, f64)>) -> V
         .filter(|(_, p)| matches!(p.geo, Geometry::Capsule(_)) && p.overlaps(lo, hi))
         .map(|(i, p)| (i as u32, *p))
         .collect()
+}
+
+/// The settled test's bounds `[a_lo, a_hi]` of a ball of radius `h` about
+/// `x`, so far over the stroke's first `from` primitives, raised by each
+/// capsule of `caps` (with its index in the stroke, ascending) from `from`
+/// on whose box meets the ball, to `Capsule::coverage_bounds` there; NaN
+/// (never settled) at a negative or NaN bound. `lanes::unit_settle_bounds`
+/// folds 8 balls the same way.
+pub(crate) fn settle_bounds(caps: &[(u32, Prim)], x: DVec3, h: f64, from: u32, mut a_lo: f64, mut a_hi: f64, hardness: f64) -> (f64, f64) {
+    let (ball_lo, ball_hi) = (x - h, x + h);
+    for (i, p) in caps {
+        let Geometry::Capsule(cap) = &p.geo else { continue };
+        if *i < from || !p.overlaps(ball_lo, ball_hi) {
+            continue; // folded in already, or covers nothing in the ball
+        }
+        let (lo, hi) = cap.coverage_bounds(&cap.project(x), h, hardness);
+        if !(lo >= 0.0 && hi >= 0.0) {
+            return (f64::NAN, a_hi); // absurd input: never settled
+        }
+        a_lo = a_lo.max(lo);
+        a_hi = a_hi.max(hi);
+    }
+    (a_lo, a_hi)
 }
 
 /// Within reach of some primitive of the segment, and (when `want_needs`)
