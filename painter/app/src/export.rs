@@ -660,7 +660,7 @@ fn check_writable(path: &Path) -> Result<(), Refusal> {
 /// Write `path` through a temporary file beside it, synced and renamed
 /// over it (octopaint_platform::durable): a reader sees the old file or
 /// the whole new one. Returns the size written.
-fn write_with(path: &Path, f: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>) -> Result<u64, Refusal> {
+fn write_with(path: &Path, f: impl FnOnce(&mut octopaint_platform::durable::Out) -> std::io::Result<()>) -> Result<u64, Refusal> {
     octopaint_platform::durable::write_with(path, f)
         .map_err(|e| Refusal(1, format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e))))
 }

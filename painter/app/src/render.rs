@@ -285,7 +285,7 @@ pub fn run(a: &Args) -> ExitCode {
     // Each frame: drawn, written as a PNG, and (turntables) encoded into
     // the GIF, which streams into a temporary file that replaces
     // turntable.gif only once every frame is in (durable::write_with).
-    let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut std::io::BufWriter<std::fs::File>>>| -> Result<(), String> {
+    let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut octopaint_platform::durable::Out>>| -> Result<(), String> {
         let layers: Vec<(&Tree, f32)> = if one_tree { vec![(&*refs[0], 1.0)] } else { refs.iter().map(|t| &**t).zip(opacity.iter().copied()).collect() };
         let rgb = draw.image(&layers, camera, a.grid, plan.light.as_ref())?;
         let path = match &plan.folder {
