@@ -78,7 +78,7 @@ pub fn replay_document(
     let mut mirror: Option<Mirror> = None;
     let mut writer = DumpWriter::default();
     let t0 = Instant::now();
-    for ev in &trace.events {
+    for (k, ev) in trace.events.iter().enumerate() {
         match &ev.kind {
             EventKind::Brush(b) => brush = Some(*b),
             EventKind::StrokeBegin => {
@@ -109,12 +109,20 @@ pub fn replay_document(
                     if trace.version == 2 {
                         writer.write(path.clone(), doc.dump_bytes())?;
                     } else {
-                        // The writer thread computes the dump from a copy
-                        // of the pools (16 bytes a cell, a few ms) while
-                        // the events after the snapshot run.
                         let painting = &mut doc.current_mut().painting;
                         let g3 = obs.dump_g3(painting)?;
-                        writer.write_tree(path.clone(), painting.tree.records_copy(), g3)?;
+                        if k + 1 == trace.events.len() {
+                            // The trace's last event: nothing is left to
+                            // overlap, so the dump is made from the pools
+                            // themselves, without a copy.
+                            writer.finish()?;
+                            durable::write_with(&path, |w| write_dump(w, &painting.tree, g3.as_deref()).map(drop))?;
+                        } else {
+                            // The writer thread computes the dump from a
+                            // copy of the pools (16 bytes a cell, a few ms)
+                            // while the events after the snapshot run.
+                            writer.write_tree(path.clone(), painting.tree.records_copy(), g3)?;
+                        }
                     }
                     stats.written.push(path);
                 }
@@ -194,9 +202,11 @@ mod tests {
     use super::*;
 
     /// A snapshot's dump, computed on the writer thread from a copy of the
-    /// pools and streamed into its file, has the bytes of the tree's dump
-    /// made in memory on the painting thread, at the snapshot and at the
-    /// end; a stroke painted after the first snapshot does not reach it.
+    /// pools and streamed into its file (the first), or from the pools
+    /// themselves when it is the trace's last event (the second), has the
+    /// bytes of the tree's dump made in memory on the painting thread, at
+    /// the snapshot and at the end; a stroke painted after the first
+    /// snapshot does not reach it.
     #[test]
     fn snapshots_written_from_the_pools_are_the_trees_dumps() {
         let trace = concat!(
