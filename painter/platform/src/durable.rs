@@ -23,9 +23,9 @@
 //!
 //! On Linux the data also starts on its way to the disk while it is being
 //! written: every [`WRITEBACK_CHUNK`] bytes, `sync_file_range` asks the
-//! kernel to begin writing them out without waiting for it, so the final
-//! `fsync` finds little left to do and the page cache never holds the whole
-//! file dirty (docs/benchmarks.md, "Durable writes"). It changes no step
+//! kernel to begin writing them out without waiting for it, so the disk
+//! works while the rest is produced and the final `fsync` finds little left
+//! to do (docs/benchmarks.md, "Durable writes"). It changes no step
 //! above: the `fsync` still comes before the rename and waits for every
 //! byte. Elsewhere the data waits for the flush, as before.
 //!
