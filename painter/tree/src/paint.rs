@@ -630,29 +630,34 @@ impl Painting {
         let mut front: Vec<(u32, [u32; 3])> = Vec::new();
         let mut bounds = vec![0];
         if parallel {
-            front.extend(stack.drain(..).rev());
             // Internal cells larger than a quarter of the capsule's box are
             // opened, so that each one left holds a small share of the work
             // (it lies under internal cells; a leaf is one visit). Runs take
             // about equal volumes of internal cells, a few runs a thread,
-            // and rayon's stealing evens out the rest.
+            // and rayon's stealing evens out the rest. Depth first, from
+            // the traversal's stack, so the front comes out in visiting
+            // order: an open cell within reach gives way to its children
+            // within reach (tested together in vector lanes, as the walk
+            // tests them), anything else is a subtree of the front.
             let extent = (prim.hi - prim.lo).max_element();
             let open = |c: u32| first_child[c as usize] != NONE && lat.size_canvas[depth[c as usize] as usize] > 0.25 * extent;
-            while front.iter().any(|&(c, _)| open(c)) {
-                let mut next = Vec::with_capacity(front.len() * UNIT as usize);
-                for &(c, o) in &front {
-                    if !open(c) {
-                        next.push((c, o));
-                        continue;
-                    }
-                    let d = u32::from(depth[c as usize]);
-                    if !cap.within_reach(&cap.project(lat.centre(o, d)), lat.reach_radius[d as usize]) {
-                        continue;
-                    }
-                    let fc = first_child[c as usize];
-                    next.extend((0..UNIT).rev().map(|k| (fc + k, self.tree.child_origin(o, d, k))));
+            while let Some((c, o)) = stack.pop() {
+                if !open(c) {
+                    front.push((c, o));
+                    continue;
                 }
-                front = next;
+                let d = u32::from(depth[c as usize]);
+                if !cap.within_reach(&cap.project(lat.centre(o, d)), lat.reach_radius[d as usize]) {
+                    continue;
+                }
+                let (fc, d1) = (first_child[c as usize], d + 1);
+                let os: [[u32; 3]; LANES] = std::array::from_fn(|k| self.tree.child_origin(o, d, k as u32));
+                let reach = cap.unit_reach(&os.map(|o| lat.centre(o, d1)), lat.reach_radius[d1 as usize]);
+                for (k, &o) in os.iter().enumerate() {
+                    if reach >> k & 1 == 1 {
+                        stack.push((fc + k as u32, o));
+                    }
+                }
             }
             let weight = |c: u32| if first_child[c as usize] == NONE { 0.0 } else { lat.size_canvas[depth[c as usize] as usize].powi(3) };
             let share = front.iter().map(|&(c, _)| weight(c)).sum::<f64>() / (8 * threads) as f64;
