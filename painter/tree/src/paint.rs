@@ -294,6 +294,8 @@ pub struct Painting {
     spare_stack: Vec<(u32, [u32; 3])>,
     /// The serial paint pass's lists, emptied (their capacity kept).
     spare_run: Run,
+    /// The split paint pass's runs' lists, emptied the same way.
+    spare_runs: Vec<Run>,
     /// Whether the paint pass of one capsule, and of one stamp, splits its
     /// walk, as measured (their costs a leaf differ).
     split: SplitChoice,
@@ -323,6 +325,7 @@ impl Painting {
             spare_slot_a: Vec::new(),
             spare_stack: Vec::new(),
             spare_run: Run::default(),
+            spare_runs: Vec::new(),
             split: SplitChoice::default(),
             split_stamp: SplitChoice::default(),
             settling: true,
@@ -674,6 +677,7 @@ impl Painting {
             }
         }
         // 2. The runs.
+        let mut spare_runs = std::mem::take(&mut self.spare_runs);
         let st = self.stroke.as_mut().expect("stroke");
         let slot_a = Disjoint::new(&mut st.slot_a);
         let slots = Disjoint::new(&mut st.slots);
@@ -694,8 +698,14 @@ impl Painting {
             slots,
         };
         let runs: Vec<Run> = if parallel {
-            // Each run's stack pops its subtrees in visiting order.
-            par::tasks(bounds.len() - 1, |i| walk_run(&ctx, Run { stack: front[bounds[i]..bounds[i + 1]].iter().rev().copied().collect(), ..Run::default() }))
+            // Each run's stack pops its subtrees in visiting order; its lists
+            // are those of an earlier split pass, emptied.
+            let lists: Vec<std::sync::Mutex<Run>> = (1..bounds.len()).map(|_| std::sync::Mutex::new(spare_runs.pop().unwrap_or_default())).collect();
+            par::tasks(bounds.len() - 1, |i| {
+                let mut run = std::mem::take(&mut *lists[i].lock().unwrap_or_else(|e| e.into_inner()));
+                run.stack.extend(front[bounds[i]..bounds[i + 1]].iter().rev());
+                walk_run(&ctx, run)
+            })
         } else {
             // One run: the traversal's stack itself, and the lists of the
             // last serial pass, kept between passes.
@@ -722,13 +732,26 @@ impl Painting {
             if run.stack.capacity() > stack.capacity() {
                 stack = std::mem::take(&mut run.stack);
             }
-            if !parallel {
-                run.fresh.clear();
-                run.needs.clear();
-                run.blocks.clear();
-                self.spare_run = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, ..Run::default() };
+            run.fresh.clear();
+            run.needs.clear();
+            run.blocks.clear();
+            run.stack.clear();
+            let emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, stack: run.stack, ..Run::default() };
+            if parallel {
+                // A huge pass (a brush over millions of leaves) leaves no
+                // lasting claim on memory: a kept list holds at most
+                // SPARE_RUN_ITEMS items' room.
+                let mut emptied = emptied;
+                emptied.fresh.shrink_to(SPARE_RUN_ITEMS);
+                emptied.needs.shrink_to(SPARE_RUN_ITEMS);
+                emptied.blocks.shrink_to(SPARE_RUN_ITEMS);
+                emptied.stack.shrink_to(SPARE_RUN_ITEMS);
+                spare_runs.push(emptied);
+            } else {
+                self.spare_run = emptied;
             }
         }
+        self.spare_runs = spare_runs;
         if let Some((t0, visited)) = start {
             let choice = if W::CAPSULE { &mut self.split } else { &mut self.split_stamp };
             choice.record(t0.elapsed().as_nanos() as f64, self.counters.leaves_visited - visited);
@@ -1480,6 +1503,11 @@ impl FirstWrite {
     /// A placeholder, overwritten before use.
     const NONE: FirstWrite = FirstWrite { c: NONE, before_rgb: [0; 3], before_sigma: 0.0, a: 0.0, rgb: [0; 3], sigma: 0.0, next: false };
 }
+
+/// The most items' room a split pass's run keeps in each list for the next
+/// (room for a pass of about 100,000 leaves on 2 threads; a list that grew
+/// larger is given back).
+const SPARE_RUN_ITEMS: usize = 1 << 13;
 
 /// What one run of the parallel paint pass leaves for the serial part.
 #[derive(Clone, Default)]
