@@ -736,12 +736,11 @@ impl Painting {
             run.needs.clear();
             run.blocks.clear();
             run.stack.clear();
-            let emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, stack: run.stack, ..Run::default() };
+            let mut emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, stack: run.stack, ..Run::default() };
             if parallel {
                 // A huge pass (a brush over millions of leaves) leaves no
                 // lasting claim on memory: a kept list holds at most
                 // SPARE_RUN_ITEMS items' room.
-                let mut emptied = emptied;
                 emptied.fresh.shrink_to(SPARE_RUN_ITEMS);
                 emptied.needs.shrink_to(SPARE_RUN_ITEMS);
                 emptied.blocks.shrink_to(SPARE_RUN_ITEMS);

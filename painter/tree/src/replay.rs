@@ -111,18 +111,7 @@ pub fn replay_document(
                     } else {
                         let painting = &mut doc.current_mut().painting;
                         let g3 = obs.dump_g3(painting)?;
-                        if k + 1 == trace.events.len() {
-                            // The trace's last event: nothing is left to
-                            // overlap, so the dump is made from the pools
-                            // themselves, without a copy.
-                            writer.finish()?;
-                            durable::write_with(&path, |w| write_dump(w, &painting.tree, g3.as_deref()).map(drop))?;
-                        } else {
-                            // The writer thread computes the dump from a
-                            // copy of the pools (16 bytes a cell, a few ms)
-                            // while the events after the snapshot run.
-                            writer.write_tree(path.clone(), painting.tree.records_copy(), g3)?;
-                        }
+                        writer.write_tree(path.clone(), &painting.tree, g3, k + 1 == trace.events.len())?;
                     }
                     stats.written.push(path);
                 }
@@ -168,11 +157,20 @@ impl DumpWriter {
         self.start(move || durable::write(&path, &bytes))
     }
 
-    /// Wait for the dump in flight, then start writing the dump of `tree`
-    /// (a copy of its records) with the g3 table `g3` (None: the CPU
-    /// port's) to `path`, streamed into the file.
-    fn write_tree(&mut self, path: PathBuf, tree: Tree, g3: Option<Vec<[u32; 3]>>) -> std::io::Result<()> {
-        self.start(move || durable::write_with(&path, |w| write_dump(w, &tree, g3.as_deref()).map(drop)).map(drop))
+    /// Wait for the dump in flight, then write the dump of `tree` with the
+    /// g3 table `g3` (None: the CPU port's) to `path`, streamed into the
+    /// file. The writer thread works on a copy of the tree's records (16
+    /// bytes a cell, a few ms) while the events after the snapshot run;
+    /// after the trace's `last` event nothing is left to overlap, so the
+    /// dump is made here, from the pools themselves.
+    fn write_tree(&mut self, path: PathBuf, tree: &Tree, g3: Option<Vec<[u32; 3]>>, last: bool) -> std::io::Result<()> {
+        let dump = |path: &Path, tree: &Tree, g3: Option<&[[u32; 3]]>| durable::write_with(path, |w| write_dump(w, tree, g3).map(drop)).map(drop);
+        if last {
+            self.finish()?;
+            return dump(&path, tree, g3.as_deref());
+        }
+        let tree = tree.records_copy();
+        self.start(move || dump(&path, &tree, g3.as_deref()))
     }
 
     /// Wait for the dump in flight, then run `job` on the writer's thread.
