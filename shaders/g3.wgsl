@@ -1,6 +1,8 @@
 // The g3 pass (docs/spec.md 3.3-3.5): recompute g3 for every cell of the
 // regions the neighbour mask marks, from parent, first_child and depth
-// alone. CPU port: painter/tree/src/g3.rs (g3_cell, g3_row), kept line for
+// alone. A document's layer lives in its own range of the pages (spec 6.2):
+// its cells are read and its g3 written at `base` plus the tree's own
+// index, and g3 holds the tree's own indices (one tree: base 0). CPU port: painter/tree/src/g3.rs (g3_cell, g3_row), kept line for
 // line; reference: reference/octopaint_ref/g3.py. Host side:
 // painter/gpu/src/g3.rs. Prepended with shared/pools.wgsl.
 
@@ -16,6 +18,10 @@ struct G3Params {
     n_cells: u32,
     // workgroups per row of the 2D dispatch
     row: u32,
+    // the layer's first cell in the pages
+    base: u32,
+    // cells of the layer's range: its indices below are valid to read
+    layer_cells: u32,
 }
 
 @group(1) @binding(0) var<storage, read_write> g3_0: array<u32>;
@@ -27,7 +33,16 @@ struct G3Params {
 // The dirty regions (indices < 2048), compacted from the mask on the host.
 @group(2) @binding(1) var<storage, read> regions: array<u32>;
 
-fn store_g3(c: u32, a: u32, v: u32) {
+// Cell `i` of the layer (its own index); past its range, a free cell.
+fn layer_cell(i: u32) -> Cell {
+    if (i >= params.layer_cells) {
+        return FREE_CELL;
+    }
+    return cell_at(params.base + i);
+}
+
+fn store_g3(i: u32, a: u32, v: u32) {
+    let c = params.base + i;
     let j = (c & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
     switch (c >> PAGE_SHIFT) {
         case 0u: { g3_0[j] = v; }
@@ -47,7 +62,7 @@ fn g3_cell(c: u32, a: u32) -> u32 {
     var x = c;
     var y = NONE;
     loop {
-        let cx = cell_at(x);
+        let cx = layer_cell(x);
         if (depth_of(cx) == 0u) {
             let rx = params.roots.x;
             let ry = params.roots.y;
@@ -81,7 +96,7 @@ fn g3_cell(c: u32, a: u32) -> u32 {
         if (n == 0u) {
             break;
         }
-        let fc = cell_at(y).first_child;
+        let fc = layer_cell(y).first_child;
         if (fc == NONE) {
             break;
         }
@@ -105,10 +120,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         return;
     }
     let c = region * params.region_cells + offset;
-    if (c >= params.n_cells) {
+    if (c >= params.layer_cells || params.base + c >= params.n_cells) {
         return;
     }
-    let d = depth_of(cell_at(c));
+    let d = depth_of(layer_cell(c));
     if (d == 0u || d == FREE) {
         store_g3(c, 0u, NONE);
         store_g3(c, 1u, NONE);

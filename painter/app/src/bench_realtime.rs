@@ -31,7 +31,8 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_pipeline::jobs::from_trace;
-use octopaint_pipeline::{BlockSize, Hooks, Job, MaskSize, Pipeline, Report, Settings, Strategy};
+use octopaint_pipeline::{BlockSize, Hooks, Job, MaskSize, Pipeline, Replay, Report, Settings, Strategy};
+use octopaint_tree::layers::Document;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{Camera, EventKind, read_trace};
 use serde::Serialize;
@@ -198,24 +199,10 @@ fn configs(quick: bool, default_only: bool) -> Vec<Config> {
     out
 }
 
-/// Apply jobs single-threaded (the pre-painted scene).
-fn apply(painting: &mut Painting, job: &Job) {
-    match job {
-        Job::BeginStroke(b) => painting.begin_stroke(b),
-        Job::Sample(s) => painting.add_sample(s, 0),
-        Job::EndStroke => painting.end_stroke(),
-        Job::Undo => {
-            painting.undo();
-        }
-        Job::Redo => {
-            painting.redo();
-        }
-    }
-}
-
 /// The image digests of the consistent states the frames need, by publication
-/// number: the live jobs replayed single-threaded, published exactly as
-/// the stroke thread publishes, each wanted state uploaded fully and cast.
+/// number after the opening: the live jobs replayed single-threaded,
+/// published exactly as the stroke thread publishes, each wanted state
+/// uploaded fully and cast. One tree (version 1) only.
 fn consistent_images(
     pre: &Painting,
     live: &[(f64, Job)],
@@ -261,7 +248,18 @@ fn consistent_images(
                 }
             }
             other => {
-                apply(&mut painting, other);
+                match other {
+                    Job::BeginStroke(b) => painting.begin_stroke(b),
+                    Job::EndStroke => painting.end_stroke(),
+                    Job::Undo => {
+                        painting.undo();
+                    }
+                    Job::Redo => {
+                        painting.redo();
+                    }
+                    // A version 1 trace's live stroke has no other jobs.
+                    _ => {}
+                }
                 publish(&mut r, &mut painting, &mut n, &mut out)?;
             }
         }
@@ -271,12 +269,13 @@ fn consistent_images(
 
 fn corruption(report: &Report, images: &HashMap<u64, u64>) -> Corruption {
     let frames = &report.frames;
+    let live = |p: u64| p.saturating_sub(report.opening_pubs);
     let bad: Vec<bool> = frames
         .iter()
         .map(|f| {
             let img = f.digest.expect("captured");
-            let a = images.get(&f.cut) == Some(&img);
-            let b = images.get(&f.newest_uploaded) == Some(&img);
+            let a = images.get(&live(f.cut)) == Some(&img);
+            let b = images.get(&live(f.newest_uploaded)) == Some(&img);
             !(a || b)
         })
         .collect();
@@ -306,7 +305,12 @@ fn corruption(report: &Report, images: &HashMap<u64, u64>) -> Corruption {
     }
 }
 
-fn run_one(pre: &Painting, live: &[(f64, Job)], camera: &Camera, c: &Config, hz: Option<f64>) -> anyhow::Result<(RunResult, Report)> {
+/// Cells written so far over every layer.
+fn cells_written(doc: &Document) -> u64 {
+    doc.layers().map(|l| l.painting.counters.cells_written).sum()
+}
+
+fn run_one(pre: &Replay, live: &[(f64, Job)], camera: &Camera, c: &Config, hz: Option<f64>) -> anyhow::Result<(RunResult, Report)> {
     let mut settings = Settings::new(*camera);
     settings.block = c.block;
     settings.mask = c.mask;
@@ -314,8 +318,8 @@ fn run_one(pre: &Painting, live: &[(f64, Job)], camera: &Camera, c: &Config, hz:
     settings.strategy = c.strategy;
     settings.capture = c.capture;
     settings.target_hz = hz;
-    let written_before = pre.counters.cells_written;
-    let p = Pipeline::start(pre.clone(), settings, Hooks::default())?;
+    let written_before = cells_written(&pre.doc);
+    let p = Pipeline::start_on(Box::new(pre.clone()), settings, Hooks::default())?;
     let t0 = Instant::now();
     let rec0 = live.first().map_or(0.0, |x| x.0);
     for (t, job) in live {
@@ -364,7 +368,7 @@ fn run_one(pre: &Painting, live: &[(f64, Job)], camera: &Camera, c: &Config, hz:
         staged_cells_per_s: if stage.mean > 0.0 { cells_per_copy * 1e3 / stage.mean } else { 0.0 },
         staging_ms: stage,
         staging_wait_ms: percentiles(&report.staging.iter().map(|s| s.wait_seconds * 1e3).collect::<Vec<_>>()),
-        cells_written_per_s: (report.painting.counters.cells_written - written_before) as f64 / seconds,
+        cells_written_per_s: (cells_written(report.canvas.document()) - written_before) as f64 / seconds,
         cells_uploaded_per_s: uploaded as f64 / seconds,
         corruption: None,
     };
@@ -385,12 +389,6 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(hz.is_finite() && hz > 0.0, "--hz {hz}: expected a positive rate");
     }
     let trace = read_trace(&a.trace).map_err(|e| anyhow::anyhow!("{}: {e}", a.trace.display()))?;
-    anyhow::ensure!(trace.version == 1, "{}: a trace of layers (version 2): the real-time pipeline paints one tree", a.trace.display());
-    anyhow::ensure!(
-        !trace.events.iter().any(|e| matches!(e.kind, EventKind::Import(_))),
-        "{}: a trace with imports: the real-time pipeline paints brush strokes only",
-        a.trace.display()
-    );
     let mut camera = *trace
         .events
         .iter()
@@ -400,12 +398,13 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let jobs = from_trace(&trace);
     let begins: Vec<usize> = jobs.iter().enumerate().filter(|(_, (_, j))| matches!(j, Job::BeginStroke(_))).map(|(i, _)| i).collect();
     let start = *begins.get(a.stroke).with_context(|| format!("the trace has {} strokes", begins.len()))?;
-    let mut pre = Painting::new(&trace.canvas);
+    // A version 2 trace paints a document of layers (its layer operations
+    // and imports are jobs too); a version 1 trace one tree.
+    let mut pre = if trace.version == 2 { Replay::of(Document::new(&trace.canvas), 2) } else { Replay::new(Painting::new(&trace.canvas)) };
     let t_pre = Instant::now();
     for (_, job) in &jobs[..start] {
-        apply(&mut pre, job);
+        pre.apply(job);
     }
-    pre.tree.take_publication();
     let mut live: Vec<(f64, Job)> = Vec::new();
     // The stroke's begin, its first `--samples` samples, and its end (at
     // the last kept sample's time when the stroke is cut short).
@@ -432,21 +431,28 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         live.push((t, Job::EndStroke));
     }
     println!(
-        "pre-painted {} strokes in {:.1} s: {} cells; live: {} jobs over {:.2} s at the recorded pace; images {w}x{h}",
+        "pre-painted {} strokes in {:.1} s: {} cells in {} layer(s); live: {} jobs over {:.2} s at the recorded pace; images {w}x{h}",
         a.stroke,
         t_pre.elapsed().as_secs_f64(),
-        pre.tree.n_used(),
+        pre.doc.used(),
+        pre.doc.len(),
         live.len(),
         live.last().unwrap().0 - live[0].0
     );
     let mut results = Vec::new();
     let mut adapter = String::new();
     for c in configs(a.quick, a.default_only) {
+        if c.capture && trace.version == 2 {
+            // The corruption analysis replays one tree publication by
+            // publication; a document of layers runs the other figures.
+            continue;
+        }
         let (mut result, report) = run_one(&pre, &live, &camera, &c, a.hz)?;
         adapter.clone_from(&report.adapter);
         if c.capture {
-            let wanted: BTreeSet<u64> = report.frames.iter().flat_map(|f| [f.cut, f.newest_uploaded]).collect();
-            let images = consistent_images(&pre, &live, c.strategy.aggressive_units, &wanted, &camera, c.strategy.skip_invalid)?;
+            let live_pub = |p: u64| p.saturating_sub(report.opening_pubs);
+            let wanted: BTreeSet<u64> = report.frames.iter().flat_map(|f| [live_pub(f.cut), live_pub(f.newest_uploaded)]).collect();
+            let images = consistent_images(pre.painting(), &live, c.strategy.aggressive_units, &wanted, &camera, c.strategy.skip_invalid)?;
             result.corruption = Some(corruption(&report, &images));
         }
         println!(
@@ -471,7 +477,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         "trace": a.trace.display().to_string(),
         "adapter": adapter,
         "image": [w, h],
-        "prepainted_cells": pre.tree.n_used(),
+        "prepainted_cells": pre.doc.used(),
+        "layers": pre.doc.len(),
         "live_jobs": live.len(),
         "runs": results,
     });

@@ -22,7 +22,7 @@ use octopaint_tree::layers::MAX_LAYERS;
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::{Brush, Camera, Event, EventKind, LayerOp, LayerOpKind, Light, MODES, Mirror, Mode, SHAPES, Sample, Shape};
 use octopaint_tree::Tree;
-use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from, follow_frame_time, frame_painting, frame_trees, length};
+use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from, follow_frame_time, frame_painting, frame_trees, length, pick};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
@@ -321,57 +321,6 @@ impl Overlay {
             painter.text(tip + egui::vec2(v[0], v[1]) * 8.0, egui::Align2::CENTER_CENTER, ["x", "y", "z"][i], egui::FontId::proportional(12.0), colours[i]);
         }
     }
-}
-
-/// The first point along a ray where the paint's optical depth reaches
-/// 0.7 (what looks like its surface), marching leaf to leaf.
-pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
-    let size = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
-    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
-    for a in 0..3 {
-        if dir[a].abs() < 1e-300 {
-            if eye[a] < 0.0 || eye[a] >= size[a] {
-                return None;
-            }
-            continue;
-        }
-        let (a0, a1) = ((0.0 - eye[a]) / dir[a], (size[a] - eye[a]) / dir[a]);
-        t0 = t0.max(a0.min(a1));
-        t1 = t1.min(a0.max(a1));
-    }
-    if t0 >= t1 {
-        return None;
-    }
-    let mut t = t0;
-    let mut tau = 0.0;
-    for _ in 0..100_000 {
-        if t >= t1 {
-            return None;
-        }
-        let p = eye + dir * t;
-        let c = tree.leaf_at(p.to_array())?;
-        let d = u32::from(tree.depth[c as usize]);
-        let s = tree.lat.size_canvas[d as usize];
-        let lo = DVec3::from_array(tree.origin(c).map(|o| f64::from(o) * tree.lat.lattice_unit));
-        let mut exit = f64::INFINITY;
-        for a in 0..3 {
-            if dir[a] > 0.0 {
-                exit = exit.min((lo[a] + s - p[a]) / dir[a]);
-            } else if dir[a] < 0.0 {
-                exit = exit.min((lo[a] - p[a]) / dir[a]);
-            }
-        }
-        let len = exit.max(0.0);
-        let sigma = f64::from(tree.sigma[c as usize]);
-        if sigma > 0.0 {
-            if tau + sigma * len >= 0.7 {
-                return Some(t + (0.7 - tau) / sigma);
-            }
-            tau += sigma * len;
-        }
-        t += len + s * 1e-6;
-    }
-    None
 }
 
 struct Stats {

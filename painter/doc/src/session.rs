@@ -342,16 +342,7 @@ impl Session {
             EventKind::Brush(_) => check(parse_brush(0, &obj).map(drop))?,
             EventKind::StrokeBegin if self.in_stroke => return bad("stroke_begin inside a stroke".into()),
             EventKind::StrokeBegin if self.brush.is_none() => return bad("stroke_begin before any brush event".into()),
-            EventKind::Sample(_) if !self.in_stroke => return bad("sample outside a stroke".into()),
-            EventKind::Sample(s) => {
-                check(parse_sample(0, &obj).map(drop))?;
-                let brush = self.brush.as_ref().expect("a stroke has a brush");
-                if let Some(prev) = &self.last_sample
-                    && segment_too_long(brush, prev, s)
-                {
-                    return bad("this sample is too far from the previous one for the brush (more than 65,536 stamps)".into());
-                }
-            }
+            EventKind::Sample(s) => self.check_sample(s, &obj)?,
             EventKind::StrokeEnd if !self.in_stroke => return bad("stroke_end outside a stroke".into()),
             EventKind::Undo | EventKind::Redo if self.in_stroke => return bad("undo or redo inside a stroke".into()),
             EventKind::Camera(_) => check(parse_camera(0, &obj).map(drop))?,
@@ -402,6 +393,44 @@ impl Session {
             self.flush()?;
         }
         Ok(())
+    }
+
+    /// A `sample` event's rules: inside a stroke, its values, its distance
+    /// from the previous sample.
+    fn check_sample(&self, s: &Sample, obj: &serde_json::Value) -> Result<(), DocError> {
+        let bad = |m: &str| Err(DocError::BadEvent(m.to_string()));
+        if !self.in_stroke {
+            return bad("sample outside a stroke");
+        }
+        parse_sample(0, obj).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let brush = self.brush.as_ref().expect("a stroke has a brush");
+        if let Some(prev) = &self.last_sample
+            && segment_too_long(brush, prev, s)
+        {
+            return bad("this sample is too far from the previous one for the brush (more than 65,536 stamps)");
+        }
+        Ok(())
+    }
+
+    /// [`Session::apply`] for a `sample` event whose levels the caller runs
+    /// (`Painting::step` on `doc.stroke_painting()`, the real-time pipeline
+    /// publishing between them): checked and recorded as `apply` records
+    /// it, then begun. Ok(false): the stroke paints nothing (its layer
+    /// was locked), so no level follows. The caller runs every level
+    /// before the next event: the stroke's end journals it.
+    pub fn begin_sample(&mut self, ev: &Event) -> Result<bool, DocError> {
+        let EventKind::Sample(s) = &ev.kind else { return Err(DocError::BadEvent("not a sample".into())) };
+        if !(ev.t.is_finite() && ev.t >= self.last_t) {
+            return Err(DocError::BadEvent(format!("time {} goes back (last {})", ev.t, self.last_t)));
+        }
+        let line = event_line(ev);
+        let obj: serde_json::Value = serde_json::from_str(&line).map_err(|_| DocError::BadEvent("unwritable event".into()))?;
+        self.check_sample(s, &obj)?;
+        let began = self.doc.begin_sample(s, 0);
+        self.last_sample = Some(*s);
+        self.last_t = ev.t;
+        self.pending.push(line);
+        Ok(began)
     }
 
     /// Paint a voxel set into the selected layer (an `import` event, spec

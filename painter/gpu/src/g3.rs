@@ -21,6 +21,9 @@ pub struct G3Params {
     pub chunks: u32,
     pub n_cells: u32,
     pub row: u32,
+    pub base: u32,
+    pub layer_cells: u32,
+    pub _pad: [u32; 2],
 }
 
 pub struct G3Pass {
@@ -78,6 +81,26 @@ impl G3Pass {
     /// encoded). `capacity` is the trace's cell budget, which fixes the
     /// region size (spec 3.5). Returns the number of regions processed.
     pub fn encode(&self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, mask: &NeighbourMask, capacity: u32, roots: [u32; 3]) -> u32 {
+        let all = pools.cells_held().min(u64::from(u32::MAX)) as u32;
+        self.encode_layer(gpu, pools, enc, mask, capacity, roots, 0, all)
+    }
+
+    /// [`G3Pass::encode`] for a layer of a document whose cells lie at
+    /// `base..base + layer_cells` of the pages (spec 6.2). The parameters
+    /// are written to one buffer when the queue next submits: one call per
+    /// submission.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_layer(
+        &self,
+        gpu: &Gpu,
+        pools: &GpuPools,
+        enc: &mut wgpu::CommandEncoder,
+        mask: &NeighbourMask,
+        capacity: u32,
+        roots: [u32; 3],
+        base: u32,
+        layer_cells: u32,
+    ) -> u32 {
         let regions: Vec<u32> = (0..REGIONS as u32).filter(|&r| mask.get(r as usize)).collect();
         if regions.is_empty() {
             return 0;
@@ -95,6 +118,9 @@ impl G3Pass {
             chunks,
             n_cells: pools.cells_held().min(u64::from(u32::MAX)) as u32,
             row,
+            base,
+            layer_cells,
+            _pad: [0; 2],
         };
         gpu.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         gpu.queue.write_buffer(&self.regions, 0, bytemuck::cast_slice(&regions));

@@ -307,6 +307,44 @@ impl GpuPools {
         });
     }
 
+    /// The most cells the pages can hold (every page whole).
+    pub fn max_cells(&self) -> u64 {
+        PAGES as u64 * self.page_cells()
+    }
+
+    /// Copy cells and g3 of ranges `(from, to, n)` on the GPU (a layer's
+    /// range moved, docs/architecture.md): every source is copied out
+    /// before any destination is written, so ranges may overlap one
+    /// another. The pages must hold every destination ([`GpuPools::ensure`]).
+    pub fn move_ranges(&self, gpu: &Gpu, moves: &[(u64, u64, u64)]) {
+        if moves.is_empty() {
+            return;
+        }
+        let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("move ranges") });
+        let temp = |label: &str, bytes: u64| {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(4),
+                usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let temps: Vec<(wgpu::Buffer, wgpu::Buffer)> = moves.iter().map(|&(_, _, n)| (temp("moved cells", n * 16), temp("moved g3", n * 12))).collect();
+        for (&(from, _, n), (tc, tg)) in moves.iter().zip(&temps) {
+            self.per_page(from, n as usize, |page, offset, range| {
+                enc.copy_buffer_to_buffer(&self.cells[page], offset * 16, tc, range.start as u64 * 16, range.len() as u64 * 16);
+                enc.copy_buffer_to_buffer(&self.g3[page], offset * 12, tg, range.start as u64 * 12, range.len() as u64 * 12);
+            });
+        }
+        for (&(_, to, n), (tc, tg)) in moves.iter().zip(&temps) {
+            self.per_page(to, n as usize, |page, offset, range| {
+                enc.copy_buffer_to_buffer(tc, range.start as u64 * 16, &self.cells[page], offset * 16, range.len() as u64 * 16);
+                enc.copy_buffer_to_buffer(tg, range.start as u64 * 12, &self.g3[page], offset * 12, range.len() as u64 * 12);
+            });
+        }
+        gpu.queue.submit([enc.finish()]);
+    }
+
     /// Cells `0..n` as the GPU holds them (tests).
     pub fn read_cells(&self, gpu: &Gpu, n: u64) -> Result<Vec<GpuCell>, GpuError> {
         let mut out = Vec::with_capacity(n as usize);

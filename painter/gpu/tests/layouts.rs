@@ -40,7 +40,7 @@ fn cell_layout_agrees() {
 fn g3_params_layout_agrees() {
     let (size, offsets) = wgsl_layout(&g3_source(), "G3Params");
     assert_eq!(size as usize, std::mem::size_of::<G3Params>());
-    assert_eq!(offsets, offsets!(G3Params, roots, region_cells, n_regions, chunks, n_cells, row));
+    assert_eq!(offsets, offsets!(G3Params, roots, region_cells, n_regions, chunks, n_cells, row, base, layer_cells));
 }
 
 #[test]

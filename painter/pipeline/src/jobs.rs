@@ -2,31 +2,93 @@
 //! to the stroke thread. Bounded; when it is full, `submit` waits for room
 //! (back-pressure on the input) and `try_submit` gives the job back: a job
 //! is never dropped or merged, because every sample changes the painting.
+//!
+//! Beside the jobs, *questions* ([`Ask`]): closures the stroke thread runs
+//! on the painting between two steps of its work (the surface under the
+//! cursor, the view that frames the painting). They are served before the
+//! next job and between the levels of a sample, so a front end never reads
+//! the live pools itself and never waits for a heavy stroke to end.
 
 use std::collections::VecDeque;
 use std::sync::{Condvar, Mutex};
 use std::time::Instant;
 
-use octopaint_tree::trace::{Brush, Sample};
+use octopaint_tree::trace::{Brush, EventKind, Sample};
+
+use crate::canvas::Canvas;
+
+/// A sample placed by a ray from the eye: on the surface of the selected
+/// layer's paint under the ray when `on_surface` finds one (optical depth
+/// 0.7, `octopaint_tree::view::pick`), else `plane_t` along it. Resolved on
+/// the stroke thread against the painting as that sample finds it, and
+/// recorded as the `sample` event it becomes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aim {
+    pub eye: [f64; 3],
+    pub dir: [f64; 3],
+    pub plane_t: f64,
+    pub on_surface: bool,
+}
 
 /// One unit of work for the stroke thread.
 #[derive(Clone, Debug)]
 pub enum Job {
+    /// A stroke with this brush (its `mirror` the planes it paints with):
+    /// the brush and mirror events it needs, then `stroke_begin`.
     BeginStroke(Brush),
     Sample(Sample),
+    /// A sample at the point a ray finds (the window's cursor).
+    Aim(Aim),
     EndStroke,
     Undo,
     Redo,
+    /// Any other event of the trace format: a layer operation, an import,
+    /// a mirror, a brush (cameras, lights, renders and snapshots are
+    /// recorded by documents and ignored by bare paintings).
+    Event(EventKind),
+    /// Save the document (a document's session; refused by a bare
+    /// painting). At a stroke boundary: inside a stroke it is refused.
+    Save,
+    /// Make a one-tree document a document of layers (saved at once).
+    UseLayers,
 }
 
 impl Job {
     pub fn name(&self) -> &'static str {
         match self {
             Job::BeginStroke(_) => "stroke_begin",
-            Job::Sample(_) => "sample",
+            Job::Sample(_) | Job::Aim(_) => "sample",
             Job::EndStroke => "stroke_end",
             Job::Undo => "undo",
             Job::Redo => "redo",
+            Job::Event(k) => match k {
+                EventKind::Brush(_) => "brush",
+                EventKind::StrokeBegin => "stroke_begin",
+                EventKind::Sample(_) => "sample",
+                EventKind::StrokeEnd => "stroke_end",
+                EventKind::Camera(_) => "camera",
+                EventKind::Light(_) => "light",
+                EventKind::Mirror(_) => "mirror",
+                EventKind::Render(_) => "render",
+                EventKind::Snapshot(_) => "snapshot",
+                EventKind::Undo => "undo",
+                EventKind::Redo => "redo",
+                EventKind::Layer(_) => "layer",
+                EventKind::Import(_) => "import",
+            },
+            Job::Save => "save",
+            Job::UseLayers => "use_layers",
+        }
+    }
+
+    /// Heavy enough to show the heavy-operation indicator at once (the
+    /// paper's 8.3): a whole layer rewritten or imported.
+    pub fn is_heavy(&self) -> bool {
+        use octopaint_tree::trace::LayerOpKind;
+        match self {
+            Job::Event(EventKind::Import(_)) | Job::Save | Job::UseLayers => true,
+            Job::Event(EventKind::Layer(op)) => matches!(op.op, LayerOpKind::MergeDown | LayerOpKind::Duplicate),
+            _ => false,
         }
     }
 }
@@ -40,6 +102,10 @@ pub struct Ticket {
     pub job: Job,
 }
 
+/// A question for the painting, answered on the stroke thread (the closure
+/// sends its answer where the asker waits for it, a channel for example).
+pub type Ask = Box<dyn FnOnce(&dyn Canvas) + Send>;
+
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SubmitError {
     #[error("the job queue is full ({0} jobs)")]
@@ -48,8 +114,15 @@ pub enum SubmitError {
     Closed,
 }
 
+/// What the stroke thread takes next.
+pub enum Work {
+    Job(Ticket),
+    Ask(Ask),
+}
+
 struct Inner {
     queue: VecDeque<Ticket>,
+    asks: VecDeque<Ask>,
     next_seq: u64,
     closed: bool,
 }
@@ -64,7 +137,7 @@ impl JobQueue {
     pub fn new(capacity: usize) -> JobQueue {
         JobQueue {
             capacity: capacity.max(1),
-            inner: Mutex::new(Inner { queue: VecDeque::new(), next_seq: 1, closed: false }),
+            inner: Mutex::new(Inner { queue: VecDeque::new(), asks: VecDeque::new(), next_seq: 1, closed: false }),
             changed: Condvar::new(),
         }
     }
@@ -102,13 +175,34 @@ impl JobQueue {
         Ok(self.push(&mut inner, job))
     }
 
-    /// The next job, waiting for one; None once closed and empty.
-    pub fn pop(&self) -> Option<Ticket> {
+    /// Queue a question (never waits: questions are few and small). Refused
+    /// once closed.
+    pub fn ask(&self, ask: Ask) -> Result<(), SubmitError> {
+        let mut inner = self.inner.lock().expect("job queue lock");
+        if inner.closed {
+            return Err(SubmitError::Closed);
+        }
+        inner.asks.push_back(ask);
+        self.changed.notify_all();
+        Ok(())
+    }
+
+    /// The questions asked so far, without waiting.
+    pub fn take_asks(&self) -> Vec<Ask> {
+        self.inner.lock().expect("job queue lock").asks.drain(..).collect()
+    }
+
+    /// The next question or job (questions first), waiting for one; None
+    /// once closed with no job left.
+    pub fn pop(&self) -> Option<Work> {
         let mut inner = self.inner.lock().expect("job queue lock");
         loop {
+            if let Some(a) = inner.asks.pop_front() {
+                return Some(Work::Ask(a));
+            }
             if let Some(t) = inner.queue.pop_front() {
                 self.changed.notify_all();
-                return Some(t);
+                return Some(Work::Job(t));
             }
             if inner.closed {
                 return None;
@@ -130,15 +224,19 @@ impl JobQueue {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+
+    /// Jobs submitted so far.
+    pub fn submitted(&self) -> u64 {
+        self.inner.lock().expect("job queue lock").next_seq - 1
+    }
 }
 
 /// The jobs of a trace's events, with their recorded times (seconds):
-/// brushes become the next stroke's `BeginStroke`; cameras, renders and
-/// snapshots are not jobs. The pipeline paints one tree from brushes: a
-/// version 2 trace's layer events (spec 14) and imports (spec 15) are not
-/// jobs either, so callers refuse such traces first.
+/// brushes and mirrors go with the next stroke's `BeginStroke` (its brush
+/// carries the mirror planes); layer operations and imports (version 2,
+/// spec 14 and 15) are jobs of their own; cameras, lights, renders and
+/// snapshots are not jobs.
 pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
-    use octopaint_tree::trace::EventKind;
     let mut brush = None;
     let mut mirror = None;
     let mut out = Vec::new();
@@ -148,13 +246,14 @@ pub fn from_trace(trace: &octopaint_tree::trace::Trace) -> Vec<(f64, Job)> {
             EventKind::Mirror(m) => mirror = m.active(),
             EventKind::StrokeBegin => {
                 let b = brush.expect("validated: a brush precedes every stroke");
-                out.push((ev.t, Job::BeginStroke(octopaint_tree::trace::Brush { mirror, ..b })))
+                out.push((ev.t, Job::BeginStroke(Brush { mirror, ..b })))
             }
             EventKind::Sample(s) => out.push((ev.t, Job::Sample(*s))),
             EventKind::StrokeEnd => out.push((ev.t, Job::EndStroke)),
             EventKind::Undo => out.push((ev.t, Job::Undo)),
             EventKind::Redo => out.push((ev.t, Job::Redo)),
-            EventKind::Camera(_) | EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) | EventKind::Layer(_) | EventKind::Import(_) => {}
+            EventKind::Layer(_) | EventKind::Import(_) => out.push((ev.t, Job::Event(ev.kind.clone()))),
+            EventKind::Camera(_) | EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
         }
     }
     out

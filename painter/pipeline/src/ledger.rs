@@ -1,7 +1,8 @@
 //! The ledger: what every job changed and what every frame shows.
 //!
 //! The stroke thread records each publication (one level of a job, or part
-//! of one in aggressive staging) with the 65,536-cell blocks it dirtied;
+//! of one in aggressive staging) with the 65,536-cell blocks it dirtied
+//! (keyed by layer and block: [`crate::staging::key`]);
 //! the render thread records each upload with the newest publication the
 //! staged copy contains. From these the ledger knows, after every frame,
 //! the *consistent cut*: the newest publication P such that every change of
@@ -46,7 +47,7 @@ pub struct Ledger {
     /// The job of every publication (index: number − 1).
     pub pub_jobs: Vec<u64>,
     /// Per block: the publications that dirtied it and are not uploaded yet.
-    uncovered: HashMap<u32, VecDeque<u64>>,
+    uncovered: HashMap<u64, VecDeque<u64>>,
     /// The oldest uncovered publication of each block, counted.
     fronts: BTreeMap<u64, usize>,
     /// Jobs before this index are all shown.
@@ -79,13 +80,16 @@ impl Ledger {
     }
 
     /// A publication of job `seq` dirtied `blocks`; returns its number.
-    pub fn published(&mut self, seq: u64, blocks: &[u32]) -> u64 {
+    /// Job 0 is the opening: the painting as the pipeline found it.
+    pub fn published(&mut self, seq: u64, blocks: &[u64]) -> u64 {
         self.last_pub += 1;
         let n = self.last_pub;
         self.pub_jobs.push(seq);
-        let job = self.job(seq);
-        job.first_pub.get_or_insert(n);
-        job.last_pub = Some(n);
+        if seq > 0 {
+            let job = self.job(seq);
+            job.first_pub.get_or_insert(n);
+            job.last_pub = Some(n);
+        }
         for &b in blocks {
             let q = self.uncovered.entry(b).or_default();
             if q.is_empty() {
@@ -106,7 +110,7 @@ impl Ledger {
     }
 
     /// Block `b` is on the GPU as it was after publication `covered`.
-    pub fn uploaded(&mut self, b: u32, covered: u64) {
+    pub fn uploaded(&mut self, b: u64, covered: u64) {
         let Some(q) = self.uncovered.get_mut(&b) else { return };
         let Some(&front) = q.front() else { return };
         if front > covered {
@@ -139,7 +143,7 @@ impl Ledger {
     }
 
     /// Whether a block still has changes the GPU has not seen.
-    pub fn block_pending(&self, b: u32) -> bool {
+    pub fn block_pending(&self, b: u64) -> bool {
         self.uncovered.contains_key(&b)
     }
 

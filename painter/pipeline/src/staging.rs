@@ -17,6 +17,18 @@ use std::time::Instant;
 use octopaint_gpu::pools::GpuCell;
 use octopaint_tree::dirty::NeighbourMask;
 
+/// A layer's block or group as one number: the layer's id in the high
+/// half (a document's layers are painted, staged and uploaded apart; a
+/// one-tree painting is layer 0).
+pub fn key(layer: u32, n: u32) -> u64 {
+    u64::from(layer) << 32 | u64::from(n)
+}
+
+/// The layer and the block or group of a [`key`].
+pub fn split(key: u64) -> (u32, u32) {
+    ((key >> 32) as u32, key as u32)
+}
+
 /// One group of blocks waiting to be staged.
 #[derive(Clone, Debug)]
 struct PendingGroup {
@@ -25,18 +37,20 @@ struct PendingGroup {
     /// The g3 regions of every publication that dirtied it since it was
     /// last staged: recomputed when the copy is uploaded.
     mask: NeighbourMask,
-    /// The 65,536-cell blocks of those publications inside this group.
-    blocks: Vec<u32>,
+    /// The 65,536-cell blocks of those publications inside this group
+    /// ([`key`]s).
+    blocks: Vec<u64>,
     /// Position in the LIFO order (larger: dirtied more recently).
     stamp: u64,
 }
 
 #[derive(Default)]
 struct PendingInner {
-    groups: HashMap<u32, PendingGroup>,
-    /// LIFO order: (stamp, group); entries whose stamp no longer matches
-    /// their group's are stale and skipped.
-    stack: Vec<(u64, u32)>,
+    /// By group [`key`].
+    groups: HashMap<u64, PendingGroup>,
+    /// LIFO order: (stamp, group key); entries whose stamp no longer
+    /// matches their group's are stale and skipped.
+    stack: Vec<(u64, u64)>,
     next_stamp: u64,
     closed: bool,
 }
@@ -50,21 +64,31 @@ pub struct PendingSet {
 
 /// A group taken from the pending set for staging.
 pub struct Taken {
+    pub layer: u32,
     pub group: u32,
     pub newest_pub: u64,
     pub mask: NeighbourMask,
-    pub blocks: Vec<u32>,
+    pub blocks: Vec<u64>,
+}
+
+impl Taken {
+    fn new(k: u64, e: PendingGroup) -> Taken {
+        let (layer, group) = split(k);
+        Taken { layer, group, newest_pub: e.newest_pub, mask: e.mask, blocks: e.blocks }
+    }
 }
 
 impl PendingSet {
-    /// A publication dirtied `blocks` (65,536-cell blocks) in `groups`.
-    pub fn merge(&self, pub_no: u64, group_of: impl Fn(u32) -> u32, blocks: &[u32], mask: &NeighbourMask) {
+    /// A publication dirtied `blocks` (65,536-cell blocks) of layer
+    /// `layer`, in the groups `group_of` gives; `mask`: that layer's g3
+    /// regions.
+    pub fn merge(&self, pub_no: u64, layer: u32, group_of: impl Fn(u32) -> u32, blocks: &[u32], mask: &NeighbourMask) {
         if blocks.is_empty() {
             return;
         }
         let mut inner = self.inner.lock().expect("pending lock");
         for &b in blocks {
-            let g = group_of(b);
+            let (g, b) = (key(layer, group_of(b)), key(layer, b));
             inner.next_stamp += 1;
             let stamp = inner.next_stamp;
             let e = inner.groups.entry(g).or_insert_with(|| PendingGroup {
@@ -92,7 +116,7 @@ impl PendingSet {
             while let Some((stamp, g)) = inner.stack.pop() {
                 if inner.groups.get(&g).is_some_and(|e| e.stamp == stamp) {
                     let e = inner.groups.remove(&g).expect("just checked");
-                    return Some(Taken { group: g, newest_pub: e.newest_pub, mask: e.mask, blocks: e.blocks });
+                    return Some(Taken::new(g, e));
                 }
             }
             if inner.closed {
@@ -122,9 +146,8 @@ impl PendingSet {
     pub fn take_all_now(&self) -> Vec<Taken> {
         let mut inner = self.inner.lock().expect("pending lock");
         inner.stack.clear();
-        let mut all: Vec<Taken> =
-            inner.groups.drain().map(|(g, e)| Taken { group: g, newest_pub: e.newest_pub, mask: e.mask, blocks: e.blocks }).collect();
-        all.sort_by_key(|t| t.group);
+        let mut all: Vec<Taken> = inner.groups.drain().map(|(g, e)| Taken::new(g, e)).collect();
+        all.sort_by_key(|t| (t.layer, t.group));
         all
     }
 
@@ -144,16 +167,17 @@ impl PendingSet {
 
 /// A staged copy of one group, ready to upload.
 pub struct StagedCopy {
+    pub layer: u32,
     pub group: u32,
-    /// First cell of the copy.
+    /// First cell of the copy, in its layer's tree.
     pub first: u64,
     pub cells: Vec<GpuCell>,
     /// Every publication up to this one is in the copy.
     pub covered_pub: u64,
     /// The g3 regions to recompute once it is uploaded.
     pub mask: NeighbourMask,
-    /// The 65,536-cell blocks whose pending changes it carries.
-    pub blocks: Vec<u32>,
+    /// The 65,536-cell blocks whose pending changes it carries ([`key`]s).
+    pub blocks: Vec<u64>,
     /// Staging order of this group's copies (larger: newer).
     pub version: u64,
     pub staged_at: Instant,
@@ -227,8 +251,8 @@ impl StagedStack {
             match old {
                 StagedItem::One(c) => {
                     let newer = match &mut item {
-                        StagedItem::One(n) if n.group == c.group => Some(n),
-                        StagedItem::Batch(ns) => ns.iter_mut().find(|n| n.group == c.group),
+                        StagedItem::One(n) if (n.layer, n.group) == (c.layer, c.group) => Some(n),
+                        StagedItem::Batch(ns) => ns.iter_mut().find(|n| (n.layer, n.group) == (c.layer, c.group)),
                         _ => None,
                     };
                     match newer {

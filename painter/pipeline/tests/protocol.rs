@@ -89,9 +89,9 @@ fn run_and_check_paced(name: &str, tweak: impl FnOnce(&mut Settings), paced: boo
     }
     // The same tree as the replay.
     let (_, replayed) = replay(&t, None, &mut ()).unwrap();
-    assert!(dump_bytes(&report.painting.tree) == dump_bytes(&replayed.tree), "{name}: the pipeline's tree differs from the replay's");
+    assert!(dump_bytes(&report.painting().tree) == dump_bytes(&replayed.tree), "{name}: the pipeline's tree differs from the replay's");
     // Every block on the GPU as the CPU has it, g3 included.
-    let tree = &mut report.painting.tree;
+    let tree = &mut report.canvas.document_mut().current_mut().painting.tree;
     let n = u64::from(tree.n_used());
     let r = &mut report.renderer;
     let gpu_cells = r.pools.read_cells(&r.gpu, n).unwrap();

@@ -171,6 +171,7 @@ impl Model {
 }
 
 /// One layer: its settings and its tree with its own undo steps.
+#[derive(Clone)]
 pub struct Layer {
     pub name: String,
     pub visible: bool,
@@ -214,6 +215,7 @@ pub struct Settings {
 }
 
 /// One step of a document's history (spec 14.3).
+#[derive(Clone)]
 pub enum Step {
     /// A stroke on the layer of this id (its own undo step is the newest
     /// of that layer's history).
@@ -235,6 +237,7 @@ impl Step {
 /// The layers of a version 2 trace and their one history (spec 14). Layers
 /// live in an arena by id so that undo steps can hold on to layers that are
 /// no longer in the list (deleted or merged).
+#[derive(Clone)]
 pub struct Document {
     canvas: Canvas,
     arena: BTreeMap<u32, Layer>,
@@ -298,6 +301,17 @@ impl Document {
 
     pub fn is_empty(&self) -> bool {
         self.order.is_empty()
+    }
+
+    /// The layer of id `id`, listed or kept for the history (deleted,
+    /// merged); None once the history that held it is forgotten.
+    pub fn layer_by_id(&self, id: u32) -> Option<&Layer> {
+        self.arena.get(&id)
+    }
+
+    /// The listed layers' ids, bottom first.
+    pub fn listed_ids(&self) -> &[u32] {
+        &self.order
     }
 
     /// Layer `k` from the bottom.
@@ -389,6 +403,16 @@ impl Document {
         if let Some(id) = self.painting_on {
             self.arena.get_mut(&id).expect("listed").painting.add_sample(sample, line);
         }
+    }
+
+    /// Start a sample of the open stroke, its levels to follow with
+    /// `Painting::step` on [`Document::stroke_painting`] (the real-time
+    /// pipeline publishes between them); false when no stroke is open or
+    /// it was skipped (nothing to step).
+    pub fn begin_sample(&mut self, sample: &Sample, line: usize) -> bool {
+        let Some(id) = self.painting_on else { return false };
+        self.arena.get_mut(&id).expect("listed").painting.begin_sample(sample, line);
+        true
     }
 
     /// The painting of the open stroke, if one is open and not skipped.

@@ -1,6 +1,7 @@
 //! Views of a painting from outside: an orbit camera (the desktop
 //! window's, `octopaint render`'s and its turntables') and the view that
-//! frames everything painted.
+//! frames everything painted, and the surface under a ray (the brush's
+//! point when painting on the surface).
 
 use glam::{DQuat, DVec3, EulerRot};
 
@@ -137,6 +138,57 @@ pub fn length(x: f64) -> String {
     // Three significant digits.
     let digits = if v.abs() >= 100.0 { 0 } else if v.abs() >= 10.0 { 1 } else { 2 };
     format!("{v:.digits$} {unit}")
+}
+
+/// The first point along a ray where the paint's optical depth reaches
+/// 0.7 (what looks like its surface), marching leaf to leaf.
+pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
+    let size = DVec3::from_array(tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size));
+    let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+    for a in 0..3 {
+        if dir[a].abs() < 1e-300 {
+            if eye[a] < 0.0 || eye[a] >= size[a] {
+                return None;
+            }
+            continue;
+        }
+        let (a0, a1) = ((0.0 - eye[a]) / dir[a], (size[a] - eye[a]) / dir[a]);
+        t0 = t0.max(a0.min(a1));
+        t1 = t1.min(a0.max(a1));
+    }
+    if t0 >= t1 {
+        return None;
+    }
+    let mut t = t0;
+    let mut tau = 0.0;
+    for _ in 0..100_000 {
+        if t >= t1 {
+            return None;
+        }
+        let p = eye + dir * t;
+        let c = tree.leaf_at(p.to_array())?;
+        let d = u32::from(tree.depth[c as usize]);
+        let s = tree.lat.size_canvas[d as usize];
+        let lo = DVec3::from_array(tree.origin(c).map(|o| f64::from(o) * tree.lat.lattice_unit));
+        let mut exit = f64::INFINITY;
+        for a in 0..3 {
+            if dir[a] > 0.0 {
+                exit = exit.min((lo[a] + s - p[a]) / dir[a]);
+            } else if dir[a] < 0.0 {
+                exit = exit.min((lo[a] - p[a]) / dir[a]);
+            }
+        }
+        let len = exit.max(0.0);
+        let sigma = f64::from(tree.sigma[c as usize]);
+        if sigma > 0.0 {
+            if tau + sigma * len >= 0.7 {
+                return Some(t + (0.7 - tau) / sigma);
+            }
+            tau += sigma * len;
+        }
+        t += len + s * 1e-6;
+    }
+    None
 }
 
 #[cfg(test)]

@@ -1,0 +1,206 @@
+//! Where each layer lives in the GPU's pages (docs/architecture.md,
+//! "Documents of layers"): a range of cells of its own, its tree's cells at
+//! their own indices from the range's first cell (spec 6.2: the ray caster
+//! and the g3 pass offset every read by it), so each layer's dirty blocks
+//! are uploaded into its range and nothing else is written when one layer
+//! changes.
+//!
+//! Ranges are whole 65,536-cell blocks. A layer that outgrows its range
+//! grows in place when the cells after it are free (always for the last
+//! range: a one-tree painting never moves), else moves to the first free
+//! gap large enough, with room to double; when no gap is left the ranges
+//! are packed from cell 0. A move is a copy on the GPU (cells and g3: g3
+//! holds the tree's own indices, so it stays valid), never an upload.
+
+use std::collections::BTreeMap;
+
+use octopaint_tree::dirty::BLOCK_CELLS;
+
+/// A range of cells to copy on the GPU: `cells` cells from `from` to `to`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Move {
+    pub from: u64,
+    pub to: u64,
+    pub cells: u64,
+}
+
+#[derive(Debug, Default)]
+pub struct Layout {
+    /// By first cell: (layer id, cells reserved).
+    ranges: BTreeMap<u64, (u32, u64)>,
+    /// The cells the pages can ever hold.
+    limit: u64,
+}
+
+fn whole_blocks(cells: u64) -> u64 {
+    cells.max(1).div_ceil(u64::from(BLOCK_CELLS)) * u64::from(BLOCK_CELLS)
+}
+
+impl Layout {
+    pub fn new(limit: u64) -> Layout {
+        Layout { ranges: BTreeMap::new(), limit }
+    }
+
+    fn find(&self, id: u32) -> Option<(u64, u64)> {
+        self.ranges.iter().find(|(_, (i, _))| *i == id).map(|(&b, &(_, r))| (b, r))
+    }
+
+    /// Layer `id`'s first cell and the cells it has, if it has a range.
+    pub fn range(&self, id: u32) -> Option<(u64, u64)> {
+        self.find(id)
+    }
+
+    /// One past the last reserved cell.
+    pub fn end(&self) -> u64 {
+        self.ranges.iter().next_back().map_or(0, |(&b, &(_, r))| b + r)
+    }
+
+    /// Forget layer `id`'s range (no longer listed).
+    pub fn free(&mut self, id: u32) {
+        if let Some((b, _)) = self.find(id) {
+            self.ranges.remove(&b);
+        }
+    }
+
+    /// The layers that have ranges.
+    pub fn ids(&self) -> Vec<u32> {
+        self.ranges.values().map(|&(id, _)| id).collect()
+    }
+
+    /// The first cell of the first gap of `cells` cells, from `at` on
+    /// (ranges other than `skip`'s count as taken).
+    fn gap(&self, cells: u64, skip: Option<u64>) -> Option<u64> {
+        let mut at = 0u64;
+        for (&b, &(_, r)) in &self.ranges {
+            if Some(b) == skip {
+                continue;
+            }
+            if b >= at + cells {
+                return Some(at);
+            }
+            at = at.max(b + r);
+        }
+        (at + cells <= self.limit).then_some(at)
+    }
+
+    /// Make layer `id`'s range hold `cells` cells. Returns the copies to
+    /// make on the GPU, all sources read before any destination is written
+    /// (`GpuPools::move_ranges`); Err when the pages cannot hold every
+    /// layer even packed.
+    pub fn fit(&mut self, id: u32, cells: u64) -> Result<Vec<Move>, String> {
+        let cells = whole_blocks(cells);
+        let Some((base, have)) = self.find(id) else {
+            let used: u64 = self.ranges.values().map(|&(_, r)| r).sum();
+            if used + cells > self.limit {
+                return Err(self.full(used + cells));
+            }
+            let (at, moves) = match self.gap(cells, None) {
+                Some(at) => (at, Vec::new()),
+                None => {
+                    let moves = self.pack(None)?;
+                    (self.end(), moves)
+                }
+            };
+            self.ranges.insert(at, (id, cells));
+            return Ok(moves);
+        };
+        if cells <= have {
+            return Ok(Vec::new());
+        }
+        let next = self.ranges.range(base + 1..).next().map_or(self.limit, |(&b, _)| b);
+        let last = next == self.limit;
+        // Room to double, so that a growing layer moves rarely; the last
+        // range grows exactly (the pages themselves grow by powers of two).
+        let want = if last { cells } else { whole_blocks(cells.max(2 * have)) };
+        if base + want <= next {
+            self.ranges.insert(base, (id, want));
+            return Ok(Vec::new());
+        }
+        if let Some(to) = self.gap(want, Some(base)) {
+            self.ranges.remove(&base);
+            self.ranges.insert(to, (id, want));
+            return Ok(vec![Move { from: base, to, cells: have }]);
+        }
+        let moves = self.pack(Some((id, cells)))?;
+        Ok(moves)
+    }
+
+    /// Pack every range from cell 0 in order, `grow`'s layer last with its
+    /// new size.
+    fn pack(&mut self, grow: Option<(u32, u64)>) -> Result<Vec<Move>, String> {
+        let mut order: Vec<(u64, u32, u64)> = self.ranges.iter().map(|(&b, &(id, r))| (b, id, r)).collect();
+        if let Some((gid, _)) = grow {
+            let k = order.iter().position(|o| o.1 == gid).expect("growing a layer with a range");
+            let g = order.remove(k);
+            order.push(g);
+        }
+        let total: u64 = order.iter().map(|o| if grow.is_some_and(|g| g.0 == o.1) { grow.expect("some").1.max(o.2) } else { o.2 }).sum();
+        if total > self.limit {
+            return Err(self.full(total));
+        }
+        let mut moves = Vec::new();
+        let mut at = 0u64;
+        self.ranges.clear();
+        for (b, id, r) in order {
+            let size = if grow.is_some_and(|g| g.0 == id) { grow.expect("some").1.max(r) } else { r };
+            if b != at {
+                moves.push(Move { from: b, to: at, cells: r });
+            }
+            self.ranges.insert(at, (id, size));
+            at += size;
+        }
+        Ok(moves)
+    }
+
+    fn full(&self, cells: u64) -> String {
+        format!("the document's layers need {cells} cells on the GPU, more than its pages hold ({})", self.limit)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const B: u64 = BLOCK_CELLS as u64;
+
+    /// No two ranges overlap, every range fits under the limit.
+    fn disjoint(l: &Layout) {
+        let mut end = 0;
+        for (&b, &(_, r)) in &l.ranges {
+            assert!(b >= end && b + r <= l.limit, "{:?}", l.ranges);
+            end = b + r;
+        }
+    }
+
+    #[test]
+    fn the_last_range_grows_in_place_and_others_move_or_pack() {
+        let mut l = Layout::new(16 * B);
+        assert_eq!(l.fit(0, 10), Ok(vec![]));
+        assert_eq!(l.range(0), Some((0, B)));
+        // One tree: always in place, however far it grows.
+        assert_eq!(l.fit(0, 3 * B + 1), Ok(vec![]));
+        assert_eq!(l.range(0), Some((0, 4 * B)));
+        // A second layer after it; then the first grows: it moves past the
+        // second with room to double, a copy of what it had.
+        assert_eq!(l.fit(1, B), Ok(vec![]));
+        assert_eq!(l.range(1), Some((4 * B, B)));
+        assert_eq!(l.fit(0, 5 * B), Ok(vec![Move { from: 0, to: 5 * B, cells: 4 * B }]));
+        assert_eq!(l.range(0), Some((5 * B, 8 * B)));
+        disjoint(&l);
+        // A third layer takes the gap the move left.
+        assert_eq!(l.fit(2, 2 * B), Ok(vec![]));
+        assert_eq!(l.range(2), Some((0, 2 * B)));
+        disjoint(&l);
+        // Layer 2 grows past every gap: everything is packed, it last.
+        l.free(1);
+        let moves = l.fit(2, 7 * B).unwrap();
+        disjoint(&l);
+        assert_eq!(l.range(0), Some((0, 8 * B)));
+        assert_eq!(l.range(2), Some((8 * B, 7 * B)));
+        assert_eq!(moves, vec![Move { from: 5 * B, to: 0, cells: 8 * B }, Move { from: 0, to: 8 * B, cells: 2 * B }]);
+        // More than the pages hold: refused, nothing changed.
+        assert!(l.fit(3, 2 * B).unwrap_err().contains("more than its pages hold"));
+        assert_eq!(l.ids(), vec![0, 2]);
+        disjoint(&l);
+    }
+}
