@@ -362,6 +362,10 @@ pub fn is_document(path: &Path) -> bool {
 pub struct Frames {
     pub fixed_resolution: bool,
     pub frame_log: Option<PathBuf>,
+    /// `--play`, `--exit-after-play`, `--hold-painting`.
+    pub play: Option<PathBuf>,
+    pub exit_after_play: bool,
+    pub hold_painting: Option<PathBuf>,
 }
 
 pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, frames: Frames) -> ExitCode {
@@ -383,6 +387,9 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, fr
         screenshot: screenshot.unwrap_or_else(|| doc.with_extension("png")),
         fixed_resolution: frames.fixed_resolution,
         frame_log: frames.frame_log,
+        play: frames.play,
+        exit_after_play: frames.exit_after_play,
+        hold_painting: frames.hold_painting,
     };
     match octopaint_desktop::run(opts) {
         Ok(()) => ExitCode::SUCCESS,

@@ -109,9 +109,22 @@ enum Command {
         #[arg(long)]
         fixed_resolution: bool,
         /// Write one CSV line per frame (time, frame interval, resolution
-        /// scale, cast size, still) to this file.
+        /// scale, cast size, still, mirror planes, whether rays were cast)
+        /// to this file.
         #[arg(long, value_name = "CSV")]
         frame_log: Option<PathBuf>,
+        /// Play this trace's events into the document at their recorded
+        /// pace, as live input (a timelapse; the trace needs the document's
+        /// canvas).
+        #[arg(long, value_name = "TRACE")]
+        play: Option<PathBuf>,
+        /// Close the window (saving) once the played trace is painted.
+        #[arg(long, requires = "play")]
+        exit_after_play: bool,
+        /// Tests: while this file exists the stroke thread waits before
+        /// each level of painting.
+        #[arg(long, value_name = "FILE", hide = true)]
+        hold_painting: Option<PathBuf>,
     },
     /// Show a document in the headset through OpenXR: each eye ray cast
     /// with its own pose and field of view, paced by the runtime
@@ -521,8 +534,8 @@ fn main() -> ExitCode {
         Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution } => {
             document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
         }
-        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log } => {
-            document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log })
+        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => {
+            document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting })
         }
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::ImportVdb(args) => imports::vdb(&args),

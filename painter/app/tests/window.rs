@@ -166,7 +166,7 @@ fn mirror_on(display: &str, frame_log: &std::path::Path) {
     let mut sent: Option<Instant> = None;
     loop {
         let log = std::fs::read_to_string(frame_log).unwrap_or_default();
-        let last = log.lines().last().and_then(|l| l.rsplit(',').next()).and_then(|m| m.parse::<u8>().ok());
+        let last = log.lines().last().and_then(|l| l.split(',').nth(6)).and_then(|m| m.parse::<u8>().ok());
         if last.is_some_and(|m| m & 1 == 1) {
             return;
         }
@@ -387,7 +387,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     // and the window's aspect kept.
     let log = std::fs::read_to_string(&frame_log).unwrap();
     let mut lines = log.lines();
-    assert_eq!(lines.next(), Some("t_ms,interval_ms,scale,width,height,still,mirror"));
+    assert_eq!(lines.next(), Some("t_ms,interval_ms,scale,width,height,still,mirror,cast"));
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
     assert!(rows.len() > 10, "{log}");
     assert!(rows.iter().any(|r| r[5] == 1.0) && rows.iter().any(|r| r[5] == 0.0), "both still and moving frames: {log}");

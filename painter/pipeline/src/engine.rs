@@ -128,6 +128,17 @@ pub(crate) struct Shared {
     pub size: CanvasSize,
 }
 
+/// Queues jobs for an engine from any thread ([`Engine::submitter`]).
+#[derive(Clone)]
+pub struct Submitter(Arc<Shared>);
+
+impl Submitter {
+    /// Queue a job (waiting while the job queue is full).
+    pub fn submit(&self, job: Job) -> Result<Ticket, SubmitError> {
+        self.0.jobs.submit(job)
+    }
+}
+
 pub struct Engine {
     pub(crate) shared: Arc<Shared>,
     stroke: JoinHandle<()>,
@@ -139,6 +150,8 @@ pub struct Engine {
 pub struct Finished {
     pub canvas: Box<dyn Canvas>,
     pub staging: Vec<StagingRecord>,
+    /// Lines for the artist nobody took yet.
+    pub messages: Vec<String>,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -226,6 +239,12 @@ impl Engine {
         self.shared.jobs.submit(job)
     }
 
+    /// A handle that queues jobs from another thread (a trace played at
+    /// its pace).
+    pub fn submitter(&self) -> Submitter {
+        Submitter(self.shared.clone())
+    }
+
     /// Queue a job if the job queue has room.
     pub fn try_submit(&self, job: Job) -> Result<Ticket, (SubmitError, Job)> {
         self.shared.jobs.try_submit(job)
@@ -298,7 +317,8 @@ impl Engine {
         self.stroke.join().map_err(|_| Panicked("stroke"))?;
         let staging = self.staging.join().map_err(|_| Panicked("staging"))?;
         let canvas = self.shared.canvas.lock().expect("canvas").take().expect("taken once");
-        Ok(Finished { canvas, staging })
+        let messages = std::mem::take(&mut *self.shared.messages.lock().expect("messages"));
+        Ok(Finished { canvas, staging, messages })
     }
 }
 

@@ -33,7 +33,7 @@ pub mod staging;
 
 pub use canvas::{Canvas, LayerRow, Ran, Replay, Status};
 pub use document::OpenDocument;
-pub use engine::{Busy, Engine, Finished, Gate, Hooks, StagingRecord};
+pub use engine::{Busy, Engine, Finished, Gate, Hooks, StagingRecord, Submitter};
 pub use frames::{Frames, Prepared};
 pub use jobs::{Aim, Job, SubmitError, Ticket};
 pub use pipeline::{FrameRecord, Pipeline, PipelineError, Report};

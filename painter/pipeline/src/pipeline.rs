@@ -177,7 +177,7 @@ impl Pipeline {
     /// the GPU and a frame show it all; then join the threads.
     pub fn finish(self) -> Result<Report, PipelineError> {
         let shared = self.engine.shared.clone();
-        let Finished { canvas, staging } = self.engine.finish()?;
+        let Finished { canvas, staging, .. } = self.engine.finish()?;
         let (renderer, frames, ranges) = self.render.join().map_err(|_| Panicked("render"))??;
         let adapter = renderer.gpu.describe();
         let ledger = std::mem::take(&mut *shared.ledger.lock().expect("ledger"));

@@ -1,0 +1,462 @@
+//! The panel (docs/desktop.md): the brush, the lighting, the layers, the
+//! buttons and the status line, drawn with egui each frame from what the
+//! engine published; every change the artist makes is an [`Action`] the
+//! app turns into a job.
+
+use glam::{DQuat, DVec3};
+use octopaint_tree::layers::MAX_LAYERS;
+use octopaint_tree::trace::{Brush, LayerOp, LayerOpKind, Light, MODES, Mirror, Mode, SHAPES, Shape};
+use octopaint_tree::view::length;
+
+use crate::overlay::Overlay;
+
+/// The brush as the panel edits it.
+pub(crate) struct BrushUi {
+    pub(crate) shape: Shape,
+    pub(crate) mode: Mode,
+    /// Radius in canvas units.
+    pub(crate) radius: f64,
+    pub(crate) opacity: f64,
+    pub(crate) hardness: f64,
+    pub(crate) colour: [f32; 3],
+    pub(crate) on_surface: bool,
+    /// Distance of the painting plane from the eye along the view axis,
+    /// canvas units (strokes off the surface, or with surface painting
+    /// off, lie on that plane).
+    pub(crate) plane_depth: f64,
+    /// The ground grid and horizon behind the painting (G).
+    pub(crate) grid: bool,
+    /// The view's lighting (L, Shift+L).
+    pub(crate) light: LightUi,
+    /// Mirror painting (spec 8.11; M toggles x): the axes whose planes
+    /// through `mirror_centre` mirror every stroke.
+    pub(crate) mirror_axes: [bool; 3],
+    pub(crate) mirror_centre: DVec3,
+}
+
+impl BrushUi {
+    /// The mirror planes strokes paint with now; None: no copies.
+    pub(crate) fn mirror(&self) -> Option<Mirror> {
+        Mirror { axes: self.mirror_axes, centre: self.mirror_centre.to_array() }.active()
+    }
+}
+
+/// The lighting of the view as the panel edits it (docs/spec.md 6.1,
+/// docs/desktop.md "Lighting"): a directional light given by azimuth and
+/// elevation, in the view's frame (it turns with the camera, as a studio
+/// light in a sculpting tool) or in the canvas's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct LightUi {
+    pub(crate) on: bool,
+    pub(crate) shadows: bool,
+    pub(crate) follows_view: bool,
+    /// Degrees: azimuth from the view axis (or canvas +z) towards the
+    /// right (+x), elevation above the horizontal.
+    pub(crate) azimuth: f64,
+    pub(crate) elevation: f64,
+    pub(crate) intensity: f64,
+    pub(crate) ambient: f64,
+}
+
+impl Default for LightUi {
+    fn default() -> Self {
+        LightUi { on: true, shadows: false, follows_view: true, azimuth: 27.0, elevation: 30.0, intensity: 0.8, ambient: 0.3 }
+    }
+}
+
+impl LightUi {
+    /// The light for a view turned by `view` (camera to canvas), or None
+    /// when lighting is off.
+    pub(crate) fn light(&self, view: DQuat) -> Option<Light> {
+        if !self.on {
+            return None;
+        }
+        let (az, el) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        let local = DVec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos());
+        let dir = if self.follows_view { view * local } else { local };
+        Some(Light { on: true, dir: dir.to_array(), intensity: self.intensity, ambient: self.ambient, shadows: self.shadows })
+    }
+}
+
+impl BrushUi {
+    pub(crate) fn brush(&self) -> Brush {
+        Brush::new(self.shape, self.mode, self.radius, self.colour.map(f64::from), self.opacity, self.hardness)
+    }
+}
+
+/// The layer panel's state (docs/desktop.md "Layers").
+#[derive(Default)]
+pub(crate) struct LayersUi {
+    pub(crate) rename: String,
+    /// The selected layer's opacity while its slider is dragged (applied,
+    /// as one undo step, when the drag ends).
+    pub(crate) opacity: Option<f32>,
+    /// Where the last frame laid out each layer's row and drag handle
+    /// (by layer index): a test drives the panel with pointer events there.
+    pub(crate) rows: Vec<(usize, egui::Rect, egui::Rect)>,
+}
+
+/// One row of the layer panel.
+pub(crate) struct LayerInfo {
+    pub(crate) name: String,
+    pub(crate) visible: bool,
+    pub(crate) opacity: f32,
+    pub(crate) locked: bool,
+}
+
+pub(crate) struct StatusInfo {
+    pub(crate) fps: f64,
+    /// The share of the window's width the rays were cast for.
+    pub(crate) resolution: f64,
+    pub(crate) latency_ms: Option<f64>,
+    /// What the stroke thread is busy with, when it has been for a while
+    /// or work is queued (the heavy-operation indicator), with the share
+    /// of the queued work done.
+    pub(crate) busy: Option<(String, Option<f32>)>,
+    pub(crate) cells: u32,
+    pub(crate) capacity: u32,
+    pub(crate) bytes: usize,
+    pub(crate) undo: usize,
+    pub(crate) redo: usize,
+    pub(crate) message: String,
+    /// A document of layers (a version 2 session); else one tree.
+    pub(crate) layered: bool,
+    pub(crate) layers: Vec<LayerInfo>,
+    pub(crate) selected: usize,
+}
+
+pub(crate) enum Action {
+    Undo,
+    Redo,
+    Save,
+    Screenshot,
+    Frame,
+    MirrorHere,
+    /// Make this one-tree document a document of layers.
+    MakeLayers,
+    Layer(LayerOp),
+}
+
+/// The smallest `Layer N` not taken.
+pub(crate) fn free_name(layers: &[LayerInfo], stem: &str) -> String {
+    (1..).map(|n| format!("{stem} {n}")).find(|n| !layers.iter().any(|l| l.name == *n)).expect("some name is free")
+}
+
+pub(crate) fn layer_op(kind: LayerOpKind, layer: Option<&str>, name: Option<String>) -> LayerOp {
+    LayerOp { layer: layer.map(String::from), name, ..LayerOp::new(kind) }
+}
+
+/// The layer panel (docs/desktop.md "Layers"): the layers top first, each
+/// selectable, with its eye and its lock; the selected one's opacity and
+/// name; add, duplicate, delete, merge down, move up and down. Every change
+/// is a `layer` event of the document, an undo step.
+pub(crate) fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, actions: &mut Vec<Action>) {
+    ui.heading("Layers");
+    if !s.layered {
+        ui.label("one tree");
+        if ui.button("Use layers").on_hover_text("make this document a document of layers (it is saved at once)").clicked() {
+            actions.push(Action::MakeLayers);
+        }
+        return;
+    }
+    let n = s.layers.len();
+    l.rows.clear();
+    for k in (0..n).rev() {
+        let layer = &s.layers[k];
+        let row = ui.horizontal(|ui| {
+            // The handle: drag a layer onto another row to move it there
+            // (a `move` event to that row's index).
+            let handle = ui
+                .dnd_drag_source(egui::Id::unique(("layer row", k)), k, grip)
+                .response
+                .on_hover_text("drag onto another layer to move it there");
+            let mut visible = layer.visible;
+            if ui.checkbox(&mut visible, "").on_hover_text("visible (drawn, exported)").changed() {
+                actions.push(Action::Layer(LayerOp { visible: Some(visible), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
+            }
+            let mut locked = layer.locked;
+            if ui.checkbox(&mut locked, "lock").on_hover_text("locked: strokes are refused").changed() {
+                actions.push(Action::Layer(LayerOp { locked: Some(locked), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
+            }
+            let label = if layer.opacity < 1.0 { format!("{} ({:.0}%)", layer.name, layer.opacity * 100.0) } else { layer.name.clone() };
+            if ui.selectable_label(k == s.selected, label).clicked() && k != s.selected {
+                actions.push(Action::Layer(layer_op(LayerOpKind::Select, Some(&layer.name), None)));
+                l.rename.clear();
+                l.opacity = None;
+            }
+            handle.rect
+        });
+        let rect = row.response.rect;
+        l.rows.push((k, rect, row.inner));
+        if let Some(from) = row.response.dnd_hover_payload::<usize>()
+            && *from != k
+        {
+            // Where it would go: a line on the side it comes from.
+            let y = if *from < k { rect.top() } else { rect.bottom() };
+            ui.painter().hline(rect.x_range(), y, egui::Stroke::new(2.0, ui.visuals().selection.stroke.color));
+        }
+        if let Some(from) = row.response.dnd_release_payload::<usize>()
+            && *from != k
+            && let Some(moved) = s.layers.get(*from)
+        {
+            actions.push(Action::Layer(LayerOp { to: Some(k), ..layer_op(LayerOpKind::Move, Some(&moved.name), None) }));
+        }
+    }
+    let Some(current) = s.layers.get(s.selected) else { return };
+    let name = current.name.as_str();
+    let mut opacity = l.opacity.unwrap_or(current.opacity);
+    let slider = ui.add(egui::Slider::new(&mut opacity, 0.0..=1.0).text("layer opacity"));
+    if slider.dragged() {
+        l.opacity = Some(opacity);
+    } else if slider.drag_stopped() || (slider.changed() && !slider.dragged()) {
+        l.opacity = None;
+        if opacity != current.opacity {
+            actions.push(Action::Layer(LayerOp { opacity: Some(opacity), ..layer_op(LayerOpKind::Set, Some(name), None) }));
+        }
+    }
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut l.rename).hint_text(name).desired_width(110.0));
+        if ui.button("Rename").clicked() && !l.rename.trim().is_empty() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Rename, Some(name), Some(l.rename.trim().to_string()))));
+            l.rename.clear();
+        }
+    });
+    ui.horizontal(|ui| {
+        if ui.add_enabled(n < MAX_LAYERS, egui::Button::new("Add")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Add, None, Some(free_name(&s.layers, "Layer")))));
+        }
+        if ui.add_enabled(n < MAX_LAYERS, egui::Button::new("Duplicate")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Duplicate, Some(name), Some(free_name(&s.layers, &format!("{name} copy"))))));
+        }
+        if ui.add_enabled(n > 1, egui::Button::new("Delete")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::Delete, Some(name), None)));
+        }
+    });
+    ui.horizontal(|ui| {
+        let below_locked = s.selected > 0 && s.layers[s.selected - 1].locked;
+        if ui.add_enabled(s.selected > 0 && !current.locked && !below_locked, egui::Button::new("Merge down")).clicked() {
+            actions.push(Action::Layer(layer_op(LayerOpKind::MergeDown, Some(name), None)));
+        }
+        if ui.add_enabled(s.selected + 1 < n, egui::Button::new("Up")).clicked() {
+            actions.push(Action::Layer(LayerOp { to: Some(s.selected + 1), ..layer_op(LayerOpKind::Move, Some(name), None) }));
+        }
+        if ui.add_enabled(s.selected > 0, egui::Button::new("Down")).clicked() {
+            actions.push(Action::Layer(LayerOp { to: Some(s.selected - 1), ..layer_op(LayerOpKind::Move, Some(name), None) }));
+        }
+    });
+}
+
+/// The panel, the status line and the overlay; returns the part of the
+/// window they leave for the view (points).
+pub(crate) fn panel(root: &mut egui::Ui, b: &mut BrushUi, l: &mut LayersUi, s: &StatusInfo, overlay: &Overlay, actions: &mut Vec<Action>) -> egui::Rect {
+    status_line(root, s);
+    egui::Panel::left("brush").resizable(false).show(root, |ui| egui::ScrollArea::vertical().show(ui, |ui| {
+        ui.heading("Brush");
+        egui::ComboBox::from_label("shape").selected_text(SHAPES[b.shape as usize]).show_ui(ui, |ui| {
+            for (v, name) in [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise].into_iter().zip(SHAPES) {
+                ui.selectable_value(&mut b.shape, v, name);
+            }
+        });
+        egui::ComboBox::from_label("mode").selected_text(MODES[b.mode as usize]).show_ui(ui, |ui| {
+            for (v, name) in [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup].into_iter().zip(MODES) {
+                ui.selectable_value(&mut b.mode, v, name);
+            }
+        });
+        ui.add(egui::Slider::new(&mut b.radius, 1e-4..=1e4).logarithmic(true).text("radius"));
+        ui.add(egui::Slider::new(&mut b.opacity, 0.0..=1.0).text("opacity"));
+        ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"));
+        ui.horizontal(|ui| {
+            ui.label("colour");
+            ui.color_edit_button_rgb(&mut b.colour);
+        });
+        ui.checkbox(&mut b.on_surface, "paint on the surface under the cursor");
+        ui.add(egui::Slider::new(&mut b.plane_depth, 1e-4..=1e5).logarithmic(true).text("plane depth"));
+        ui.horizontal(|ui| {
+            ui.label("mirror");
+            for (a, name) in ["x (M)", "y", "z"].into_iter().enumerate() {
+                ui.checkbox(&mut b.mirror_axes[a], name);
+            }
+        });
+        ui.horizontal(|ui| {
+            let c = b.mirror_centre;
+            ui.label(format!("centre {}, {}, {}", length(c.x), length(c.y), length(c.z)));
+            if ui.button("here").on_hover_text("move the mirror planes to the view's centre").clicked() {
+                actions.push(Action::MirrorHere);
+            }
+        });
+        ui.checkbox(&mut b.grid, "ground grid and horizon (G)");
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut b.light.on, "light (L)");
+            ui.add_enabled(b.light.on, egui::Checkbox::new(&mut b.light.shadows, "shadows (Shift+L)"));
+        });
+        ui.add_enabled_ui(b.light.on, |ui| {
+            ui.checkbox(&mut b.light.follows_view, "light turns with the view");
+            ui.add(egui::Slider::new(&mut b.light.azimuth, -180.0..=180.0).text("light azimuth °"));
+            ui.add(egui::Slider::new(&mut b.light.elevation, -90.0..=90.0).text("light elevation °"));
+            ui.add(egui::Slider::new(&mut b.light.intensity, 0.0..=2.0).text("intensity"));
+            ui.add(egui::Slider::new(&mut b.light.ambient, 0.0..=1.0).text("ambient"));
+        });
+        let (per_px, radius, depth, edge) = overlay.scale;
+        ui.label(format!("1 px = {} at the brush\nradius {} paints at depth {depth}\n(cells of {})", length(per_px), length(radius), length(edge)));
+        ui.separator();
+        ui.horizontal(|ui| {
+            if ui.button("Undo").clicked() {
+                actions.push(Action::Undo);
+            }
+            if ui.button("Redo").clicked() {
+                actions.push(Action::Redo);
+            }
+            if ui.button("Save").clicked() {
+                actions.push(Action::Save);
+            }
+            if ui.button("Screenshot").clicked() {
+                actions.push(Action::Screenshot);
+            }
+            if ui.button("Frame").on_hover_text("frame the painting (F)").clicked() {
+                actions.push(Action::Frame);
+            }
+        });
+        ui.separator();
+        layers_panel(ui, l, s, actions);
+        ui.separator();
+        ui.label("left drag: paint · right drag: orbit\nwheel: zoom · W A S D Q E: fly\nF: frame the painting · G: grid\nL: light · Shift+L: shadows\nM: mirror on x\n[ ]: brush size\nCtrl+Z / Ctrl+Y: undo / redo\nCtrl+S: save · F12: screenshot");
+    }));
+    let view = root.available_rect_before_wrap();
+    overlay.draw(root.ctx(), view);
+    view
+}
+
+pub(crate) fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
+    egui::Panel::bottom("status").show(root, |ui| {
+        ui.horizontal(|ui| {
+            ui.label(format!("{:.0} fps", s.fps));
+            ui.separator();
+            ui.label(format!("resolution {:.0}%", s.resolution * 100.0));
+            ui.separator();
+            ui.label(match s.latency_ms {
+                Some(l) => format!("latency {l:.1} ms"),
+                None => "latency -".into(),
+            });
+            ui.separator();
+            let pct = 100.0 * f64::from(s.cells) / f64::from(s.capacity.max(1));
+            ui.label(format!("{} cells, budget {pct:.1}% of {}", s.cells, s.capacity));
+            ui.separator();
+            ui.label(format!("memory {:.1} MiB", s.bytes as f64 / f64::from(1 << 20)));
+            ui.separator();
+            ui.label(format!("undo {} / redo {}", s.undo, s.redo));
+            if s.layered
+                && let Some(l) = s.layers.get(s.selected)
+            {
+                ui.separator();
+                ui.label(format!("layer {}{}", l.name, if l.locked { " (locked)" } else { "" }));
+            }
+            if let Some((what, done)) = &s.busy {
+                // The heavy-operation indicator (the paper's 8.3): painting
+                // goes on on its own thread while frames keep coming.
+                ui.separator();
+                ui.add(egui::Spinner::new());
+                ui.colored_label(egui::Color32::YELLOW, what);
+                if let Some(done) = done {
+                    ui.add(egui::ProgressBar::new(*done).desired_width(90.0).show_percentage());
+                }
+            }
+            if pct > 90.0 {
+                ui.separator();
+                ui.colored_label(egui::Color32::RED, "cell budget nearly spent");
+            }
+            if !s.message.is_empty() {
+                ui.separator();
+                ui.label(&s.message);
+            }
+        });
+    });
+}
+
+/// A layer row's drag handle: three short lines drawn with the painter
+/// (a glyph such as an arrow is missing from the fonts egui ships).
+fn grip(ui: &mut egui::Ui) {
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(12.0, 14.0), egui::Sense::hover());
+    let colour = ui.visuals().widgets.inactive.fg_stroke.color;
+    for k in 0..3 {
+        let y = rect.top() + 3.5 + 3.5 * k as f32;
+        ui.painter().hline(rect.left() + 1.0..=rect.right() - 1.0, y, egui::Stroke::new(1.5, colour));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn info(names: &[&str]) -> StatusInfo {
+        StatusInfo {
+            fps: 0.0,
+            resolution: 1.0,
+            latency_ms: None,
+            busy: None,
+            cells: 8,
+            capacity: 1 << 20,
+            bytes: 0,
+            undo: 0,
+            redo: 0,
+            message: String::new(),
+            layered: true,
+            layers: names.iter().map(|n| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false }).collect(),
+            selected: 0,
+        }
+    }
+
+    /// One frame of the panel with these pointer events; the actions it made.
+    fn frame(ctx: &egui::Context, l: &mut LayersUi, s: &StatusInfo, events: Vec<egui::Event>) -> Vec<Action> {
+        let raw = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 600.0))),
+            events,
+            ..Default::default()
+        };
+        let mut actions = Vec::new();
+        let _ = ctx.run_ui(raw, |ui| {
+            egui::CentralPanel::default().show(ui, |ui| layers_panel(ui, l, s, &mut actions));
+        });
+        actions
+    }
+
+    fn pointer(at: egui::Pos2, pressed: Option<bool>) -> Vec<egui::Event> {
+        let mut e = vec![egui::Event::PointerMoved(at)];
+        if let Some(p) = pressed {
+            e.push(egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed: p, modifiers: Default::default() });
+        }
+        e
+    }
+
+    #[test]
+    fn dragging_a_layer_onto_another_row_moves_it_there() {
+        let ctx = egui::Context::default();
+        let s = info(&["bottom", "middle", "top"]);
+        let mut l = LayersUi::default();
+        assert!(frame(&ctx, &mut l, &s, vec![]).is_empty());
+        let find = |l: &LayersUi, k: usize| *l.rows.iter().find(|r| r.0 == k).expect("a row per layer");
+        let (_, _, handle) = find(&l, 0);
+        let (_, target, _) = find(&l, 2);
+        // Press on the bottom layer's handle, drag in steps to the top row,
+        // release there.
+        let mut actions = frame(&ctx, &mut l, &s, pointer(handle.center(), Some(true)));
+        let (from, to) = (handle.center(), target.center());
+        for i in 1..=8 {
+            let t = i as f32 / 8.0;
+            actions.extend(frame(&ctx, &mut l, &s, pointer(from + (to - from) * t, None)));
+        }
+        actions.extend(frame(&ctx, &mut l, &s, pointer(to, Some(false))));
+        actions.extend(frame(&ctx, &mut l, &s, vec![]));
+        let moves: Vec<&LayerOp> = actions
+            .iter()
+            .filter_map(|a| if let Action::Layer(op) = a { Some(op) } else { None })
+            .filter(|op| op.op == LayerOpKind::Move)
+            .collect();
+        assert_eq!(moves.len(), 1, "one move");
+        assert_eq!((moves[0].layer.as_deref(), moves[0].to), (Some("bottom"), Some(2)));
+        // A click on a handle without moving is no move.
+        let (_, _, handle) = find(&l, 1);
+        let mut actions = frame(&ctx, &mut l, &s, pointer(handle.center(), Some(true)));
+        actions.extend(frame(&ctx, &mut l, &s, pointer(handle.center(), Some(false))));
+        assert!(!actions.iter().any(|a| matches!(a, Action::Layer(op) if op.op == LayerOpKind::Move)));
+    }
+}

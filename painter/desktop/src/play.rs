@@ -1,0 +1,80 @@
+//! `--play TRACE`: a trace's events fed through the engine as live input
+//! at the trace's pace (docs/desktop.md, "Playback"): a timelapse of a
+//! painting session for artists, and the way tests and benchmarks drive the
+//! real window. `--hold-painting FILE` holds the stroke thread while FILE
+//! exists (tests: the window must keep presenting frames meanwhile).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use octopaint_doc::Session;
+use octopaint_pipeline::jobs::from_trace;
+use octopaint_pipeline::{Gate, Job};
+use octopaint_tree::trace::read_trace;
+
+use crate::app::App;
+
+/// The jobs of the trace at `path` with their times, refused unless the
+/// trace fits the document: the same canvas, and layers only in a document
+/// of layers.
+pub(crate) fn read(path: &Path, session: &Session) -> Result<Vec<(f64, Job)>, String> {
+    let trace = read_trace(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if trace.canvas != *session.doc.canvas() {
+        return Err(format!(
+            "{}: its canvas differs from the document's (make a document for it with octopaint new DOC --like {})",
+            path.display(),
+            path.display()
+        ));
+    }
+    if trace.version == 2 && session.version != 2 {
+        return Err(format!("{}: a trace of layers needs a document of layers (octopaint new DOC --like TRACE --layers)", path.display()));
+    }
+    Ok(from_trace(&trace))
+}
+
+/// Feed `jobs` to the app's engine from a thread of their own, each at its
+/// time after the first; the flag turns true once every job is queued.
+pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
+    let done = Arc::new(AtomicBool::new(false));
+    let submitter = app.engine.as_ref().expect("the engine runs").submitter();
+    let flag = done.clone();
+    std::thread::Builder::new()
+        .name("play".into())
+        .spawn(move || {
+            let t0 = Instant::now();
+            let first = jobs.first().map_or(0.0, |j| j.0);
+            for (t, job) in jobs {
+                let due = t0 + Duration::from_secs_f64((t - first).max(0.0));
+                let now = Instant::now();
+                if due > now {
+                    std::thread::sleep(due - now);
+                }
+                if submitter.submit(job).is_err() {
+                    break; // the window closed
+                }
+            }
+            flag.store(true, Ordering::Release);
+        })
+        .expect("spawn");
+    done
+}
+
+/// Close `gate` while `path` exists, open it otherwise, until the returned
+/// flag is set (then open for good).
+pub(crate) fn hold_while(path: PathBuf, gate: Arc<Gate>) -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    std::thread::Builder::new()
+        .name("hold".into())
+        .spawn(move || {
+            while !flag.load(Ordering::Acquire) {
+                if path.exists() { gate.close() } else { gate.open() }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            gate.open();
+        })
+        .expect("spawn");
+    stop
+}
