@@ -435,21 +435,20 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
 
 
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
-    let mut s = match Session::open(doc) {
+    let s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
     let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution };
-    let result = octopaint_xr::session::run(&mut s, &opts);
-    // Whatever happened in the headset is saved (the journal has it too).
-    if !s.in_stroke()
-        && let Err(e) = s.save()
-    {
-        eprintln!("octopaint: {e}");
-    }
-    match result {
+    // The session saves whatever happened in the headset as it ends (the
+    // journal has it too).
+    match octopaint_xr::session::run(s, &opts) {
+        Ok(r) if r.save_error.is_some() => {
+            eprintln!("octopaint: {} (every completed stroke is in the journal)", r.save_error.unwrap_or_default());
+            ExitCode::from(1)
+        }
         Ok(r) => {
             eprintln!(
                 "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
@@ -472,7 +471,6 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Opt
                 return ExitCode::from(3);
             }
             eprintln!("octopaint: no VR here: {e}; opening the desktop window instead");
-            drop(s);
             window(doc, "1280x720", f16, None, Frames::default())
         }
         Err(e) => {

@@ -14,6 +14,7 @@ pub mod hud;
 pub mod platform;
 pub mod input;
 pub mod paint;
+pub mod placement;
 pub mod session;
 
 /// An OpenXR pose (f32, room metres) as a position and a unit rotation in

@@ -8,16 +8,25 @@
 //! button: shape), the layers (up/down: select, left/right: opacity, X:
 //! show or hide, Y: a new layer) and the mirror planes (X, Y, stick up:
 //! the x, y, z planes through the painting's centre; stick down: none).
-//! Every change of the painting is a document event
-//! (`octopaint_doc::Session::apply`), so each stroke and layer operation is
-//! journalled as it happens and the session records as a trace.
+//! Every change of the painting is a job for the engine's stroke thread,
+//! which owns the document and journals each stroke and layer operation as
+//! it happens (`octopaint_pipeline::OpenDocument`), so the session records
+//! as a trace; what the palette shows of the document comes from the
+//! status the stroke thread publishes.
 
 use glam::{DQuat, DVec3};
-use octopaint_doc::Session;
-use octopaint_tree::trace::{Brush, Event, EventKind, LayerOp, LayerOpKind, Mirror, Mode, Sample, Shape};
+use octopaint_pipeline::{Engine, Job, Status};
+use octopaint_tree::trace::{Brush, EventKind, LayerOp, LayerOpKind, Mirror, Mode, Sample, Shape};
 
 use crate::input::{Hand, LEFT, RIGHT};
-use crate::session::Placement;
+use crate::placement::Placement;
+
+/// What the controllers act on: the engine that owns the document, and
+/// what its stroke thread published last.
+pub struct Live<'a> {
+    pub engine: &'a Engine,
+    pub status: &'a Status,
+}
 
 /// Colours of the palette (sRGB).
 pub const PALETTE: [[f64; 3]; 8] = [
@@ -60,6 +69,8 @@ pub struct Painter {
     /// The mirror planes of the next strokes (spec 8.11), as the last
     /// `mirror` event set them.
     pub mirror: Mirror,
+    /// A stroke is open (the trigger began it and has not let go).
+    pub in_stroke: bool,
 }
 
 /// The palette's pages, in the order the left trigger steps through them.
@@ -102,6 +113,7 @@ impl Default for Painter {
             reframe: false,
             page: Page::Brush,
             mirror: Mirror { axes: [false; 3], centre: [0.0; 3] },
+            in_stroke: false,
         }
     }
 }
@@ -121,16 +133,14 @@ impl Painter {
         Brush::new(SHAPES[self.shape], MODES[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
     }
 
-    fn apply(&mut self, doc: &mut Session, t: f64, kind: EventKind) {
-        let t = t.max(doc.last_time());
-        if let Err(e) = doc.apply(&Event { line: 0, t, kind }) {
+    fn apply(&mut self, doc: &Live, job: Job) {
+        if let Err(e) = doc.engine.submit(job) {
             self.last_error = Some(e.to_string());
         }
     }
 
-    /// One frame of input: `dt` seconds since the last, `t` the session's
-    /// clock.
-    pub fn update(&mut self, hands: &[Hand; 2], placement: &mut Placement, doc: &mut Session, t: f64, dt: f64) {
+    /// One frame of input, `dt` seconds since the last.
+    pub fn update(&mut self, hands: &[Hand; 2], placement: &mut Placement, doc: &Live, dt: f64) {
         let (l, r) = (&hands[LEFT], &hands[RIGHT]);
         let rose = |now: bool, before: bool| now && !before;
         // Grabbing: the canvas follows one hand, or two.
@@ -163,7 +173,7 @@ impl Painter {
             _ => Grab::None,
         };
         // Brush size on the right stick (doubling per second at full tilt).
-        if r.stick[1].abs() > 0.2 && !doc.in_stroke() {
+        if r.stick[1].abs() > 0.2 && !self.in_stroke {
             self.room_radius = (self.room_radius * 2f64.powf(f64::from(r.stick[1]) * dt)).clamp(0.001, 0.5);
         }
         // The palette on the left hand: the trigger turns its page, the
@@ -207,8 +217,8 @@ impl Painter {
                         self.view = (self.view + 1) % VIEWS.len();
                     }
                 }
-                Page::Layers if !doc.in_stroke() => self.layers_page(doc, t, [right, left, up, down], x, y),
-                Page::Mirror if !doc.in_stroke() => {
+                Page::Layers if !self.in_stroke => self.layers_page(doc, [right, left, up, down], x, y),
+                Page::Mirror if !self.in_stroke => {
                     let mut axes = self.mirror.axes;
                     if x {
                         axes[0] = !axes[0];
@@ -227,44 +237,45 @@ impl Painter {
                         // active set keeps its centre while axes are added.
                         let centre = if self.mirror.axes.iter().any(|&a| a) { self.mirror.centre } else { placement.centre.to_array() };
                         let m = Mirror { axes, centre };
-                        self.apply(doc, t, EventKind::Mirror(m));
-                        self.mirror = doc.mirror().unwrap_or(Mirror { axes: [false; 3], centre });
+                        self.apply(doc, Job::Event(EventKind::Mirror(m)));
+                        self.mirror = m.active().unwrap_or(Mirror { axes: [false; 3], centre });
                     }
                 }
                 Page::Layers | Page::Mirror => {}
             }
         }
         // Undo and redo on the right hand, between strokes.
-        if !doc.in_stroke() {
+        if !self.in_stroke {
             if rose(r.primary, self.prev[RIGHT].primary) {
-                self.apply(doc, t, EventKind::Undo);
+                self.apply(doc, Job::Undo);
             }
             if rose(r.secondary, self.prev[RIGHT].secondary) {
-                self.apply(doc, t, EventKind::Redo);
+                self.apply(doc, Job::Redo);
             }
         }
         // Painting with the right trigger.
         let painting = r.trigger > 0.05 && r.pose.is_some() && !matches!(self.grab, Grab::One { hand: RIGHT, .. } | Grab::Two { .. });
         if painting {
             let tip = r.pose.expect("checked").0;
-            if !doc.in_stroke() {
-                let brush = self.brush(placement);
-                if doc.brush() != Some(&brush) {
-                    self.apply(doc, t, EventKind::Brush(brush));
-                }
-                self.apply(doc, t, EventKind::StrokeBegin);
+            if !self.in_stroke {
+                // The brush and the mirror planes go with the stroke (the
+                // stroke thread records them as events when they change).
+                let brush = Brush { mirror: self.mirror.active(), ..self.brush(placement) };
+                self.apply(doc, Job::BeginStroke(brush));
+                self.in_stroke = true;
                 self.last_tip = None;
             }
             // A sample when the tip has moved a quarter radius (or first).
             let moved = self.last_tip.is_none_or(|p| (tip - p).length() >= 0.25 * self.room_radius);
-            if doc.in_stroke() && moved {
+            if moved {
                 let p = placement.to_canvas(tip);
                 let sample = Sample { p: p.to_array(), pressure: f64::from(r.trigger).clamp(0.0, 1.0), q: [0.0, 0.0, 0.0, 1.0] };
-                self.apply(doc, t, EventKind::Sample(sample));
+                self.apply(doc, Job::Sample(sample));
                 self.last_tip = Some(tip);
             }
-        } else if doc.in_stroke() {
-            self.apply(doc, t, EventKind::StrokeEnd);
+        } else if self.in_stroke {
+            self.apply(doc, Job::EndStroke);
+            self.in_stroke = false;
             self.strokes += 1;
         }
         self.prev = *hands;
@@ -275,26 +286,24 @@ impl Painter {
     /// adds a layer above it (a one-tree document becomes a document of
     /// layers first, as the window's "Use layers" does). Each is a `layer`
     /// event; one the document refuses says why on the panel.
-    fn layers_page(&mut self, doc: &mut Session, t: f64, [right, left, up, down]: [bool; 4], x: bool, y: bool) {
+    fn layers_page(&mut self, doc: &Live, [right, left, up, down]: [bool; 4], x: bool, y: bool) {
+        let s = doc.status;
         if y {
-            if doc.version != 2
-                && let Err(e) = doc.upgrade_to_layers()
-            {
-                self.last_error = Some(e.to_string());
-                return;
+            if s.version != 2 {
+                self.apply(doc, Job::UseLayers);
             }
-            let taken: Vec<String> = doc.doc.layers().map(|l| l.name.clone()).collect();
-            let name = (doc.doc.len() + 1..).map(|n| format!("Layer {n}")).find(|n| !taken.contains(n)).expect("a free name");
+            let taken: Vec<&str> = s.layers.iter().map(|l| l.name.as_str()).collect();
+            let name = (s.layers.len() + 1..).map(|n| format!("Layer {n}")).find(|n| !taken.contains(&n.as_str())).expect("a free name");
             let mut op = LayerOp::new(LayerOpKind::Add);
             op.name = Some(name);
-            self.apply(doc, t, EventKind::Layer(op));
+            self.apply(doc, Job::Event(EventKind::Layer(op)));
             return;
         }
-        if doc.version != 2 {
+        if s.version != 2 {
             return; // one tree: nothing to select or set until Y makes layers
         }
-        let (k, n) = (doc.doc.selected(), doc.doc.len());
-        let current = doc.doc.current();
+        let (k, n) = (s.selected, s.layers.len());
+        let Some(current) = s.layers.get(k) else { return };
         let name = current.name.clone();
         let (visible, opacity) = (current.visible, current.opacity);
         let target = if up && k + 1 < n {
@@ -306,8 +315,8 @@ impl Painter {
         };
         if let Some(j) = target {
             let mut op = LayerOp::new(LayerOpKind::Select);
-            op.layer = Some(doc.doc.layer(j).name.clone());
-            self.apply(doc, t, EventKind::Layer(op));
+            op.layer = Some(s.layers[j].name.clone());
+            self.apply(doc, Job::Event(EventKind::Layer(op)));
         }
         let step = if right { 0.1 } else if left { -0.1 } else { 0.0 };
         if step != 0.0 {
@@ -316,20 +325,21 @@ impl Painter {
             let mut op = LayerOp::new(LayerOpKind::Set);
             op.layer = Some(name.clone());
             op.opacity = Some((tenths / 10.0) as f32);
-            self.apply(doc, t, EventKind::Layer(op));
+            self.apply(doc, Job::Event(EventKind::Layer(op)));
         }
         if x {
             let mut op = LayerOp::new(LayerOpKind::Set);
             op.layer = Some(name);
             op.visible = Some(!visible);
-            self.apply(doc, t, EventKind::Layer(op));
+            self.apply(doc, Job::Event(EventKind::Layer(op)));
         }
     }
 
     /// End a stroke left open (the session is ending).
-    pub fn finish(&mut self, doc: &mut Session, t: f64) {
-        if doc.in_stroke() {
-            self.apply(doc, t, EventKind::StrokeEnd);
+    pub fn finish(&mut self, doc: &Live) {
+        if self.in_stroke {
+            self.apply(doc, Job::EndStroke);
+            self.in_stroke = false;
             self.strokes += 1;
         }
     }

@@ -18,9 +18,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use ash::vk::{self, Handle};
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use octopaint_gpu::{Blit, Gpu, Precision, Renderer};
-use octopaint_tree::Tree;
+use octopaint_pipeline::{Engine, Frames, Hooks, Job, OpenDocument, Settings};
+use octopaint_tree::lattice::Lattice;
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::trace::Camera;
 use octopaint_tree::view::DEFAULT_LIGHT;
@@ -28,51 +29,10 @@ use openxr as xr;
 use wgpu::hal;
 
 use crate::XrError;
+use crate::paint::Live;
+use crate::placement::{Bounds, Placement, eye_camera, head_of};
 
 const VIEW_TYPE: xr::ViewConfigurationType = xr::ViewConfigurationType::PRIMARY_STEREO;
-
-/// The canvas in the room: `room = origin + scale · rotation · (canvas − centre)`.
-#[derive(Clone, Copy, Debug)]
-pub struct Placement {
-    pub centre: DVec3,
-    pub scale: f64,
-    pub rotation: DQuat,
-    pub origin: DVec3,
-}
-
-impl Placement {
-    /// A painting's bounding sphere shown 0.5 m wide, 1 m in front of a
-    /// head at `head` looking along `forward` (room units), the canvas's up
-    /// the room's.
-    pub fn in_front(tree: &Tree, head: DVec3, forward: DVec3) -> Placement {
-        Placement::in_front_of(&[tree], head, forward)
-    }
-
-    /// [`Placement::in_front`] for what several trees (the visible layers
-    /// of a document) hold together.
-    pub fn in_front_of(trees: &[&Tree], head: DVec3, forward: DVec3) -> Placement {
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for t in trees {
-            let (a, b) = t.painted_bounds();
-            lo = lo.min(a);
-            hi = hi.max(b);
-        }
-        let tree = trees[0];
-        let radius = ((hi - lo).length() / 2.0).max(tree.lat.size_canvas[tree.lat.max_depth as usize]);
-        let f = DVec3::new(forward.x, 0.0, forward.z).try_normalize().unwrap_or(DVec3::NEG_Z);
-        Placement { centre: (lo + hi) / 2.0, scale: 0.25 / radius, rotation: DQuat::IDENTITY, origin: head + f }
-    }
-
-    /// The canvas point at room point `p`.
-    pub fn to_canvas(&self, p: DVec3) -> DVec3 {
-        self.centre + self.rotation.inverse() * (p - self.origin) / self.scale
-    }
-
-    /// A room orientation as a canvas orientation.
-    pub fn rotate_to_canvas(&self, q: DQuat) -> DQuat {
-        self.rotation.inverse() * q
-    }
-}
 
 /// What a session did.
 #[derive(Debug, Default)]
@@ -92,6 +52,9 @@ pub struct Report {
     /// Strokes painted with the controllers.
     pub strokes: u64,
     pub adapter: String,
+    /// Why the save at the session's end failed (every completed stroke
+    /// is in the journal still).
+    pub save_error: Option<String>,
 }
 
 pub struct Options {
@@ -120,14 +83,20 @@ fn other(what: &str, e: impl std::fmt::Display) -> XrError {
 
 /// macOS: no VR (crate::platform::NO_VR_HERE says why).
 #[cfg(target_os = "macos")]
-pub fn run(_doc: &mut octopaint_doc::Session, _opts: &Options) -> Result<Report, XrError> {
+pub fn run(_doc: octopaint_doc::Session, _opts: &Options) -> Result<Report, XrError> {
     Err(XrError::Unsupported(crate::platform::NO_VR_HERE))
 }
 
-/// Run a VR session showing `tree` until the runtime ends it or `frames`
-/// frames have been shown.
+/// Run a VR session on the document `doc` until the runtime ends it or
+/// `frames` frames have been shown, then save it. The frame loop is the
+/// render thread of the real-time engine (docs/architecture.md): the
+/// controllers' strokes and layer operations are jobs for its stroke
+/// thread, which owns the document, and each frame uploads what was
+/// staged and casts both eyes; nothing on the frame's thread waits for
+/// painting or saving. Refused before the engine starts (no runtime, no
+/// headset), the document is dropped unchanged.
 #[cfg(not(target_os = "macos"))]
-pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, XrError> {
+pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrError> {
     let mut script = match &opts.script {
         Some(p) => Some(crate::input::Script::load(p)?),
         None => None,
@@ -255,11 +224,11 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     if let Some(m) = doc.mirror() {
         painter.mirror = m;
     }
-    // A document of layers: the contributing layers in the pages, uploaded
-    // again when one of them or the list changes (as the window does).
-    let mut layers_uploaded: Option<(Vec<(u32, u32, bool)>, octopaint_gpu::raycast::LayerTableGpu)> = None;
-    let started = Instant::now();
-    let t_open = doc.last_time();
+    // Where the painting is placed first, and the lattice the eyes are cast
+    // on, before the document goes to the stroke thread.
+    let bounds = Bounds::shown(&doc.doc);
+    let lattice = Lattice::new(doc.doc.canvas());
+    let settings = Settings::new(Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.5, -0.5], size: [64, 64], background: [0.0; 3] });
     let mut last_input = Instant::now();
     let mut head0 = DVec3::ZERO;
     let views = xr_call("reading the views", xr_instance.enumerate_view_configuration_views(system, VIEW_TYPE))?;
@@ -351,6 +320,12 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     let mut scale = 1.0f64;
     let (mut scale_sum, mut scale_min) = (0.0f64, 1.0f64);
     let mut last_look: Option<([xr::Posef; 2], [f64; 8], (bool, bool))> = None;
+    let engine = Engine::start(Box::new(OpenDocument::new(doc)), &settings, &Hooks::default());
+    let mut frames = Frames::new(&engine, &settings);
+    let mut status = engine.status();
+    // The answer to "frame the painting" (X with the left grip), when asked.
+    let mut reframing: Option<std::sync::mpsc::Receiver<Bounds>> = None;
+    let result = (|| -> Result<(), XrError> {
     'frames: loop {
         while let Some(ev) = xr_call("polling events", xr_instance.poll_event(&mut events))? {
             if let xr::Event::SessionStateChanged(e) = ev {
@@ -393,9 +368,14 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let (_, views) = xr_call("locating the views", session.locate_views(VIEW_TYPE, state.predicted_display_time, &stage))?;
         // The canvas is placed in front of the head where it first is.
         if placement.is_none() {
-            let (head, p) = in_front_of_head(doc, &views);
+            let (head, forward) = head_of(&views);
             head0 = head;
-            placement = Some(p);
+            placement = Some(Placement::around(&bounds, head, forward));
+        }
+        status = engine.status();
+        for m in engine.take_messages() {
+            eprintln!("octopaint: vr: {m}");
+            painter.last_error = Some(m);
         }
         let place = placement.as_mut().expect("set above");
         // The controllers (or the script) change the painting and the
@@ -411,49 +391,34 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         };
         let dt = last_input.elapsed().as_secs_f64();
         last_input = Instant::now();
-        let busy = Instant::now();
-        painter.update(&hands, place, doc, t_open + started.elapsed().as_secs_f64(), dt);
+        painter.update(&hands, place, &Live { engine: &engine, status: &status }, dt);
         if std::mem::take(&mut painter.reframe) {
-            // Frame the painting: in front of the head where it is now.
-            *place = in_front_of_head(doc, &views).1;
+            // Frame the painting: asked of the stroke thread, placed in
+            // front of the head where it is when the answer comes.
+            let (tx, rx) = std::sync::mpsc::channel();
+            if engine
+                .ask(move |c| {
+                    let _ = tx.send(Bounds::shown(c.document()));
+                })
+                .is_ok()
+            {
+                reframing = Some(rx);
+            }
         }
-        let busy_ms = busy.elapsed().as_secs_f64() * 1e3;
+        if let Some(b) = reframing.as_ref().and_then(|rx| rx.try_recv().ok()) {
+            let (head, forward) = head_of(&views);
+            *place = Placement::around(&b, head, forward);
+            reframing = None;
+        }
+        let busy_ms = engine.busy().map_or(0.0, |b| b.since.elapsed().as_secs_f64() * 1e3);
         let placement = *place;
-        let in_stroke = doc.in_stroke();
-        // What the frame uploads: the one tree's changed blocks, or every
-        // contributing layer when one of them or the list changed.
-        let (uploaded, table) = if doc.version == 2 {
-            let mut key = Vec::new();
-            let mut changed = false;
-            let ids: Vec<u32> = doc.doc.parts().1.to_vec();
-            for (k, id) in ids.iter().enumerate() {
-                let l = doc.doc.layer_mut(k);
-                changed |= !l.painting.tree.take_publication().blocks.is_empty();
-                if l.contributes() {
-                    key.push((*id, l.opacity.to_bits(), l.visible));
-                }
-            }
-            let stale = layers_uploaded.as_ref().is_none_or(|(k, _)| *k != key);
-            if changed || stale {
-                let trees: Vec<(&Tree, f32)> = doc.doc.layers().filter(|l| l.contributes()).map(|l| (l.tree(), l.opacity)).collect();
-                let t = if trees.is_empty() {
-                    octopaint_gpu::raycast::LayerTableGpu::new(&[], &[])
-                } else {
-                    renderer.upload_layers(&trees).map_err(|e| other("uploading the layers", e))?
-                };
-                layers_uploaded = Some((key, t));
-            }
-            (changed || stale, layers_uploaded.as_ref().map(|(_, t)| *t))
-        } else {
-            (renderer.sync(&mut doc.painting_mut().tree).map_err(|e| other("uploading", e))?.blocks > 0, None)
-        };
-        let (cells, capacity, bytes) = (
-            doc.doc.used().min(u64::from(u32::MAX)) as u32,
-            doc.doc.canvas().capacity,
-            doc.doc.layers().map(|l| l.tree().pool_bytes_allocated()).sum::<usize>(),
-        );
-        let layer_rows = (doc.version == 2).then(|| (doc.doc.layers().map(|l| (l.name.clone(), l.visible, l.opacity, l.locked)).collect::<Vec<_>>(), doc.doc.selected()));
-        let tree = &doc.painting().tree;
+        let in_stroke = painter.in_stroke;
+        // What the frame uploads: what the engine staged, into each
+        // layer's range of the pages.
+        let prepared = frames.prepare(&mut renderer).map_err(|e| other("uploading", e))?;
+        let (uploaded, table) = (prepared.changed, prepared.layers);
+        let (cells, capacity, bytes) = (status.used.min(u64::from(u32::MAX)) as u32, status.capacity, status.bytes);
+        let layer_rows = (status.version == 2).then(|| (status.layers.iter().map(|l| (l.name.clone(), l.visible, l.opacity, l.locked)).collect::<Vec<_>>(), status.selected));
         let image = xr_call("acquiring the image", swapchain.acquire_image())? as usize;
         xr_call("waiting for the image", swapchain.wait_image(xr::Duration::INFINITE))?;
         let t0 = Instant::now();
@@ -475,7 +440,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         let gpu = &renderer.gpu;
         // The indicators, head-locked; the palette at the left hand,
         // where each eye sees it.
-        let depth = tree.lat.target_depth(painter.room_radius / placement.scale);
+        let depth = lattice.target_depth(painter.room_radius / placement.scale);
         // The canvas axes as the head sees them (the first eye's pose).
         let axes = octopaint_tree::view::axes_seen_from(placement.rotate_to_canvas(crate::pose_of(&views[0].pose).1));
         let status = crate::hud::Status {
@@ -487,7 +452,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             painter: &painter,
             canvas_per_metre: 1.0 / placement.scale,
             depth,
-            edge: tree.lat.size_canvas[depth as usize],
+            edge: lattice.size_canvas[depth as usize],
             axes,
             layers: layer_rows,
         };
@@ -496,7 +461,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
         for (eye, view) in views.iter().enumerate() {
             let camera = eye_camera(&placement, view, cast);
             let (lit, grid) = painter.lit_and_grid();
-            let mut params = RayParams::new(&tree.lat, &camera).with_light(lit.then_some(&DEFAULT_LIGHT));
+            let mut params = RayParams::new(&lattice, &camera).with_light(lit.then_some(&DEFAULT_LIGHT));
             if grid {
                 params = params.with_grid(camera.eye);
             }
@@ -561,6 +526,7 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             }
         }
         gpu.wait();
+        frames.ended(Instant::now());
         for id in &hud_free {
             hud.free_texture(id);
         }
@@ -589,7 +555,22 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
             write_side_by_side(path, &captured, size).map_err(|e| other("writing the capture", e))?;
         }
     }
-    painter.finish(doc, t_open + started.elapsed().as_secs_f64());
+    Ok(())
+    })();
+    // The session's end: the open stroke ends, and the document is saved
+    // on the stroke thread; ending waits for it, and says so.
+    painter.finish(&Live { engine: &engine, status: &status });
+    let _ = engine.submit(Job::Save);
+    eprintln!("octopaint: vr: saving the document…");
+    let finished = engine.finish().map_err(|e| other("the engine", e))?;
+    for m in finished.messages {
+        if m.starts_with("save failed") {
+            report.save_error = Some(m);
+        } else {
+            eprintln!("octopaint: vr: {m}");
+        }
+    }
+    result?;
     report.strokes = painter.strokes;
     if let Some(e) = &painter.last_error {
         eprintln!("octopaint: vr: an input event was refused: {e}");
@@ -606,19 +587,6 @@ pub fn run(doc: &mut octopaint_doc::Session, opts: &Options) -> Result<Report, X
     drop(stage);
     drop((session, waiter, stream));
     Ok(report)
-}
-
-/// The painting (every visible layer of a document of layers) placed in
-/// front of the head (the middle of the two eyes, looking along the first
-/// eye's view), and that head position.
-fn in_front_of_head(doc: &octopaint_doc::Session, views: &[xr::View]) -> (DVec3, Placement) {
-    let (a, q) = crate::pose_of(&views[0].pose);
-    let head = (a + crate::pose_of(&views[1].pose).0) / 2.0;
-    let mut trees: Vec<&Tree> = doc.doc.layers().filter(|l| l.contributes()).map(|l| l.tree()).collect();
-    if trees.is_empty() {
-        trees.push(&doc.painting().tree);
-    }
-    (head, Placement::in_front_of(&trees, head, q * DVec3::NEG_Z))
 }
 
 /// Where room point `p` appears in an eye's image (pixels), if in front.
@@ -661,22 +629,6 @@ fn pass_on<'a>(enc: &'a mut wgpu::CommandEncoder, target: &wgpu::TextureView, lo
         occlusion_query_set: None,
         multiview_mask: None,
     })
-}
-
-/// One eye's camera in canvas units: its pose from the runtime (room,
-/// metres) through the placement, its asymmetric field of view as is.
-pub fn eye_camera(p: &Placement, view: &xr::View, size: [u32; 2]) -> Camera {
-    let (pos, o) = crate::pose_of(&view.pose);
-    let eye = p.to_canvas(pos);
-    let q = p.rotate_to_canvas(o);
-    let f = view.fov;
-    Camera {
-        eye: eye.to_array(),
-        q: [q.x, q.y, q.z, q.w],
-        fov: [f64::from(f.angle_left), f64::from(f.angle_right), f64::from(f.angle_up), f64::from(f.angle_down)],
-        size,
-        background: [0.05, 0.05, 0.07],
-    }
 }
 
 fn write_side_by_side(path: &std::path::Path, eyes: &[Vec<u8>], size: [u32; 2]) -> std::io::Result<()> {
