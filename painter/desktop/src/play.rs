@@ -31,11 +31,14 @@ pub(crate) fn read(path: &Path, session: &Session) -> Result<Vec<(f64, Job)>, St
     if trace.version == 2 && session.version != 2 {
         return Err(format!("{}: a trace of layers needs a document of layers (octopaint new DOC --like TRACE --layers)", path.display()));
     }
-    Ok(from_trace(&trace))
+    // Times from the trace's first event (a camera, say), so that a trace
+    // whose first stroke comes later starts with that pause.
+    let first = trace.events.first().map_or(0.0, |e| e.t);
+    Ok(from_trace(&trace).into_iter().map(|(t, j)| (t - first, j)).collect())
 }
 
 /// Feed `jobs` to the app's engine from a thread of their own, each at its
-/// time after the first; the flag turns true once every job is queued.
+/// time (seconds from now); the flag turns true once every job is queued.
 pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
     let done = Arc::new(AtomicBool::new(false));
     let submitter = app.engine.as_ref().expect("the engine runs").submitter();
@@ -44,9 +47,8 @@ pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
         .name("play".into())
         .spawn(move || {
             let t0 = Instant::now();
-            let first = jobs.first().map_or(0.0, |j| j.0);
             for (t, job) in jobs {
-                let due = t0 + Duration::from_secs_f64((t - first).max(0.0));
+                let due = t0 + Duration::from_secs_f64(t.max(0.0));
                 let now = Instant::now();
                 if due > now {
                     std::thread::sleep(due - now);

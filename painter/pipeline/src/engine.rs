@@ -293,6 +293,12 @@ impl Engine {
         self.shared.ledger.lock().expect("ledger").jobs.iter().rev().find_map(|j| j.latency_ms())
     }
 
+    /// Every shown job's stroke-to-display latency so far, ms, in job
+    /// order (a front end's closing summary, benchmarks).
+    pub fn latencies_ms(&self) -> Vec<f64> {
+        self.shared.ledger.lock().expect("ledger").jobs.iter().filter_map(|j| j.latency_ms()).collect()
+    }
+
     /// Frames ended so far (by the front end's [`crate::frames::Frames`]).
     pub fn frames(&self) -> u64 {
         self.shared.frames.load(Ordering::Acquire)
