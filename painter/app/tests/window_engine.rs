@@ -25,7 +25,7 @@ fn frame_rows(log: &Path) -> Vec<Vec<f64>> {
     let text = std::fs::read_to_string(log).unwrap_or_default();
     let mut lines = text.lines();
     if let Some(h) = lines.next() {
-        assert_eq!(h, "t_ms,interval_ms,scale,width,height,still,mirror,cast");
+        assert_eq!(h, "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine");
     }
     lines.filter_map(|l| l.split(',').map(|v| v.parse().ok()).collect()).collect()
 }
@@ -153,4 +153,51 @@ fn a_still_window_casts_nothing_new_and_draws_no_frame() {
     }
     let _ = reused;
     assert!(rows.iter().any(|r| r[5] == 1.0 && r[7] == 1.0), "the still view was cast at full size once");
+}
+
+#[test]
+fn a_window_killed_mid_session_keeps_every_journalled_stroke() {
+    // A trace of 35 strokes played at its pace, the window killed (SIGKILL)
+    // once its journal holds a few completed strokes: the next open
+    // recovers each of them, and the document is the trace cut after them.
+    let (_x, display) = start_xvfb();
+    let scratch = tempfile::tempdir().unwrap();
+    let s = scratch.path();
+    let runtime = runtime_folder(s);
+    let trace = traces().join("shapes_modes.jsonl");
+    let doc = s.join("killed.octo");
+    run_ok(octopaint().arg("new").arg(&doc).arg("--like").arg(&trace));
+    let journal = s.join("killed.octo.journal");
+    let mut window = on_display(&display, &runtime).arg("window").arg(&doc).args(["--size", "320x240", "--play"]).arg(&trace).spawn().unwrap();
+    let ended = || std::fs::read_to_string(&journal).map(|j| j.matches("\"stroke_end\"").count()).unwrap_or(0);
+    wait_for("three strokes in the journal", Duration::from_secs(180), || ended() >= 3);
+    window.kill().unwrap();
+    window.wait().unwrap();
+    let kept = ended();
+    assert!(kept >= 3 && kept < 35, "{kept} strokes journalled");
+    // Every completed stroke comes back.
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    let err = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{err}");
+    // The trace up to its kept-th stroke's end, imported: the same tree.
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let mut cut = Vec::new();
+    let mut n = 0;
+    for line in text.lines() {
+        cut.push(line);
+        if line.contains("\"stroke_end\"") {
+            n += 1;
+            if n == kept {
+                break;
+            }
+        }
+    }
+    let cut_trace = s.join("cut.jsonl");
+    std::fs::write(&cut_trace, cut.join("\n") + "\n").unwrap();
+    let replayed = s.join("cut.octo");
+    run_ok(octopaint().arg("import").arg(&cut_trace).arg(&replayed));
+    let (a, b) = (s.join("killed.npz"), s.join("cut.npz"));
+    run_ok(octopaint().arg("dump").arg(&doc).arg(&a));
+    run_ok(octopaint().arg("dump").arg(&replayed).arg(&b));
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "the recovered document is not the trace's first {kept} strokes");
 }

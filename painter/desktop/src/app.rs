@@ -25,7 +25,8 @@ use winit::keyboard::{Key, ModifiersState, NamedKey};
 use winit::window::{Window, WindowId};
 
 use crate::Options;
-use crate::panel::{Action, BrushUi, LayersUi, LightUi};
+use crate::brush::{BrushUi, LightUi};
+use crate::panel::{Action, LayersUi};
 use crate::resolution::Resolution;
 
 /// The shortest interval between frames while the window waits for the
@@ -89,7 +90,9 @@ pub(crate) struct App {
     pub picks: (Sender<(Aim, Option<f64>)>, Receiver<(Aim, Option<f64>)>),
     pub surface: Option<(Aim, Option<f64>)>,
     pub asking: bool,
-    /// `--play`: the thread feeding the trace, and whether it is done.
+    /// `--play`: the trace's jobs until the first frame is presented, then
+    /// whether the thread feeding them is done.
+    pub to_play: Option<Vec<(f64, Job)>>,
     pub playing: Option<Arc<AtomicBool>>,
     /// `--hold-painting`: the watcher's stop flag.
     pub hold_stop: Option<Arc<AtomicBool>>,
@@ -121,6 +124,7 @@ impl App {
             picks: channel(),
             surface: None,
             asking: false,
+            to_play: None,
             playing: None,
             hold_stop: None,
             save_failed: None,
@@ -152,9 +156,10 @@ impl App {
         }
     }
 
-    /// Whether `--play` is still feeding its trace.
+    /// Whether `--play` is still feeding its trace (or waits for the
+    /// first frame to start).
     pub fn is_playing(&self) -> bool {
-        self.playing.as_ref().is_some_and(|done| !done.load(Ordering::Acquire))
+        self.to_play.is_some() || self.playing.as_ref().is_some_and(|done| !done.load(Ordering::Acquire))
     }
 
     /// The ray under the cursor, as the stroke thread places a sample on it.

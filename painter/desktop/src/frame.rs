@@ -68,6 +68,12 @@ impl App {
         }
         let point = self.brush_point();
         let busy = self.busy();
+        let engine = match self.engine.as_ref().and_then(|e| e.busy()).map(|b| b.what) {
+            None => 0,
+            Some("sample" | "stroke_begin" | "stroke_end" | "undo" | "redo") => 1,
+            Some("save") => 2,
+            Some(_) => 3,
+        };
         let latency_ms = self.engine.as_ref().and_then(|e| e.last_latency_ms());
         let Some(r) = self.running.as_mut() else { return Ok(()) };
         r.last_frame = Instant::now();
@@ -136,7 +142,7 @@ impl App {
             Frames::encode_cast(&mut r.renderer, &mut enc, &params, precision, &prepared).map_err(|e| e.to_string())?;
             r.full_cast = cast == size;
         }
-        r.resolution.log(cast_now);
+        r.resolution.log(cast_now, engine);
         let gpu = &r.renderer.gpu;
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
         let group = r.blit.bind_scaled(gpu, pixels, cast, size);
@@ -207,6 +213,10 @@ impl App {
             r.stats.message = msg;
         }
         r.stats.frames += 1;
+        if let Some(jobs) = self.to_play.take() {
+            self.playing = Some(crate::play::start(self, jobs));
+        }
+        let Some(r) = self.running.as_mut() else { return Ok(()) };
         let (t0, f0) = r.stats.fps_window;
         if t0.elapsed() >= Duration::from_millis(500) {
             r.stats.fps = (r.stats.frames - f0) as f64 / t0.elapsed().as_secs_f64();

@@ -16,11 +16,13 @@
 //! | [`app`] | the window's state, input becoming jobs, the event loop's pacing |
 //! | [`frame`] | one frame: uploads, the cast (or none when still), the panel, presenting |
 //! | [`panel`] | the brush, lighting and layers panel, the status line |
+//! | [`brush`] | the brush and the light as the panel edits them |
 //! | [`overlay`] | the brush cursor, mirror planes, axes and scale over the view |
 //! | [`resolution`] | dynamic resolution and the frame log |
 //! | [`play`] | `--play`: a trace fed through the engine at its pace; `--hold-painting` |
 
 mod app;
+mod brush;
 mod frame;
 mod overlay;
 mod panel;
@@ -81,9 +83,9 @@ pub fn run(opts: Options) -> Result<(), String> {
     if let (Some(path), Some(gate)) = (app.opts.hold_painting.clone(), gate) {
         app.hold_stop = Some(play::hold_while(path, gate));
     }
-    if let Some(jobs) = played {
-        app.playing = Some(play::start(&app, jobs));
-    }
+    // Played from the first frame presented on (the window's first cast
+    // compiles the ray caster: seconds on a CPU).
+    app.to_play = played;
     let run = event_loop.run_app(&mut app).map_err(|e| e.to_string());
     if let Some(stop) = &app.hold_stop {
         stop.store(true, std::sync::atomic::Ordering::Release);

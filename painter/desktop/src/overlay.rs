@@ -7,7 +7,7 @@ use octopaint_tree::lattice::Lattice;
 use octopaint_tree::trace::{Camera, Shape};
 use octopaint_tree::view::{BACKGROUND, OrbitCamera, axes_seen_from};
 
-use crate::panel::BrushUi;
+use crate::brush::BrushUi;
 
 /// The parts of the window's state the overlay is drawn from.
 struct View<'a> {

@@ -76,6 +76,9 @@ impl Canvas for OpenDocument {
                 self.apply(EventKind::StrokeBegin, submitted)?;
                 Ok(Ran::Done)
             }
+            // A stroke the session refused to begin (a locked layer, said
+            // then) paints nothing: its samples are not refused one by one.
+            Job::Sample(_) | Job::Event(EventKind::Sample(_)) if !self.session.in_stroke() => Ok(Ran::Done),
             Job::Sample(s) | Job::Event(EventKind::Sample(s)) => self.sample(*s, submitted),
             Job::Aim(a) => {
                 if !self.session.in_stroke() {

@@ -32,7 +32,12 @@ use octopaint_tree::trace::Canvas as CanvasSize;
 use rayon::prelude::*;
 
 use crate::canvas::{Canvas, Ran, Status};
-use crate::jobs::{Ask, Job, JobQueue, SubmitError, Ticket, Work};
+use crate::jobs::{Job, JobQueue, SubmitError, Ticket, Work};
+
+/// A question for the painting, answered on the stroke thread between two
+/// levels or jobs (the closure sends its answer where the asker waits for
+/// it, a channel for example).
+pub type Ask = Box<dyn FnOnce(&dyn Canvas) + Send>;
 use crate::ledger::Ledger;
 use crate::settings::{BlockSize, Settings};
 use crate::staging::{PendingSet, StagedCopy, StagedItem, StagedStack, key};
@@ -111,7 +116,7 @@ pub(crate) struct Shared {
     /// staging threads have ended (nothing else touches it).
     pub canvas: Mutex<Option<Box<dyn Canvas>>>,
     pub ledger: Mutex<Ledger>,
-    pub jobs: JobQueue,
+    pub jobs: JobQueue<Ask>,
     pub pending: PendingSet,
     pub staged: StagedStack,
     /// Layer lists published and not yet drawn, with their publications.

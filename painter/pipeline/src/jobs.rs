@@ -15,8 +15,6 @@ use std::time::Instant;
 
 use octopaint_tree::trace::{Brush, EventKind, Sample};
 
-use crate::canvas::Canvas;
-
 /// A sample placed by a ray from the eye: on the surface of the selected
 /// layer's paint under the ray when `on_surface` finds one (optical depth
 /// 0.7, `octopaint_tree::view::pick`), else `plane_t` along it. Resolved on
@@ -102,10 +100,6 @@ pub struct Ticket {
     pub job: Job,
 }
 
-/// A question for the painting, answered on the stroke thread (the closure
-/// sends its answer where the asker waits for it, a channel for example).
-pub type Ask = Box<dyn FnOnce(&dyn Canvas) + Send>;
-
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SubmitError {
     #[error("the job queue is full ({0} jobs)")]
@@ -114,27 +108,29 @@ pub enum SubmitError {
     Closed,
 }
 
-/// What the stroke thread takes next.
-pub enum Work {
+/// What the stroke thread takes next: a job, or a question `A` (the
+/// engine's: `crate::engine::Ask`).
+pub enum Work<A> {
     Job(Ticket),
-    Ask(Ask),
+    Ask(A),
 }
 
-struct Inner {
+struct Inner<A> {
     queue: VecDeque<Ticket>,
-    asks: VecDeque<Ask>,
+    asks: VecDeque<A>,
     next_seq: u64,
     closed: bool,
 }
 
-pub struct JobQueue {
+/// The jobs, bounded, and the questions `A` beside them.
+pub struct JobQueue<A> {
     capacity: usize,
-    inner: Mutex<Inner>,
+    inner: Mutex<Inner<A>>,
     changed: Condvar,
 }
 
-impl JobQueue {
-    pub fn new(capacity: usize) -> JobQueue {
+impl<A> JobQueue<A> {
+    pub fn new(capacity: usize) -> JobQueue<A> {
         JobQueue {
             capacity: capacity.max(1),
             inner: Mutex::new(Inner { queue: VecDeque::new(), asks: VecDeque::new(), next_seq: 1, closed: false }),
@@ -142,7 +138,7 @@ impl JobQueue {
         }
     }
 
-    fn push(&self, inner: &mut Inner, job: Job) -> Ticket {
+    fn push(&self, inner: &mut Inner<A>, job: Job) -> Ticket {
         let t = Ticket { seq: inner.next_seq, submitted: Instant::now(), job };
         inner.next_seq += 1;
         inner.queue.push_back(t.clone());
@@ -177,7 +173,7 @@ impl JobQueue {
 
     /// Queue a question (never waits: questions are few and small). Refused
     /// once closed.
-    pub fn ask(&self, ask: Ask) -> Result<(), SubmitError> {
+    pub fn ask(&self, ask: A) -> Result<(), SubmitError> {
         let mut inner = self.inner.lock().expect("job queue lock");
         if inner.closed {
             return Err(SubmitError::Closed);
@@ -188,13 +184,13 @@ impl JobQueue {
     }
 
     /// The questions asked so far, without waiting.
-    pub fn take_asks(&self) -> Vec<Ask> {
+    pub fn take_asks(&self) -> Vec<A> {
         self.inner.lock().expect("job queue lock").asks.drain(..).collect()
     }
 
     /// The next question or job (questions first), waiting for one; None
     /// once closed with no job left.
-    pub fn pop(&self) -> Option<Work> {
+    pub fn pop(&self) -> Option<Work<A>> {
         let mut inner = self.inner.lock().expect("job queue lock");
         loop {
             if let Some(a) = inner.asks.pop_front() {

@@ -10,6 +10,7 @@
 
 use openxr as xr;
 
+mod draw;
 pub mod hud;
 pub mod platform;
 pub mod input;

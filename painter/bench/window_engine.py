@@ -1,0 +1,130 @@
+"""The traces and the table of painter/bench/window_engine.sh: the desktop
+window as a front end of the real-time engine (docs/benchmarks.md, "The
+window through the engine").
+
+    window_engine.py traces OUT    # OUT/scene_layers.jsonl, OUT/heavy.jsonl, OUT/heavy_layers.jsonl
+    window_engine.py report OUT    # the table from OUT/<run>.csv and OUT/<run>.log
+
+`heavy.jsonl` is the paper's limitation case (its section 8.3) on the scene's
+canvas: after 3 s of nothing, an erase of radius 5 canvas units through the
+scene's finest detail (depth 21 to 25), a paint stroke of radius 5 back across
+it, and a sphere of haze of radius 3000 over the island, at an artist's pace.
+`scene_layers.jsonl` is the scene trace as a document of four layers (a
+`layer add` before each quarter of its strokes), `heavy_layers.jsonl` the
+heavy strokes for it (version 2).
+"""
+
+import json
+import statistics
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def strokes(t0):
+    """The heavy strokes' events from time t0: (brush, samples) per stroke."""
+    out = []
+    t = t0
+
+    def stroke(brush, points, dt):
+        nonlocal t
+        out.append({"ev": "brush", "t": round(t, 4), **brush})
+        out.append({"ev": "stroke_begin", "t": round(t, 4)})
+        for p in points:
+            out.append({"ev": "sample", "t": round(t, 4), "p": p})
+            t += dt
+        out.append({"ev": "stroke_end", "t": round(t, 4)})
+        t += 0.5
+
+    base = {"shape": "sphere", "opacity": 0.9, "hardness": 0.6}
+    detail = [[19997.0 + 0.75 * i, 20000.0, 20000.0 + 0.1 * i] for i in range(9)]
+    stroke({**base, "mode": "erase", "radius": 5.0, "color": [0, 0, 0]}, detail, 0.12)
+    stroke({**base, "mode": "paint", "radius": 5.0, "color": [0.9, 0.3, 0.2]}, list(reversed(detail)), 0.12)
+    haze = [[17000.0 + 800.0 * i, 21000.0, 19500.0] for i in range(8)]
+    stroke({**base, "mode": "paint", "radius": 3000.0, "opacity": 0.05, "color": [0.6, 0.7, 0.9]}, haze, 0.15)
+    return out
+
+
+def write(path, header, events):
+    with open(path, "w") as f:
+        f.write(json.dumps(header) + "\n")
+        for e in events:
+            f.write(json.dumps(e) + "\n")
+
+
+def traces(out):
+    out = Path(out)
+    lines = (REPO / "traces/scene.jsonl").read_text().splitlines()
+    header = json.loads(lines[0])
+    events = [json.loads(line) for line in lines[1:]]
+    # The heavy strokes, one tree and layers: a camera at t = 0 so that the
+    # window plays them after 3 s of nothing.
+    camera = next(e for e in events if e["ev"] == "camera")
+    pre = [{**camera, "t": 0.0}]
+    write(out / "heavy.jsonl", header, pre + strokes(3.0))
+    layered = {**header, "version": 2}
+    write(out / "heavy_layers.jsonl", layered, pre + strokes(3.0))
+    # The scene as four layers: a new layer before each quarter of its strokes.
+    begins = [i for i, e in enumerate(events) if e["ev"] == "stroke_begin"]
+    cut = {begins[len(begins) * k // 4] for k in (1, 2, 3)}
+    split = []
+    n = 1
+    for i, e in enumerate(events):
+        if i in cut:
+            # A brush event belongs to its stroke: the layer goes before it.
+            j = len(split)
+            while j > 0 and split[j - 1]["ev"] == "brush":
+                j -= 1
+            n += 1
+            split.insert(j, {"ev": "layer", "t": split[j - 1]["t"] if j else 0.0, "op": "add", "name": f"Layer {n}"})
+        split.append(e)
+    write(out / "scene_layers.jsonl", layered, split)
+
+
+def load(path):
+    rows = []
+    with open(path) as f:
+        head = f.readline().strip().split(",")
+        for line in f:
+            rows.append(dict(zip(head, map(float, line.strip().split(",")))))
+    return rows
+
+
+def pct(xs, q):
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(q * len(xs)))] if xs else float("nan")
+
+
+def report(out):
+    out = Path(out)
+    print("| document | frames | median frame ms | orbiting: p50 / p99 ms | painting: frames, p50 / p99 / max ms | saving: frames, p50 / max ms | longest while painting or saving / median | latency p50 / p99 ms |")
+    print("| --- | ---: | ---: | --- | --- | --- | ---: | --- |")
+    for run in ("one_tree", "four_layers"):
+        rows = load(out / f"{run}.csv")
+        log = (out / f"{run}.log").read_text()
+        # A frame's interval is the time since the previous frame began: it
+        # belongs to the phase of either frame (a frame that waited for the
+        # painting shows it in the next one's interval).
+        phase = {0: [], 1: [], 2: [], 3: []}
+        for a, b in zip(rows, rows[1:]):
+            p = max(a["engine"], b["engine"])
+            phase[int(p)].append(b["interval_ms"])
+        every = [b["interval_ms"] for b in rows[1:]]
+        median = statistics.median(every)
+        busy = phase[1] + phase[2] + phase[3]
+        lat = next((line for line in log.splitlines() if "stroke-to-display latency" in line), "")
+        lat = lat.split("latency ")[1].replace("p50 ", "").replace(", p99 ", " / ") if lat else "-"
+        paint, save = phase[1] + phase[3], phase[2]
+        print(
+            f"| {run.replace('_', ' ')} | {len(rows)} | {median:.0f} | {pct(phase[0], 0.5):.0f} / {pct(phase[0], 0.99):.0f} | "
+            f"{len(paint)}, {pct(paint, 0.5):.0f} / {pct(paint, 0.99):.0f} / {max(paint, default=float('nan')):.0f} | "
+            f"{len(save)}, {pct(save, 0.5):.0f} / {max(save, default=float('nan')):.0f} | "
+            f"{max(busy, default=float('nan')) / median:.2f}x | {lat} |"
+        )
+        saves = [line.split("(")[-1].rstrip(")") for line in log.splitlines() if "saved " in line]
+        print(f"<!-- {run}: saves took {', '.join(saves)} -->")
+
+
+if __name__ == "__main__":
+    {"traces": traces, "report": report}[sys.argv[1]](sys.argv[2])
