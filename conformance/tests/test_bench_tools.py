@@ -130,3 +130,53 @@ def test_the_flame_graph_folds_stacks_and_draws_their_shares():
     assert flamegraph.short("<alloc::vec::Vec<T> as alloc::vec::spec_from_iter::SpecFromIter<T,I>>::from_iter+0x12") == \
         "Vec as SpecFromIter::from_iter"
     assert flamegraph.short("alloc::vec::Vec<T,A>::extend_with::h0123456789abcdef") == "alloc::vec::Vec::extend_with"
+
+
+def test_the_window_benchmark_makes_valid_traces_and_its_table(tmp_path, painter):
+    """painter/bench/window_engine.py: the traces it plays are ones the
+    painter reads (the scene as four layers imports as a document of four
+    layers), and its table classes frames by what the frame log says."""
+    import window_engine
+
+    window_engine.traces(tmp_path)
+    for name in ("heavy.jsonl", "heavy_layers.jsonl", "scene_layers.jsonl"):
+        p = subprocess.run([painter, "check", str(tmp_path / name)], capture_output=True, text=True)
+        assert p.returncode == 0, (name, p.stdout, p.stderr)
+    doc = tmp_path / "four.octo"
+    p = subprocess.run([painter, "import", str(tmp_path / "scene_layers.jsonl"), str(doc)], capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    info = subprocess.run([painter, "info", str(doc)], capture_output=True, text=True).stdout
+    assert len([line for line in info.splitlines() if " cells, opacity" in line]) == 4, info
+    # A frame log: two warm-up frames, orbiting at 100 ms, painting with
+    # one frame of 400 ms (inside the heavy strokes' span), a save of 300 ms.
+    t0, t1 = window_engine.heavy_span(tmp_path)
+    head = "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine,prepare_ms"
+    rows, t = [], 0.0
+    def frame(iv, engine=0, still=0):
+        nonlocal t
+        t += iv
+        rows.append(f"{t:.1f},{iv:.2f},0.5,400,300,{still},0,1,{engine},1.0")
+    frame(0), frame(3000), frame(100)
+    while t < 1e3 * t0:
+        frame(100)
+    frame(400, 1)
+    while t < 1e3 * (t1 + 1.0):
+        frame(100)
+    frame(300, 2), frame(100), frame(5000, 0, 1)
+    for run in ("one_tree", "four_layers"):
+        (tmp_path / f"{run}.csv").write_text(head + "\n" + "\n".join(rows) + "\n")
+        (tmp_path / f"{run}.log").write_text("octopaint: saved x (12 ms)\noctopaint: 9 jobs shown, stroke-to-display latency p50 1.0 ms, p99 2.0 ms; the heaviest sample painted in 3.0 ms\n")
+    import contextlib
+    import io
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        window_engine.report(tmp_path)
+    table = out.getvalue()
+    row = next(line for line in table.splitlines() if line.startswith("| one tree"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2] == "100", row  # the median frame
+    assert cells[4].endswith("/ 400"), row  # painting's longest frame
+    # The intervals either side of a frame that began while saving.
+    assert cells[5] == "2, 300 / 300", row
+    assert cells[6] == "4.00x", row
+    assert cells[7] == "1.0 ms / 2.0 ms" and cells[8] == "3.0", row

@@ -194,7 +194,7 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     // and the window's aspect kept.
     let log = std::fs::read_to_string(&frame_log).unwrap();
     let mut lines = log.lines();
-    assert_eq!(lines.next(), Some("t_ms,interval_ms,scale,width,height,still,mirror,cast,engine"));
+    assert_eq!(lines.next(), Some("t_ms,interval_ms,scale,width,height,still,mirror,cast,engine,prepare_ms"));
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
     assert!(rows.len() > 10, "{log}");
     assert!(rows.iter().any(|r| r[5] == 1.0) && rows.iter().any(|r| r[5] == 0.0), "both still and moving frames: {log}");

@@ -25,7 +25,7 @@ fn frame_rows(log: &Path) -> Vec<Vec<f64>> {
     let text = std::fs::read_to_string(log).unwrap_or_default();
     let mut lines = text.lines();
     if let Some(h) = lines.next() {
-        assert_eq!(h, "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine");
+        assert_eq!(h, "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine,prepare_ms");
     }
     lines.filter_map(|l| l.split(',').map(|v| v.parse().ok()).collect()).collect()
 }

@@ -142,7 +142,7 @@ impl App {
             Frames::encode_cast(&mut r.renderer, &mut enc, &params, precision, &prepared).map_err(|e| e.to_string())?;
             r.full_cast = cast == size;
         }
-        r.resolution.log(cast_now, engine);
+        r.resolution.log(cast_now, engine, (prepared.upload_seconds + prepared.g3_seconds) * 1e3);
         let gpu = &r.renderer.gpu;
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
         let group = r.blit.bind_scaled(gpu, pixels, cast, size);

@@ -63,10 +63,11 @@ impl Resolution {
     /// Write this frame's line of the frame log, with whether it cast new
     /// rays (a still frame presents the last cast again) and what the
     /// stroke thread was doing as the frame began (`engine`: 0 nothing,
-    /// 1 painting a stroke, undo or redo, 2 saving, 3 another job).
-    pub fn log(&mut self, cast: bool, engine: u8) {
+    /// 1 painting a stroke, undo or redo, 2 saving, 3 another job), and
+    /// how long its uploads and g3 pass took (`prepare_ms`).
+    pub fn log(&mut self, cast: bool, engine: u8, prepare_ms: f64) {
         if let (Some((log, _)), Some(line)) = (self.log.as_mut(), self.line.take()) {
-            let _ = writeln!(log, "{line},{},{engine}", u8::from(cast));
+            let _ = writeln!(log, "{line},{},{engine},{prepare_ms:.2}", u8::from(cast));
             // Line by line: a script (or a test) watching the log sees each
             // frame as it is drawn. One small write a frame.
             let _ = log.flush();
@@ -80,7 +81,7 @@ impl Resolution {
             Some(p) => {
                 let f = std::fs::File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()))?;
                 let mut w = std::io::BufWriter::new(f);
-                let _ = writeln!(w, "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine");
+                let _ = writeln!(w, "t_ms,interval_ms,scale,width,height,still,mirror,cast,engine,prepare_ms");
                 Some((w, Instant::now()))
             }
             None => None,

@@ -304,6 +304,12 @@ impl Engine {
         self.shared.ledger.lock().expect("ledger").jobs.iter().filter_map(|j| j.latency_ms()).collect()
     }
 
+    /// The stroke thread's painting time of every sample so far, ms (the
+    /// levels, the document's lock held).
+    pub fn sample_paint_ms(&self) -> Vec<f64> {
+        self.shared.ledger.lock().expect("ledger").jobs.iter().filter(|j| j.kind == "sample").map(|j| j.paint_seconds * 1e3).collect()
+    }
+
     /// Frames ended so far (by the front end's [`crate::frames::Frames`]).
     pub fn frames(&self) -> u64 {
         self.shared.frames.load(Ordering::Acquire)
