@@ -417,7 +417,7 @@ pub fn start() -> ExitCode {
         return fail(e);
     }
     eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
-    vr(&doc, None, None, None, false, false, false)
+    vr(&doc, None, None, Live { script: None, play: None, hold_painting: None }, false, false, false)
 }
 
 /// An empty document on the desktop window's default canvas, unless `doc`
@@ -434,14 +434,23 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
 }
 
 
-pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, script: Option<PathBuf>, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
+/// What drives a VR session besides the controllers: a script of
+/// controller states, a trace played, a test's hold on painting.
+pub struct Live {
+    pub script: Option<PathBuf>,
+    pub play: Option<PathBuf>,
+    pub hold_painting: Option<PathBuf>,
+}
+
+pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
     let s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
-    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution };
+    let Live { script, play, hold_painting } = live;
+    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting };
     // The session saves whatever happened in the headset as it ends (the
     // journal has it too).
     match octopaint_xr::session::run(s, &opts) {

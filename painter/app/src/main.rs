@@ -153,6 +153,15 @@ enum Command {
         /// Cast every frame at the eye's full size (no dynamic resolution).
         #[arg(long)]
         fixed_resolution: bool,
+        /// Play this trace's events into the document at their recorded
+        /// pace, as live input (the trace needs the document's canvas);
+        /// --frames counts on until all of them are painted.
+        #[arg(long, value_name = "TRACE")]
+        play: Option<PathBuf>,
+        /// Tests: while this file exists the stroke thread waits before
+        /// each level of painting.
+        #[arg(long, value_name = "FILE", hide = true)]
+        hold_painting: Option<PathBuf>,
     },
     /// Find the OpenXR runtime and headset and print what they offer, or
     /// exactly what is missing (exit status 3 when there is no VR here).
@@ -531,8 +540,9 @@ fn main() -> ExitCode {
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
-        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution } => {
-            document::vr(&doc, frames, capture, script, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
+        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution, play, hold_painting } => {
+            let live = document::Live { script, play, hold_painting };
+            document::vr(&doc, frames, capture, live, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
         }
         Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => {
             document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting })

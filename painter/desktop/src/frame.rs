@@ -213,8 +213,10 @@ impl App {
             r.stats.message = msg;
         }
         r.stats.frames += 1;
-        if let Some(jobs) = self.to_play.take() {
-            self.playing = Some(crate::play::start(self, jobs));
+        if let Some(jobs) = self.to_play.take()
+            && let Some(engine) = &self.engine
+        {
+            self.playing = Some(octopaint_pipeline::play::start(engine.submitter(), jobs));
         }
         let Some(r) = self.running.as_mut() else { return Ok(()) };
         let (t0, f0) = r.stats.fps_window;

@@ -19,21 +19,19 @@
 //! | [`brush`] | the brush and the light as the panel edits them |
 //! | [`overlay`] | the brush cursor, mirror planes, axes and scale over the view |
 //! | [`resolution`] | dynamic resolution and the frame log |
-//! | [`play`] | `--play`: a trace fed through the engine at its pace; `--hold-painting` |
 
 mod app;
 mod brush;
 mod frame;
 mod overlay;
 mod panel;
-mod play;
 mod resolution;
 
 use std::path::PathBuf;
 
 use octopaint_doc::Session;
 use octopaint_gpu::Precision;
-use octopaint_pipeline::{Engine, Gate, Hooks, OpenDocument, Settings};
+use octopaint_pipeline::{Engine, Gate, Hooks, OpenDocument, Settings, play};
 use octopaint_tree::lattice::Lattice;
 use winit::event_loop::EventLoop;
 

@@ -19,6 +19,7 @@
 //! | [`ledger`] | publications, uploads, the consistent cut, per-job latency |
 //! | [`settings`] | block size, blocks per frame, mask size, strategies |
 //! | [`pipeline`] | the headless front end: the engine with a render thread of its own |
+//! | [`play`] | a trace fed to a front end at its pace; a test's hold on the stroke thread |
 
 pub mod canvas;
 pub mod document;
@@ -28,6 +29,7 @@ pub mod jobs;
 pub mod layout;
 pub mod ledger;
 pub mod pipeline;
+pub mod play;
 pub mod settings;
 pub mod staging;
 

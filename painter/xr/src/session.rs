@@ -69,6 +69,13 @@ pub struct Options {
     pub script: Option<PathBuf>,
     /// Cast every frame at the eye's full size (no dynamic resolution).
     pub fixed_resolution: bool,
+    /// Play this trace's jobs into the document at their pace from the
+    /// first frame on (`octopaint_pipeline::play`); `frames` counts on
+    /// until every one of them is queued.
+    pub play: Option<PathBuf>,
+    /// Tests: while this file exists the stroke thread waits before each
+    /// level of painting.
+    pub hold_painting: Option<PathBuf>,
 }
 
 /// The time both eyes' ray casts aim at: one frame of a 90 Hz headset.
@@ -321,7 +328,14 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     let mut scale = 1.0f64;
     let (mut scale_sum, mut scale_min) = (0.0f64, 1.0f64);
     let mut last_look: Option<([xr::Posef; 2], [f64; 8], (bool, bool))> = None;
-    let engine = Engine::start(Box::new(OpenDocument::new(doc)), &settings, &Hooks::default());
+    let mut to_play = match &opts.play {
+        Some(p) => Some(octopaint_pipeline::play::read(p, &doc).map_err(|e| other("the trace to play", e))?),
+        None => None,
+    };
+    let gate = opts.hold_painting.as_ref().map(|_| std::sync::Arc::new(octopaint_pipeline::Gate::default()));
+    let engine = Engine::start(Box::new(OpenDocument::new(doc)), &settings, &Hooks { render: None, stroke: gate.clone() });
+    let hold = opts.hold_painting.clone().zip(gate).map(|(path, gate)| octopaint_pipeline::play::hold_while(path, gate));
+    let mut playing: Option<std::sync::Arc<std::sync::atomic::AtomicBool>> = None;
     let mut frames = Frames::new(&engine, &settings);
     let mut status = engine.status();
     // The answer to "frame the painting" (X with the left grip), when asked.
@@ -350,7 +364,8 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
             std::thread::sleep(std::time::Duration::from_millis(10));
             continue;
         }
-        if opts.frames.is_some_and(|n| report.frames >= n) && !exit_requested {
+        let played = to_play.is_none() && playing.as_ref().is_none_or(|done| done.load(std::sync::atomic::Ordering::Acquire));
+        if opts.frames.is_some_and(|n| report.frames >= n) && played && !exit_requested {
             xr_call("requesting the end", session.request_exit())?;
             exit_requested = true;
         }
@@ -552,14 +567,21 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
             stream.end(state.predicted_display_time, blend, &[&xr::CompositionLayerProjection::new().space(&stage).views(&proj)]),
         )?;
         report.frames += 1;
+        if let Some(jobs) = to_play.take() {
+            playing = Some(octopaint_pipeline::play::start(engine.submitter(), jobs));
+        }
         if let (Some(path), true) = (&opts.capture, captured.len() == 2) {
             write_side_by_side(path, &captured, size).map_err(|e| other("writing the capture", e))?;
         }
     }
     Ok(())
     })();
-    // The session's end: the open stroke ends, and the document is saved
-    // on the stroke thread; ending waits for it, and says so.
+    // The session's end: a test's hold lets go, the open stroke ends, and
+    // the document is saved on the stroke thread; ending waits for it, and
+    // says so.
+    if let Some(stop) = &hold {
+        stop.store(true, std::sync::atomic::Ordering::Release);
+    }
     painter.finish(&Live { engine: &engine, status: &status });
     let _ = engine.submit(Job::Save);
     eprintln!("octopaint: vr: saving the document…");

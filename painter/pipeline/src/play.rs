@@ -1,8 +1,10 @@
-//! `--play TRACE`: a trace's events fed through the engine as live input
-//! at the trace's pace (docs/desktop.md, "Playback"): a timelapse of a
-//! painting session for artists, and the way tests and benchmarks drive the
-//! real window. `--hold-painting FILE` holds the stroke thread while FILE
-//! exists (tests: the window must keep presenting frames meanwhile).
+//! A trace played into a front end as live input at the trace's pace
+//! (`octopaint window --play`, `octopaint vr --play`; docs/desktop.md,
+//! "Playback"): a timelapse of a painting session for artists, and the way
+//! tests and benchmarks drive the real window and headset. And a test's
+//! hold on the stroke thread (`--hold-painting FILE`: while FILE exists the
+//! stroke thread waits before each level; the front end must keep
+//! presenting frames meanwhile).
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -10,16 +12,15 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use octopaint_doc::Session;
-use octopaint_pipeline::jobs::from_trace;
-use octopaint_pipeline::{Gate, Job};
 use octopaint_tree::trace::read_trace;
 
-use crate::app::App;
+use crate::engine::{Gate, Submitter};
+use crate::jobs::{Job, from_trace};
 
 /// The jobs of the trace at `path` with their times, refused unless the
 /// trace fits the document: the same canvas, and layers only in a document
 /// of layers.
-pub(crate) fn read(path: &Path, session: &Session) -> Result<Vec<(f64, Job)>, String> {
+pub fn read(path: &Path, session: &Session) -> Result<Vec<(f64, Job)>, String> {
     let trace = read_trace(path).map_err(|e| format!("{}: {e}", path.display()))?;
     if trace.canvas != *session.doc.canvas() {
         return Err(format!(
@@ -37,11 +38,11 @@ pub(crate) fn read(path: &Path, session: &Session) -> Result<Vec<(f64, Job)>, St
     Ok(from_trace(&trace).into_iter().map(|(t, j)| (t - first, j)).collect())
 }
 
-/// Feed `jobs` to the app's engine from a thread of their own, each at its
-/// time (seconds from now); the flag turns true once every job is queued.
-pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
+/// Feed `jobs` to an engine from a thread of their own, each at its time
+/// (seconds from now); the flag turns true once every job is queued (or the
+/// engine stopped taking them).
+pub fn start(submitter: Submitter, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
     let done = Arc::new(AtomicBool::new(false));
-    let submitter = app.engine.as_ref().expect("the engine runs").submitter();
     let flag = done.clone();
     std::thread::Builder::new()
         .name("play".into())
@@ -54,7 +55,7 @@ pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
                     std::thread::sleep(due - now);
                 }
                 if submitter.submit(job).is_err() {
-                    break; // the window closed
+                    break; // the front end closed
                 }
             }
             flag.store(true, Ordering::Release);
@@ -65,7 +66,7 @@ pub(crate) fn start(app: &App, jobs: Vec<(f64, Job)>) -> Arc<AtomicBool> {
 
 /// Close `gate` while `path` exists, open it otherwise, until the returned
 /// flag is set (then open for good).
-pub(crate) fn hold_while(path: PathBuf, gate: Arc<Gate>) -> Arc<AtomicBool> {
+pub fn hold_while(path: PathBuf, gate: Arc<Gate>) -> Arc<AtomicBool> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     std::thread::Builder::new()
