@@ -30,6 +30,17 @@ fn frame_rows(log: &Path) -> Vec<Vec<f64>> {
     lines.filter_map(|l| l.split(',').map(|v| v.parse().ok()).collect()).collect()
 }
 
+/// Whether two documents dump to the same bytes (`octopaint dump`, the
+/// journal recovered), their dumps written into `dir`.
+fn same_document(dir: &Path, a: &Path, b: &Path) -> bool {
+    let dump = |doc: &Path| {
+        let out = dir.join(format!("{}.npz", doc.file_stem().unwrap().to_string_lossy()));
+        run_ok(octopaint().arg("dump").arg(doc).arg(&out));
+        std::fs::read(&out).unwrap()
+    };
+    dump(a) == dump(b)
+}
+
 fn run_ok(c: &mut std::process::Command) -> String {
     let res = c.output().unwrap();
     assert!(res.status.success(), "{:?}: {}", c, String::from_utf8_lossy(&res.stderr));
@@ -89,18 +100,13 @@ fn play_held(trace: &str, layers: bool) {
     // The saved document as the trace replayed into a document.
     let replayed = s.join("replayed.octo");
     run_ok(octopaint().arg("import").arg(&trace).arg(&replayed));
-    let (a, b) = (s.join("played.npz"), s.join("replayed.npz"));
-    run_ok(octopaint().arg("dump").arg(&doc).arg(&a));
-    run_ok(octopaint().arg("dump").arg(&replayed).arg(&b));
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "the played document differs from the replayed trace");
+    assert!(same_document(s, &doc, &replayed), "the played document differs from the replayed trace");
     // The window's session, recorded, replays to the same document.
     let rec = s.join("rec.jsonl");
     run_ok(octopaint().arg("record").arg(&doc).arg("--out").arg(&rec));
     let again = s.join("again.octo");
     run_ok(octopaint().arg("import").arg(&rec).arg(&again));
-    let c = s.join("again.npz");
-    run_ok(octopaint().arg("dump").arg(&again).arg(&c));
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&c).unwrap(), "the recorded session replays to another document");
+    assert!(same_document(s, &doc, &again), "the recorded session replays to another document");
 }
 
 #[test]
@@ -196,8 +202,5 @@ fn a_window_killed_mid_session_keeps_every_journalled_stroke() {
     std::fs::write(&cut_trace, cut.join("\n") + "\n").unwrap();
     let replayed = s.join("cut.octo");
     run_ok(octopaint().arg("import").arg(&cut_trace).arg(&replayed));
-    let (a, b) = (s.join("killed.npz"), s.join("cut.npz"));
-    run_ok(octopaint().arg("dump").arg(&doc).arg(&a));
-    run_ok(octopaint().arg("dump").arg(&replayed).arg(&b));
-    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(), "the recovered document is not the trace's first {kept} strokes");
+    assert!(same_document(s, &doc, &replayed), "the recovered document is not the trace's first {kept} strokes");
 }

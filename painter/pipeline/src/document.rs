@@ -30,13 +30,18 @@ impl OpenDocument {
         OpenDocument { session, opened: Instant::now(), t_open }
     }
 
+    /// The event time of a job submitted at `submitted`.
+    fn time(&self, submitted: Instant) -> f64 {
+        self.session.last_time().max(self.t_open + submitted.saturating_duration_since(self.opened).as_secs_f64())
+    }
+
     fn apply(&mut self, kind: EventKind, submitted: Instant) -> Result<(), String> {
-        let t = self.session.last_time().max(self.t_open + submitted.saturating_duration_since(self.opened).as_secs_f64());
+        let t = self.time(submitted);
         self.session.apply(&Event { line: 0, t, kind }).map_err(|e| e.to_string())
     }
 
     fn sample(&mut self, s: octopaint_tree::trace::Sample, submitted: Instant) -> Result<Ran, String> {
-        let t = self.session.last_time().max(self.t_open + submitted.saturating_duration_since(self.opened).as_secs_f64());
+        let t = self.time(submitted);
         match self.session.begin_sample(&Event { line: 0, t, kind: EventKind::Sample(s) }) {
             Ok(true) => Ok(Ran::Sample),
             Ok(false) => Ok(Ran::Done),

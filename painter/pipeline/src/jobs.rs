@@ -59,34 +59,9 @@ impl Job {
             Job::EndStroke => "stroke_end",
             Job::Undo => "undo",
             Job::Redo => "redo",
-            Job::Event(k) => match k {
-                EventKind::Brush(_) => "brush",
-                EventKind::StrokeBegin => "stroke_begin",
-                EventKind::Sample(_) => "sample",
-                EventKind::StrokeEnd => "stroke_end",
-                EventKind::Camera(_) => "camera",
-                EventKind::Light(_) => "light",
-                EventKind::Mirror(_) => "mirror",
-                EventKind::Render(_) => "render",
-                EventKind::Snapshot(_) => "snapshot",
-                EventKind::Undo => "undo",
-                EventKind::Redo => "redo",
-                EventKind::Layer(_) => "layer",
-                EventKind::Import(_) => "import",
-            },
+            Job::Event(k) => k.ev(),
             Job::Save => "save",
             Job::UseLayers => "use_layers",
-        }
-    }
-
-    /// Heavy enough to show the heavy-operation indicator at once (the
-    /// paper's 8.3): a whole layer rewritten or imported.
-    pub fn is_heavy(&self) -> bool {
-        use octopaint_tree::trace::LayerOpKind;
-        match self {
-            Job::Event(EventKind::Import(_)) | Job::Save | Job::UseLayers => true,
-            Job::Event(EventKind::Layer(op)) => matches!(op.op, LayerOpKind::MergeDown | LayerOpKind::Duplicate),
-            _ => false,
         }
     }
 }
