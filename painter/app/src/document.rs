@@ -417,7 +417,7 @@ pub fn start() -> ExitCode {
         return fail(e);
     }
     eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
-    vr(&doc, None, None, Live { script: None, play: None, hold_painting: None }, false, false, false)
+    vr(&doc, None, None, Live { script: None, play: None, hold_painting: None, frame_log: None }, false, false, false)
 }
 
 /// An empty document on the desktop window's default canvas, unless `doc`
@@ -434,12 +434,14 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
 }
 
 
-/// What drives a VR session besides the controllers: a script of
-/// controller states, a trace played, a test's hold on painting.
+/// What drives a VR session besides the controllers (a script of
+/// controller states, a trace played, a test's hold on painting), and
+/// where its frame log goes.
 pub struct Live {
     pub script: Option<PathBuf>,
     pub play: Option<PathBuf>,
     pub hold_painting: Option<PathBuf>,
+    pub frame_log: Option<PathBuf>,
 }
 
 pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
@@ -449,8 +451,8 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
     };
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
-    let Live { script, play, hold_painting } = live;
-    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting };
+    let Live { script, play, hold_painting, frame_log } = live;
+    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting, frame_log };
     // The session saves whatever happened in the headset as it ends (the
     // journal has it too).
     match octopaint_xr::session::run(s, &opts) {
@@ -460,14 +462,15 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
         }
         Ok(r) => {
             eprintln!(
-                "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
-                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_ms.1, r.render_ms, r.strokes
+                "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms p50, {:.1} ms p99, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
+                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_p50_p99_ms.0, r.frame_p50_p99_ms.1, r.frame_ms.1, r.render_ms, r.strokes
             );
             eprintln!(
-                "octopaint: dynamic resolution: eyes cast at {:.0}% of their size on average, {:.0}% at least; {} still frame(s) at full size",
+                "octopaint: dynamic resolution: eyes cast at {:.0}% of their size on average, {:.0}% at least; {} still frame(s) at full size, {} of them drawn from the last cast",
                 r.scale.0 * 100.0,
                 r.scale.1 * 100.0,
-                r.still_frames
+                r.still_frames,
+                r.reused_frames
             );
             if let Some(p) = capture {
                 eprintln!("octopaint: wrote {}", p.display());

@@ -153,6 +153,11 @@ enum Command {
         /// Cast every frame at the eye's full size (no dynamic resolution).
         #[arg(long)]
         fixed_resolution: bool,
+        /// Write one CSV line per frame (the window's frame log: time,
+        /// interval, scale, cast size, still, mirror planes, whether rays
+        /// were cast, what the stroke thread was doing, upload time).
+        #[arg(long, value_name = "CSV")]
+        frame_log: Option<PathBuf>,
         /// Play this trace's events into the document at their recorded
         /// pace, as live input (the trace needs the document's canvas);
         /// --frames counts on until all of them are painted.
@@ -540,8 +545,8 @@ fn main() -> ExitCode {
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
-        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution, play, hold_painting } => {
-            let live = document::Live { script, play, hold_painting };
+        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution, frame_log, play, hold_painting } => {
+            let live = document::Live { script, play, hold_painting, frame_log };
             document::vr(&doc, frames, capture, live, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
         }
         Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => {

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use glam::DVec3;
 use octopaint_gpu::{Blit, Gpu, Renderer};
-use octopaint_pipeline::{Aim, Engine, Frames, Job, Settings, Status};
+use octopaint_pipeline::{Aim, Engine, Frames, Job, Pace, Settings, Status, View};
 use octopaint_tree::Tree;
 use octopaint_tree::lattice::Lattice;
 use octopaint_tree::layers::Document;
@@ -27,18 +27,14 @@ use winit::window::{Window, WindowId};
 use crate::Options;
 use crate::brush::{BrushUi, LightUi};
 use crate::panel::{Action, LayersUi};
-use crate::resolution::Resolution;
 
 /// The shortest interval between frames while the window waits for the
 /// painting (a heavy stroke in progress): it polls, it does not spin.
 const POLL: Duration = Duration::from_millis(15);
 
-pub(crate) struct Stats {
-    pub frames: u64,
-    pub fps: f64,
-    pub fps_window: (Instant, u64),
-    pub message: String,
-}
+/// What the window's view is made of, compared frame to frame to tell a
+/// still frame: the camera, the window's size, the grid, the light.
+pub(crate) type Look = (OrbitCamera, [u32; 2], bool, Option<octopaint_tree::trace::Light>);
 
 pub(crate) struct Running {
     pub window: Arc<Window>,
@@ -52,17 +48,16 @@ pub(crate) struct Running {
     pub egui_renderer: egui_wgpu::Renderer,
     pub camera: OrbitCamera,
     pub brush: BrushUi,
-    pub stats: Stats,
+    /// The status line's last message.
+    pub message: String,
     pub modifiers: ModifiersState,
     pub cursor: (f64, f64),
     pub painting: bool,
     pub orbiting: bool,
     pub want_screenshot: bool,
-    pub resolution: Resolution,
+    /// Dynamic resolution, still frames, the frame log and statistics.
+    pub view: View<Look>,
     pub layers: LayersUi,
-    /// The pixel buffer holds a full-size cast of the view as it is: a
-    /// still frame presents it again instead of casting.
-    pub full_cast: bool,
     /// egui asked for another frame (an animation, a hover).
     pub egui_wants: bool,
     /// When the last frame began.
@@ -141,7 +136,7 @@ impl App {
             self.save_failed = None;
         }
         if let Some(r) = self.running.as_mut() {
-            r.stats.message = m;
+            r.message = m;
         }
     }
 
@@ -152,7 +147,7 @@ impl App {
         if let Err(e) = engine.submit(job)
             && let Some(r) = self.running.as_mut()
         {
-            r.stats.message = e.to_string();
+            r.message = e.to_string();
         }
     }
 
@@ -236,7 +231,7 @@ impl App {
         self.end_stroke();
         self.submit(Job::Save);
         if let Some(r) = self.running.as_mut() {
-            r.stats.message = "saving…".into();
+            r.message = "saving…".into();
         }
     }
 
@@ -249,7 +244,7 @@ impl App {
         self.save();
         self.closing = Some(Instant::now());
         if let Some(r) = self.running.as_mut() {
-            r.stats.message = "saving before closing…".into();
+            r.message = "saving before closing…".into();
         }
     }
 
@@ -280,7 +275,7 @@ impl App {
     fn wants_frame(&self) -> bool {
         let Some(r) = &self.running else { return false };
         let engine_busy = self.engine.as_ref().is_some_and(|e| !e.idle());
-        self.closing.is_some() || engine_busy || !r.frames.settled() || !r.full_cast || r.egui_wants || self.asking || self.framed.is_some() || self.is_playing()
+        self.closing.is_some() || engine_busy || !r.frames.settled() || !r.view.settled() || r.egui_wants || self.asking || self.framed.is_some() || self.is_playing()
     }
 
     fn start_window(&mut self, event_loop: &ActiveEventLoop) -> Result<Running, String> {
@@ -352,15 +347,14 @@ impl App {
             egui_renderer,
             camera,
             brush,
-            stats: Stats { frames: 0, fps: 0.0, fps_window: (Instant::now(), 0), message: String::new() },
+            message: String::new(),
             modifiers: ModifiersState::empty(),
             cursor: (f64::from(w) / 2.0, f64::from(h) / 2.0),
             painting: false,
             orbiting: false,
             want_screenshot: false,
             layers: LayersUi::default(),
-            resolution: Resolution::new(self.opts.fixed_resolution, self.opts.frame_log.as_deref())?,
-            full_cast: false,
+            view: View::new(crate::TARGET_FRAME_MS, Pace::Interval, self.opts.fixed_resolution, self.opts.frame_log.as_deref())?,
             egui_wants: true,
             last_frame: Instant::now(),
         })

@@ -7,8 +7,8 @@
 
 use std::time::{Duration, Instant};
 
-use octopaint_gpu::Gpu;
-use octopaint_pipeline::Frames;
+use octopaint_gpu::image::Capture;
+use octopaint_pipeline::{Doing, Frames, Indicator};
 use octopaint_tree::raycast::RayParams;
 use octopaint_tree::view::BACKGROUND;
 
@@ -16,35 +16,15 @@ use crate::app::App;
 use crate::overlay::Overlay;
 use crate::panel::{LayerInfo, StatusInfo, panel};
 
-fn write_screenshot(gpu: &Gpu, buf: &wgpu::Buffer, row: u32, size: [u32; 2], format: wgpu::TextureFormat, path: &std::path::Path) -> Result<(), String> {
-    let raw = octopaint_gpu::pools::read_buffer(gpu, buf, u64::from(row) * u64::from(size[1])).map_err(|e| e.to_string())?;
-    let rgb = octopaint_gpu::image::texels_to_rgb(&raw, row, size, format);
-    octopaint_gpu::image::write_png(path, &rgb, size[0], size[1]).map_err(|e| e.to_string())
-}
-
 impl App {
-    /// The heavy-operation indicator's text and progress, when the stroke
-    /// thread has been busy for a while or work is queued.
+    /// The heavy-operation indicator's text and progress: the close's
+    /// save, or the stroke thread busy for a while or work queued.
     fn busy(&self) -> Option<(String, Option<f32>)> {
         let engine = self.engine.as_ref()?;
         if let Some(t) = self.closing {
             return Some((format!("saving before closing… {:.1} s", t.elapsed().as_secs_f64()), None));
         }
-        let busy = engine.busy()?;
-        let ms = busy.since.elapsed().as_secs_f64() * 1e3;
-        let queued = engine.queued();
-        if ms < 50.0 && queued < 8 {
-            return None;
-        }
-        let what = match busy.what {
-            "save" => "saving…".to_string(),
-            "import" => "importing…".to_string(),
-            "layer" => "changing layers…".to_string(),
-            _ => "painting…".to_string(),
-        };
-        let (submitted, finished) = engine.progress();
-        let done = (queued > 0).then(|| finished as f32 / submitted.max(1) as f32);
-        Some((format!("{what} {ms:.0} ms{}", if queued > 0 { format!(", {queued} queued") } else { String::new() }), done))
+        Indicator::of(engine, 50.0).map(|i| (i.text, i.progress))
     }
 
     pub(crate) fn frame(&mut self) -> Result<(), String> {
@@ -63,17 +43,12 @@ impl App {
             self.framed = None;
             if let Some(r) = self.running.as_mut() {
                 r.camera = octopaint_tree::view::OrbitCamera { covered: r.camera.covered, ..cam };
-                r.stats.message = "framed the painting".into();
+                r.message = "framed the painting".into();
             }
         }
         let point = self.brush_point();
         let busy = self.busy();
-        let engine = match self.engine.as_ref().and_then(|e| e.busy()).map(|b| b.what) {
-            None => 0,
-            Some("sample" | "stroke_begin" | "stroke_end" | "undo" | "redo") => 1,
-            Some("save") => 2,
-            Some(_) => 3,
-        };
+        let doing = self.engine.as_ref().map_or(Doing::Nothing, Doing::of);
         let latency_ms = self.engine.as_ref().and_then(|e| e.last_latency_ms());
         let Some(r) = self.running.as_mut() else { return Ok(()) };
         r.last_frame = Instant::now();
@@ -82,7 +57,9 @@ impl App {
         let light = r.brush.light.light(r.camera.rotation());
         // A screenshot is always of the full resolution, moving or not.
         let mirror = r.brush.mirror_axes.iter().enumerate().fold(0u8, |m, (a, &on)| m | (u8::from(on) << a));
-        let (cast, still) = r.resolution.next(size, &r.camera, (r.brush.grid, light), prepared.changed, r.want_screenshot, mirror);
+        let have_cast = r.renderer.ray.pixel_buffer().is_some();
+        let planned = r.view.plan(size, (r.camera, size, r.brush.grid, light), prepared.changed, r.want_screenshot, have_cast, mirror);
+        let cast = planned.size;
         let camera = r.camera.camera(cast, BACKGROUND);
         let mut params = RayParams::new(&self.lattice, &camera).with_light(light.as_ref());
         if r.brush.grid {
@@ -94,7 +71,7 @@ impl App {
         let mut actions = Vec::new();
         let s = &self.status;
         let info = StatusInfo {
-            fps: r.stats.fps,
+            fps: r.view.stats.fps,
             resolution: f64::from(cast[0]) / f64::from(size[0].max(1)),
             latency_ms,
             busy,
@@ -103,7 +80,7 @@ impl App {
             bytes: s.bytes,
             undo: s.undo,
             redo: s.redo,
-            message: r.stats.message.clone(),
+            message: r.message.clone(),
             layered: s.version == 2,
             layers: s.layers.iter().map(|l| LayerInfo { name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }).collect(),
             selected: s.selected,
@@ -137,12 +114,10 @@ impl App {
         };
         let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
         // A still view already cast at full size is presented again.
-        let cast_now = !(still && r.full_cast) || r.renderer.ray.pixel_buffer().is_none();
-        if cast_now {
+        if planned.cast {
             Frames::encode_cast(&mut r.renderer, &mut enc, &params, precision, &prepared).map_err(|e| e.to_string())?;
-            r.full_cast = cast == size;
         }
-        r.resolution.log(cast_now, engine, (prepared.upload_seconds + prepared.g3_seconds) * 1e3);
+        r.view.log(doing, (prepared.upload_seconds + prepared.g3_seconds) * 1e3);
         let gpu = &r.renderer.gpu;
         let pixels = r.renderer.ray.pixel_buffer().expect("cast above");
         let group = r.blit.bind_scaled(gpu, pixels, cast, size);
@@ -180,21 +155,7 @@ impl App {
             r.blit.draw(&mut pass, &group);
             r.egui_renderer.render(&mut pass, &jobs, &screen);
         }
-        let readback = shot.as_ref().map(|t| {
-            let row = (size[0] * 4).div_ceil(256) * 256;
-            let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("screenshot"),
-                size: u64::from(row) * u64::from(size[1]),
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            enc.copy_texture_to_buffer(
-                t.as_image_copy(),
-                wgpu::TexelCopyBufferInfo { buffer: &buf, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: None } },
-                wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
-            );
-            (buf, row)
-        });
+        let readback = shot.as_ref().map(|t| Capture::encode(gpu, &mut enc, t, 0, size, r.config.format));
         gpu.queue.submit([enc.finish()]);
         r.window.pre_present_notify();
         gpu.queue.present(frame);
@@ -203,26 +164,20 @@ impl App {
         for id in &out.textures_delta.free {
             r.egui_renderer.free_texture(id);
         }
-        if let Some((buf, row)) = readback {
+        if let Some(capture) = readback {
             r.want_screenshot = false;
-            let msg = match write_screenshot(gpu, &buf, row, size, r.config.format, &screenshot_path) {
+            let written = capture.rgb(gpu).map_err(|e| e.to_string()).and_then(|rgb| octopaint_gpu::image::write_png(&screenshot_path, &rgb, size[0], size[1]).map_err(|e| e.to_string()));
+            let msg = match written {
                 Ok(()) => format!("wrote {}", screenshot_path.display()),
                 Err(e) => format!("screenshot failed: {e}"),
             };
             eprintln!("octopaint: {msg}");
-            r.stats.message = msg;
+            r.message = msg;
         }
-        r.stats.frames += 1;
         if let Some(jobs) = self.to_play.take()
             && let Some(engine) = &self.engine
         {
             self.playing = Some(octopaint_pipeline::play::start(engine.submitter(), jobs));
-        }
-        let Some(r) = self.running.as_mut() else { return Ok(()) };
-        let (t0, f0) = r.stats.fps_window;
-        if t0.elapsed() >= Duration::from_millis(500) {
-            r.stats.fps = (r.stats.frames - f0) as f64 / t0.elapsed().as_secs_f64();
-            r.stats.fps_window = (Instant::now(), r.stats.frames);
         }
         for a in actions {
             self.act(a);

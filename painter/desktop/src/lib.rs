@@ -18,14 +18,12 @@
 //! | [`panel`] | the brush, lighting and layers panel, the status line |
 //! | [`brush`] | the brush and the light as the panel edits them |
 //! | [`overlay`] | the brush cursor, mirror planes, axes and scale over the view |
-//! | [`resolution`] | dynamic resolution and the frame log |
 
 mod app;
 mod brush;
 mod frame;
 mod overlay;
 mod panel;
-mod resolution;
 
 use std::path::PathBuf;
 
@@ -35,7 +33,7 @@ use octopaint_pipeline::{Engine, Gate, Hooks, OpenDocument, Settings, play};
 use octopaint_tree::lattice::Lattice;
 use winit::event_loop::EventLoop;
 
-pub use resolution::TARGET_FRAME_MS;
+pub use octopaint_pipeline::view::WINDOW_TARGET_MS as TARGET_FRAME_MS;
 
 /// What `octopaint window` was asked for.
 pub struct Options {

@@ -143,7 +143,10 @@ pub struct RayCaster {
     layout_params: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     layers: wgpu::Buffer,
-    pixels: Option<(u64, wgpu::Buffer)>,
+    /// The pixel buffers casts write, by slot (made on first use), and
+    /// the slot the next cast writes ([`RayCaster::cast_into`]).
+    pixels: Vec<Option<(u64, wgpu::Buffer)>>,
+    slot: usize,
     /// A mappable buffer images are read back through, kept between
     /// reads (a frame captured at headset size every frame: making one
     /// each time cost more than the copy).
@@ -205,7 +208,7 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: None, readback: None, digest: None };
+        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: vec![None], slot: 0, readback: None, digest: None };
         // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
             let _ = caster.pipeline(gpu, precision, 0, false);
@@ -235,8 +238,19 @@ impl RayCaster {
         Ok(pipeline)
     }
 
+    /// The casts that follow write pixel buffer `slot` (0 until this is
+    /// called), made on first use: a front end that shows several images
+    /// (the headset's two eyes) keeps each one's last cast, to present it
+    /// again without casting.
+    pub fn cast_into(&mut self, slot: usize) {
+        if self.pixels.len() <= slot {
+            self.pixels.resize_with(slot + 1, || None);
+        }
+        self.slot = slot;
+    }
+
     fn pixels(&mut self, gpu: &Gpu, n: u64) -> wgpu::Buffer {
-        match &self.pixels {
+        match &self.pixels[self.slot] {
             Some((size, buf)) if *size >= n * 4 => buf.clone(),
             _ => {
                 let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
@@ -245,7 +259,7 @@ impl RayCaster {
                     usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                     mapped_at_creation: false,
                 });
-                self.pixels = Some((n * 4, buf.clone()));
+                self.pixels[self.slot] = Some((n * 4, buf.clone()));
                 buf
             }
         }
@@ -340,7 +354,7 @@ impl RayCaster {
     /// The buffer the last image was cast into: one u32 per pixel, sRGB
     /// bytes r | g << 8 | b << 16, row 0 at the top (a window draws it).
     pub fn pixel_buffer(&self) -> Option<&wgpu::Buffer> {
-        self.pixels.as_ref().map(|(_, b)| b)
+        self.pixels[self.slot].as_ref().map(|(_, b)| b)
     }
 
     /// The digest of the last image cast (`digest::rgb_digest` of what

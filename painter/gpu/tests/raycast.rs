@@ -136,3 +136,27 @@ fn a_documents_layers_on_the_gpu_match_the_cpu_port() {
     let (within, _) = closeness(&gpu, &cpu_image(&painting, &camera), 1);
     assert!(within >= 0.999, "{within}");
 }
+
+/// A front end that shows several images (the headset's eyes) casts each
+/// into a pixel buffer of its own: casting one leaves the others' last
+/// casts as they were, to be presented again without casting.
+#[test]
+fn each_pixel_slot_keeps_its_last_cast() {
+    let mut r = renderer(Backend::Vulkan);
+    let (mut painting, camera) = painted("single_stamp");
+    let [w, h] = camera.size;
+    r.ray.cast_into(0);
+    let first = r.render(&mut painting.tree, &camera, Precision::F32).unwrap();
+    // Another view into the second slot: the background only.
+    let away = octopaint_tree::trace::Camera { background: [1.0, 0.0, 0.0], q: [0.0, 1.0, 0.0, 0.0], ..camera };
+    r.ray.cast_into(1);
+    let second = r.cast(&painting.tree, &away, Precision::F32).unwrap();
+    assert_ne!(first, second, "the two views should differ");
+    r.ray.cast_into(0);
+    assert_eq!(r.ray.read_image(&r.gpu, w, h).unwrap(), first, "slot 0 lost its cast");
+    r.ray.cast_into(1);
+    assert_eq!(r.ray.read_image(&r.gpu, w, h).unwrap(), second, "slot 1 lost its cast");
+    // A new slot has nothing cast yet.
+    r.ray.cast_into(2);
+    assert!(r.ray.pixel_buffer().is_none());
+}

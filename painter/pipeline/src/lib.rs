@@ -20,6 +20,7 @@
 //! | [`settings`] | block size, blocks per frame, mask size, strategies |
 //! | [`pipeline`] | the headless front end: the engine with a render thread of its own |
 //! | [`play`] | a trace fed to a front end at its pace; a test's hold on the stroke thread |
+//! | [`view`] | what a front end's frame casts: dynamic resolution, still frames, the frame log and statistics, the heavy-operation indicator |
 
 pub mod canvas;
 pub mod document;
@@ -32,6 +33,7 @@ pub mod pipeline;
 pub mod play;
 pub mod settings;
 pub mod staging;
+pub mod view;
 
 pub use canvas::{Canvas, LayerRow, Ran, Replay, Status};
 pub use document::OpenDocument;
@@ -40,3 +42,4 @@ pub use frames::{Frames, Prepared};
 pub use jobs::{Aim, Job, SubmitError, Ticket};
 pub use pipeline::{FrameRecord, Pipeline, PipelineError, Report};
 pub use settings::{BlockSize, MaskSize, Settings, Strategy};
+pub use view::{Doing, FrameStats, Indicator, Pace, Planned, View};

@@ -7,7 +7,9 @@
 use crate::paint::{PALETTE, Page, Painter};
 
 pub struct Status<'a> {
-    pub busy_ms: f64,
+    /// The heavy-operation indicator, when the stroke thread has been busy
+    /// for a frame or more or work is queued.
+    pub busy: Option<octopaint_pipeline::Indicator>,
     pub in_stroke: bool,
     pub cells: u32,
     pub capacity: u32,
@@ -162,8 +164,17 @@ pub fn prepare(
                 } else {
                     ui.label(budget);
                 }
-                if s.in_stroke || s.busy_ms > 11.0 {
-                    ui.colored_label(egui::Color32::YELLOW, format!("painting… {:.0} ms", s.busy_ms));
+                match &s.busy {
+                    Some(b) => {
+                        ui.colored_label(egui::Color32::YELLOW, &b.text);
+                        if let Some(done) = b.progress {
+                            ui.add(egui::ProgressBar::new(done).desired_width(160.0).show_percentage());
+                        }
+                    }
+                    None if s.in_stroke => {
+                        ui.colored_label(egui::Color32::YELLOW, "painting…");
+                    }
+                    None => {}
                 }
                 if let Some(e) = &p.last_error {
                     ui.colored_label(egui::Color32::RED, e);

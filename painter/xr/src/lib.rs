@@ -10,13 +10,14 @@
 
 use openxr as xr;
 
-mod draw;
+mod frame;
 pub mod hud;
 pub mod platform;
 pub mod input;
 pub mod paint;
 pub mod placement;
 pub mod session;
+mod setup;
 
 /// An OpenXR pose (f32, room metres) as a position and a unit rotation in
 /// f64.
