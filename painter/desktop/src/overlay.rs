@@ -122,19 +122,7 @@ impl Overlay {
             }
             painter.circle_filled(centre, 1.5, edge);
         }
-        // The axes, 36 points long from a corner of the view, the far ones
-        // first so that the near ones are drawn over them.
-        let origin = egui::pos2(view.right() - 52.0, view.bottom() - 52.0);
-        painter.circle_filled(origin, 44.0, egui::Color32::from_rgba_unmultiplied(0, 0, 0, 110));
-        let colours = [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
-        let mut order = [0usize, 1, 2];
-        order.sort_by_key(|&i| !self.axes[i].1);
-        for i in order {
-            let (v, away) = self.axes[i];
-            let tip = origin + egui::vec2(v[0], v[1]) * 36.0;
-            let width = if away { 2.0 } else { 3.5 };
-            painter.line_segment([origin, tip], egui::Stroke::new(width, colours[i]));
-            painter.text(tip + egui::vec2(v[0], v[1]) * 8.0, egui::Align2::CENTER_CENTER, ["x", "y", "z"][i], egui::FontId::proportional(12.0), colours[i]);
-        }
+        // The axes, 36 points long from a corner of the view.
+        octopaint_ui::axes_gizmo(&painter, egui::pos2(view.right() - 52.0, view.bottom() - 52.0), 36.0, &self.axes, true);
     }
 }

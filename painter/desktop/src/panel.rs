@@ -280,11 +280,7 @@ pub(crate) fn status_line(root: &mut egui::Ui, s: &StatusInfo) {
                 // The heavy-operation indicator (the paper's 8.3): painting
                 // goes on on its own thread while frames keep coming.
                 ui.separator();
-                ui.add(egui::Spinner::new());
-                ui.colored_label(egui::Color32::YELLOW, what);
-                if let Some(done) = done {
-                    ui.add(egui::ProgressBar::new(*done).desired_width(90.0).show_percentage());
-                }
+                octopaint_ui::indicator(ui, what, *done, 90.0);
             }
             if pct > 90.0 {
                 ui.separator();

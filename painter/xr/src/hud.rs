@@ -165,12 +165,7 @@ pub fn prepare(
                     ui.label(budget);
                 }
                 match &s.busy {
-                    Some(b) => {
-                        ui.colored_label(egui::Color32::YELLOW, &b.text);
-                        if let Some(done) = b.progress {
-                            ui.add(egui::ProgressBar::new(done).desired_width(160.0).show_percentage());
-                        }
-                    }
+                    Some(b) => octopaint_ui::indicator(ui, &b.text, b.progress, 160.0),
                     None if s.in_stroke => {
                         ui.colored_label(egui::Color32::YELLOW, "painting…");
                     }
@@ -186,15 +181,7 @@ pub fn prepare(
         // drawn first.
         let origin = panel.response.rect.left_bottom() + egui::vec2(34.0, 38.0);
         let painter = ui.ctx().layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("axes")));
-        painter.circle_filled(origin, 30.0, egui::Color32::from_rgba_unmultiplied(0, 0, 0, 110));
-        let colours = [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
-        let mut order = [0usize, 1, 2];
-        order.sort_by_key(|&i| !s.axes[i].1);
-        for i in order {
-            let (v, away) = s.axes[i];
-            let tip = origin + egui::vec2(v[0], v[1]) * 24.0;
-            painter.line_segment([origin, tip], egui::Stroke::new(if away { 1.5 } else { 3.0 }, colours[i]));
-        }
+        octopaint_ui::axes_gizmo(&painter, origin, 24.0, &s.axes, false);
     });
     for (id, deltas) in &out.textures_delta.set {
         for d in deltas {
