@@ -3,7 +3,10 @@ window as a front end of the real-time engine (docs/benchmarks.md, "The
 window through the engine").
 
     window_engine.py traces OUT    # OUT/scene_layers.jsonl, OUT/heavy.jsonl, OUT/heavy_layers.jsonl
-    window_engine.py report OUT    # the table from OUT/<run>.csv and OUT/<run>.log
+    window_engine.py report OUT [PREFIX]   # the table from OUT/<PREFIX><run>.csv and .log
+
+The headset's runs (painter/bench/vr_engine.sh) use the same traces and
+table, with PREFIX `vr_`: their frame logs have the same columns.
 
 `heavy.jsonl` is the paper's limitation case (its section 8.3) on the scene's
 canvas: after 3 s of nothing, an erase of radius 5 canvas units through the
@@ -103,14 +106,14 @@ def heavy_span(out):
     return min(times), max(times)
 
 
-def report(out):
+def report(out, prefix=""):
     out = Path(out)
     t0, t1 = heavy_span(out)
-    print("| document | frames | median frame ms | orbiting: frames, p50 / p99 ms | painting: frames, p50 / p99 / max ms | saving: frames, p50 / max ms | longest painting or saving / median | latency p50 / p99 ms | heaviest sample ms |")
+    print("| document | frames | median frame ms | view moving, nothing else: frames, p50 / p99 ms | painting: frames, p50 / p99 / max ms | saving: frames, p50 / max ms | longest painting or saving / median | latency p50 / p99 ms | heaviest sample ms |")
     print("| --- | ---: | ---: | --- | --- | --- | ---: | --- | ---: |")
     for run in ("one_tree", "four_layers"):
-        rows = load(out / f"{run}.csv")
-        log = (out / f"{run}.log").read_text()
+        rows = load(out / f"{prefix}{run}.csv")
+        log = (out / f"{prefix}{run}.log").read_text()
         # The trace plays from the first frame presented (row 0): its
         # strokes paint from t0 to t1 after it (and their last levels and
         # uploads a little after: half a second more). The first two
@@ -151,4 +154,4 @@ def report(out):
 
 
 if __name__ == "__main__":
-    {"traces": traces, "report": report}[sys.argv[1]](sys.argv[2])
+    {"traces": traces, "report": report}[sys.argv[1]](*sys.argv[2:])

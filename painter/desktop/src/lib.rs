@@ -89,17 +89,8 @@ pub fn run(opts: Options) -> Result<(), String> {
     // The engine finishes whatever is queued (the close queued a save).
     // (It has run them: the window closes once it is idle.)
     let engine = app.engine.take().expect("the engine runs until the window closes");
-    let mut latency = engine.latencies_ms();
-    if !latency.is_empty() {
-        latency.sort_by(f64::total_cmp);
-        let at = |q: f64| latency[((latency.len() - 1) as f64 * q).round() as usize];
-        let heaviest = engine.sample_paint_ms().into_iter().fold(0.0, f64::max);
-        eprintln!(
-            "octopaint: {} jobs shown, stroke-to-display latency p50 {:.1} ms, p99 {:.1} ms; the heaviest sample painted in {heaviest:.1} ms",
-            latency.len(),
-            at(0.5),
-            at(0.99)
-        );
+    if let Some(summary) = octopaint_pipeline::view::latency_summary(&engine) {
+        eprintln!("octopaint: {summary}");
     }
     let finished = engine.finish().map_err(|e| e.to_string());
     for m in finished.as_ref().map(|f| f.messages.clone()).unwrap_or_default() {

@@ -244,11 +244,23 @@ echo "the headset painted a new layer and a mirrored stroke; the session replays
 cp "$repo/traces/undo_redo.jsonl" played.jsonl   # in the work folder: the chroot sees it
 "$octopaint" new played.octo --like played.jsonl >/dev/null
 touch hold
-"$here/run.sh" vr played.octo --frames 30 --play played.jsonl --hold-painting hold --no-fallback 2> vr-played.log || { grep -v '^LOG\|^	' vr-played.log >&2; echo "FAIL: octopaint vr --play" >&2; exit 1; }
+"$here/run.sh" vr played.octo --frames 30 --play played.jsonl --hold-painting hold --frame-log played.csv --no-fallback 2> vr-played.log || { grep -v '^LOG\|^	' vr-played.log >&2; echo "FAIL: octopaint vr --play" >&2; exit 1; }
 grep '^octopaint:' vr-played.log
 # --frames counts on until the trace is queued: 30 frames or more.
 played_frames="$(sed -n 's/^octopaint: \([0-9]*\) frame(s) in the headset.*/\1/p' vr-played.log)"
 [ -n "$played_frames" ] && [ "$played_frames" -ge 30 ] || { echo "FAIL: $played_frames frames with painting held, not 30 or more" >&2; exit 1; }
+# The frame log: a line a frame drawn, and the frames drawn while the
+# stroke thread sat in a sample (its engine column 1) are most of them.
+"$py" - played.csv "$played_frames" <<'EOF'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+frames = int(sys.argv[2])
+assert len(rows) == frames, f"{len(rows)} lines in the frame log for {frames} frames"
+held = sum(r["engine"] == "1" for r in rows)
+assert held >= frames - 5, f"only {held} of {frames} frames were drawn while the stroke thread painted"
+assert rows[0]["cast"] == "1", "the first frame cast nothing"
+print(f"frame log: {len(rows)} frames, {held} drawn while the stroke thread was held in a sample")
+EOF
 "$octopaint" import played.jsonl imported.octo >/dev/null
 "$octopaint" dump played.octo played.npz
 "$octopaint" dump imported.octo imported.npz

@@ -174,6 +174,9 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     }
     lp.painter.finish(&Live { engine: &lp.engine, status: &lp.status });
     let engine = lp.engine;
+    if let Some(summary) = octopaint_pipeline::view::latency_summary(&engine) {
+        eprintln!("octopaint: vr: {summary}");
+    }
     let _ = engine.submit(Job::Save);
     eprintln!("octopaint: vr: saving the document…");
     let finished = engine.finish().map_err(|e| other("the engine", e))?;
