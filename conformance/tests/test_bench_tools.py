@@ -180,3 +180,15 @@ def test_the_window_benchmark_makes_valid_traces_and_its_table(tmp_path, painter
     assert cells[5] == "2, 300 / 300", row
     assert cells[6] == "4.00x", row
     assert cells[7] == "1.0 ms / 2.0 ms" and cells[8] == "3.0", row
+    # The headset's runs (painter/bench/vr_engine.sh): the same table from
+    # OUT/vr_<run>.csv and the headset's log lines ("octopaint: vr: ...").
+    for run in ("one_tree", "four_layers"):
+        (tmp_path / f"vr_{run}.csv").write_text(head + "\n" + "\n".join(rows) + "\n")
+        (tmp_path / f"vr_{run}.log").write_text("octopaint: vr: 9 jobs shown, stroke-to-display latency p50 5.0 ms, p99 6.0 ms; the heaviest sample painted in 7.0 ms\noctopaint: vr: saved x (12 ms)\n")
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        window_engine.report(tmp_path, "vr_")
+    vr_row = next(line for line in out.getvalue().splitlines() if line.startswith("| one tree"))
+    vr_cells = [c.strip() for c in vr_row.strip("|").split("|")]
+    assert vr_cells[:7] == cells[:7], vr_row
+    assert vr_cells[7] == "5.0 ms / 6.0 ms" and vr_cells[8] == "7.0", vr_row

@@ -24,13 +24,7 @@ mkdir -p "$out"
 out="$(cd "$out" && pwd)"
 py="$repo/.venv/bin/python"; [ -x "$py" ] || py=python3
 "$py" "$here/window_engine.py" traces "$out"
-runtime="$(mktemp -d)"
-chmod 700 "$runtime"
-Xvfb -displayfd 3 -noreset -screen 0 1280x800x24 -nolisten tcp 3>"$out/display" 2>/dev/null &
-xvfb=$!
-trap 'kill $xvfb 2>/dev/null; rm -rf "$runtime"' EXIT
-for _ in $(seq 100); do [ -s "$out/display" ] && break; sleep 0.1; done
-export DISPLAY=":$(head -1 "$out/display")"
+. "$here/xvfb.sh"
 
 run() { # name scene-trace heavy-trace
     local name=$1 scene=$2 heavy=$3
@@ -46,7 +40,7 @@ run() { # name scene-trace heavy-trace
     done
     [ -n "$id" ] || { echo "no window for $name" >&2; cat "$out/$name.log" >&2; exit 1; }
     # The first frame (the ray caster compiled): the trace starts playing.
-    for _ in $(seq 1200); do [ "$(wc -l < "$out/$name.csv" 2>/dev/null || echo 0)" -ge 2 ] && break; sleep 0.1; done
+    for _ in $(seq 1200); do [ "$(cat "$out/$name.csv" 2>/dev/null | wc -l)" -ge 2 ] && break; sleep 0.1; done
     xdotool windowfocus "$id"
     # Orbit the whole time: 14 s of a slow right drag.
     xdotool mousemove --window "$id" 450 300 mousedown 3

@@ -20,13 +20,7 @@ trace="${2:-$repo/traces/scene.jsonl}"
 octopaint="$repo/painter/target/release/octopaint"
 mkdir -p "$out"
 out="$(cd "$out" && pwd)"
-runtime="$(mktemp -d)"
-chmod 700 "$runtime"
-Xvfb -displayfd 3 -noreset -screen 0 1280x800x24 -nolisten tcp 3>"$out/display" 2>/dev/null &
-xvfb=$!
-trap 'kill $xvfb 2>/dev/null; rm -rf "$runtime"' EXIT
-for _ in $(seq 100); do [ -s "$out/display" ] && break; sleep 0.1; done
-export DISPLAY=":$(head -1 "$out/display")"
+. "$here/xvfb.sh"
 
 drag() { # button x0 y0 dx dy seconds
     local b=$1 x=$2 y=$3 dx=$4 dy=$5 n=$(( $6 * 25 ))
