@@ -146,7 +146,8 @@ def test_a_killed_windows_session_recovers_every_completed_stroke(linux, windows
     (SIGKILL: Windows sees the process vanish, nothing is flushed or
     closed), then `recover` under Wine: the document holds at least every
     stroke the session reported journalled, and exactly the trace's first
-    strokes."""
+    strokes. While the session paints, a second writer is refused
+    (LockFileEx on the document's lock file) and a reader reads it."""
     trace = "traces/shapes_modes.jsonl"
     doc = tmp_path / "art.octo"
     windows.run("new", doc, "--like", trace)
@@ -163,13 +164,22 @@ def test_a_killed_windows_session_recovers_every_completed_stroke(linux, windows
             line = child.stderr.readline()
             assert line, "the session ended (or stalled) before a dozen strokes"
             journalled += line.rstrip().endswith("journalled")
+        # While it paints: a second writer is refused at once, naming the
+        # document, and writes nothing; a reader reads the journal's strokes.
+        before = doc.read_bytes()
+        r = windows.run("recover", doc, ok=False)
+        assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
+        assert "art.octo" in r.stderr and "another Octopaint has this document open" in r.stderr, r.stderr
+        assert doc.read_bytes() == before
+        assert "recovered here" in windows.run("info", doc).stdout
     finally:
         watchdog.cancel()
         child.send_signal(signal.SIGKILL)
         child.wait()
         child.stderr.close()
     assert child.returncode != 0
-    # The journal's complete strokes come back.
+    # The journal's complete strokes come back: the dead writer's lock went
+    # with its process.
     r = windows.run("info", doc)
     assert "recovered here" in r.stdout, r.stdout
     r = windows.run("recover", doc)

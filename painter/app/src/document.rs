@@ -242,7 +242,7 @@ fn fail_after(e: DocError, strokes: usize) -> ExitCode {
 
 pub fn info(doc: &Path) -> ExitCode {
     let size = std::fs::metadata(doc).map(|m| m.len()).unwrap_or(0);
-    let s = match Session::open(doc) {
+    let s = match Session::open_read(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
@@ -297,7 +297,7 @@ pub fn recover(doc: &Path) -> ExitCode {
 }
 
 pub fn record(doc: &Path, out: &Path) -> ExitCode {
-    let s = match Session::open(doc) {
+    let s = match Session::open_read(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };
@@ -493,7 +493,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
 }
 
 pub fn dump(doc: &Path, out: &Path) -> ExitCode {
-    let s = match Session::open(doc) {
+    let s = match Session::open_read(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
     };

@@ -331,7 +331,7 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     let mut document = None;
     let painting = if is_doc && args.at.is_none() {
         // A document opens as saved, plus what its journal holds.
-        let s = octopaint_doc::Session::open(&args.input).map_err(|e| match e {
+        let s = octopaint_doc::Session::open_read(&args.input).map_err(|e| match e {
             octopaint_doc::DocError::Io { .. } => Refusal(1, e.to_string()),
             e => refuse(format!("{}: {e}", args.input.display())),
         })?;
@@ -352,7 +352,7 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     } else {
         let mut trace = if is_doc {
             // --at in a document: its session, replayed to the snapshot.
-            let s = octopaint_doc::Session::open(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
+            let s = octopaint_doc::Session::open_read(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
             let resolve = octopaint_doc::format::resolver(s.imports());
             octopaint_tree::trace::parse_trace_with(&s.trace_text(), Some(&resolve)).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
         } else {

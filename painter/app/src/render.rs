@@ -239,7 +239,7 @@ fn write_png(path: &Path, rgb: &[u8], size: [u32; 2]) -> Result<(), String> {
 
 pub fn run(a: &Args) -> ExitCode {
     // Read and check everything before writing anything.
-    let mut session = match Session::open(&a.doc) {
+    let mut session = match Session::open_read(&a.doc) {
         Ok(s) => s,
         Err(e) => return refuse(format!("{}: {e}", a.doc.display())),
     };

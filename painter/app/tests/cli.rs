@@ -183,10 +183,24 @@ fn a_session_killed_mid_stroke_recovers_every_completed_stroke() {
             journalled += 1;
         }
     }
+    // While it paints: a reader reads the saved document and the journal's
+    // strokes; a second writer is refused at once, writing nothing.
+    let res = octopaint().arg("info").arg(&doc).output().unwrap();
+    assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(String::from_utf8_lossy(&res.stdout).contains("recovered here"));
+    let before = (std::fs::read(&doc).unwrap(), std::fs::read(doc.with_extension("octo.journal")).unwrap());
+    let res = octopaint().arg("recover").arg(&doc).output().unwrap();
+    assert_eq!(res.status.code(), Some(2), "{}", String::from_utf8_lossy(&res.stderr));
+    assert!(String::from_utf8_lossy(&res.stderr).contains("another Octopaint has this document open"), "{}", String::from_utf8_lossy(&res.stderr));
+    let after = std::fs::read(&doc).unwrap();
+    assert_eq!(after, before.0, "the refused writer changed the document");
+    let journal = std::fs::read(doc.with_extension("octo.journal")).unwrap();
+    assert!(journal.starts_with(&before.1), "the refused writer changed the journal");
     child.kill().unwrap();
     let status = child.wait().unwrap();
     assert!(!status.success(), "killed, not finished");
-    // Reopening recovers what the journal holds: at least the 12 reported.
+    // Reopening recovers what the journal holds: at least the 12 reported;
+    // the dead writer's lock went with it.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();
     let info = String::from_utf8_lossy(&res.stdout);
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));

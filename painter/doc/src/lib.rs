@@ -7,18 +7,28 @@
 //! | module | what it holds |
 //! | --- | --- |
 //! | [`format`] | the file: header, checksummed compressed sections, trailer |
-//! | [`session`] | events applied, journalled, saved; recovery |
+//! | [`session`] | events applied, journalled, saved; recovery; one writer at a time |
+//! | [`journal`] | the journal's lines: header, appends, what a crash leaves |
 
 pub mod format;
+pub mod journal;
 pub mod session;
 
-pub use session::{Session, journal_path};
+pub use journal::journal_path;
+pub use session::Session;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// An I/O error on `path` as a [`DocError`].
+pub(crate) fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
+    move |e| DocError::Io { path: path.to_path_buf(), reason: octopaint_tree::trace::io_reason(&e) }
+}
 
 /// Why a document could not be opened, changed or saved. Nothing is
 /// changed on disk when one is returned (but for `Io` during a journal
-/// append, which leaves the journal as it was up to the last whole line).
+/// append, which leaves the journal as it was up to the last whole line;
+/// and a refused writer leaves the empty `<document>.lock` it may have
+/// made).
 #[derive(Debug, thiserror::Error)]
 pub enum DocError {
     #[error("not an octopaint document (no OCTOPAINTDOC header)")]
@@ -35,4 +45,15 @@ pub enum DocError {
     BadEvent(String),
     #[error("{}: {reason}", path.display())]
     Io { path: PathBuf, reason: String },
+    /// Another session holds the document's writer lock
+    /// (`octopaint_platform::lock`): nothing was read or written.
+    #[error(
+        "{}: another Octopaint has this document open{}; close it there first (info, dump, record, render and export can still read it)",
+        doc.display(),
+        pid.map(|p| format!(" (process {p})")).unwrap_or_default()
+    )]
+    Locked { doc: PathBuf, pid: Option<u32> },
+    /// A session opened to read (`Session::open_read`) was asked to write.
+    #[error("{}: opened to read only", .0.display())]
+    ReadOnly(PathBuf),
 }

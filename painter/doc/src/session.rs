@@ -10,12 +10,18 @@
 //! progress. Opening a document with a journal replays the journal's
 //! complete strokes onto it; saving writes the document (journal included)
 //! and starts an empty journal.
+//!
+//! One session writes a document at a time: [`Session::open`] and the
+//! creators take the document's writer lock (`octopaint_platform::lock`)
+//! before they read anything, and hold it while the session lives. A
+//! session opened with [`Session::open_read`] takes no lock and writes
+//! nothing: it reads the saved document and the journal's complete
+//! strokes while a writer may be painting.
 
-use std::fs::{File, OpenOptions};
-use std::io::Write;
+use std::fs::File;
 use std::path::{Path, PathBuf};
 
-use octopaint_platform::durable;
+use octopaint_platform::{durable, lock};
 use octopaint_tree::layers::Document as Layers;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
@@ -25,7 +31,8 @@ use octopaint_tree::trace::{
 use octopaint_tree::voxels::{VoxelSet, sha256_hex, voxel_set_bytes};
 use octopaint_tree::trace_write::{event_line, header_line};
 
-use crate::DocError;
+use crate::{DocError, io};
+use crate::journal::{self, journal_path};
 use crate::format::{self, Content, Document, Imports};
 
 /// Undo history kept by default (the history beyond it is forgotten,
@@ -62,16 +69,16 @@ pub struct Session {
     pub recovered: usize,
     /// Undo steps forgotten to stay within `undo_bytes`.
     pub forgotten: usize,
+    /// The document's writer lock; None for a session opened to read.
+    lock: Option<lock::WriterLock>,
 }
 
-pub fn journal_path(doc: &Path) -> PathBuf {
-    let mut p = doc.as_os_str().to_owned();
-    p.push(".journal");
-    PathBuf::from(p)
-}
-
-fn io(path: &Path) -> impl Fn(std::io::Error) -> DocError + '_ {
-    move |e| DocError::Io { path: path.to_path_buf(), reason: octopaint_tree::trace::io_reason(&e) }
+/// Take `doc`'s writer lock, or say who holds it.
+fn writer_lock(doc: &Path) -> Result<lock::WriterLock, DocError> {
+    lock::acquire(doc).map_err(|e| match e {
+        lock::LockError::Held { pid, .. } => DocError::Locked { doc: doc.to_path_buf(), pid },
+        lock::LockError::Io { path, error } => io(&path)(error),
+    })
 }
 
 impl Session {
@@ -82,8 +89,14 @@ impl Session {
         }
         let trace_text = header_line(canvas, meta);
         let trace = parse_trace(&trace_text).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let lock = writer_lock(path)?;
+        // Another writer may have made it while this one waited for nothing.
+        if path.exists() {
+            return Err(DocError::Exists(path.to_path_buf()));
+        }
         let doc = Layers::new(&trace.canvas);
         let mut s = Session::from_parts(path, doc, trace.version, trace_text, 0, 0);
+        s.lock = Some(lock);
         s.save()?;
         Ok(s)
     }
@@ -96,7 +109,12 @@ impl Session {
         }
         let trace_text = octopaint_tree::trace_write::header_line_version(canvas, meta, 2);
         let trace = parse_trace(&trace_text).map_err(|e| DocError::BadEvent(e.to_string()))?;
+        let lock = writer_lock(path)?;
+        if path.exists() {
+            return Err(DocError::Exists(path.to_path_buf()));
+        }
         let mut s = Session::from_parts(path, Layers::new(&trace.canvas), 2, trace_text, 0, 0);
+        s.lock = Some(lock);
         s.save()?;
         Ok(s)
     }
@@ -111,6 +129,7 @@ impl Session {
         if self.version == 2 {
             return Ok(());
         }
+        self.check_writable()?;
         if self.in_stroke {
             return Err(DocError::BadEvent("cannot make layers inside a stroke: end it first".into()));
         }
@@ -161,14 +180,49 @@ impl Session {
             undo_bytes: DEFAULT_UNDO_BYTES,
             recovered: 0,
             forgotten: 0,
+            lock: None,
         }
     }
 
-    /// Open a document, replaying the complete strokes of its journal (a
-    /// crash's leftovers) onto it. The journal is kept until the next save.
+    /// Open a document to paint it, replaying the complete strokes of its
+    /// journal (a crash's leftovers) onto it. The journal is kept until the
+    /// next save. Refused at once, before anything is read, while another
+    /// session has the document open ([`DocError::Locked`]).
     pub fn open(path: &Path) -> Result<Session, DocError> {
+        let lock = writer_lock(path)?;
         let data = std::fs::read(path).map_err(io(path))?;
-        let loaded = format::read(&data)?;
+        let jp = journal_path(path);
+        let journal = journal::read(&jp)?;
+        let mut s = Session::load(path, &data, journal.as_deref())?;
+        s.lock = Some(lock);
+        Ok(s)
+    }
+
+    /// Open a document to read it, as [`Session::open`] would find it,
+    /// without its writer lock: the saved document and its journal's
+    /// complete strokes, while a writer may be painting. A session so
+    /// opened writes nothing ([`DocError::ReadOnly`]). A save that replaces
+    /// the document between the two reads is seen (the document's size or
+    /// time changed) and both are read again.
+    pub fn open_read(path: &Path) -> Result<Session, DocError> {
+        let jp = journal_path(path);
+        let stamp = |p: &Path| std::fs::metadata(p).map(|m| (m.len(), m.modified().ok())).map_err(io(p));
+        let mut tries = 0;
+        loop {
+            let before = stamp(path)?;
+            let data = std::fs::read(path).map_err(io(path))?;
+            let journal = journal::read(&jp)?;
+            tries += 1;
+            if stamp(path)? == before || tries == 5 {
+                return Session::load(path, &data, journal.as_deref());
+            }
+        }
+    }
+
+    /// A session of the document `data` read from `path`, with the
+    /// journal's bytes when there is one.
+    fn load(path: &Path, data: &[u8], journal: Option<&[u8]>) -> Result<Session, DocError> {
+        let loaded = format::read(data)?;
         let Document { trace_text, content, imports, .. } = loaded.doc;
         let trace = loaded.trace;
         let doc = match content {
@@ -178,13 +232,19 @@ impl Session {
         let mut s = Session::from_parts(path, doc, trace.version, trace_text, trace.events.len(), loaded.crc);
         s.imports = imports;
         s.resume_state(&trace);
-        let jp = journal_path(path);
-        match std::fs::read(&jp) {
-            Ok(bytes) => s.recover(&jp, &bytes)?,
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(io(&jp)(e)),
+        if let Some(bytes) = journal {
+            s.recover(&journal_path(path), bytes)?;
         }
         Ok(s)
+    }
+
+    /// Whether this session may write its document (it holds the lock).
+    pub fn writable(&self) -> bool {
+        self.lock.is_some()
+    }
+
+    fn check_writable(&self) -> Result<(), DocError> {
+        if self.lock.is_some() { Ok(()) } else { Err(DocError::ReadOnly(self.path.clone())) }
     }
 
     /// The brush, camera and clock the session's events leave.
@@ -202,27 +262,10 @@ impl Session {
 
     fn recover(&mut self, jp: &Path, bytes: &[u8]) -> Result<(), DocError> {
         let text = String::from_utf8_lossy(bytes);
-        // A line without its newline was being written when the session
-        // died: it is not part of the journal.
-        let complete = match text.rfind('\n') {
-            Some(i) => &text[..=i],
-            None => "",
-        };
-        let mut lines = complete.lines();
-        let Some(head) = lines.next() else {
+        let Some(journal::Read { crc, base, body }) = journal::parse(jp, &text)? else {
             return Ok(()); // created, nothing written yet
         };
-        let (crc, base) = parse_journal_header(head).ok_or_else(|| DocError::Journal { path: jp.to_path_buf(), why: "its first line is not a journal header".into() })?;
-        let body: Vec<&str> = lines.collect();
-        // Only up to the last event that ended something: a stroke in
-        // progress at the crash is not a stroke.
-        let mut keep = 0;
-        for (i, l) in body.iter().enumerate() {
-            if l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") || l.contains("\"ev\": \"layer\"") || l.contains("\"ev\":\"layer\"") {
-                keep = i + 1;
-            }
-        }
-        let body = &body[..keep];
+        let body = &body[..];
         if crc != self.base_crc || base != self.events {
             // Saved already (the crash came between the save and the new
             // journal)? Then the document holds these events.
@@ -330,6 +373,7 @@ impl Session {
     /// brush before a stroke, time not going back). A refused event changes
     /// nothing. Undo and redo with nothing to undo or redo are not events.
     pub fn apply(&mut self, ev: &Event) -> Result<(), DocError> {
+        self.check_writable()?;
         let bad = |m: String| Err(DocError::BadEvent(m));
         if !(ev.t.is_finite() && ev.t >= self.last_t) {
             return bad(format!("time {} goes back (last {})", ev.t, self.last_t));
@@ -419,6 +463,7 @@ impl Session {
     /// was locked), so no level follows. The caller runs every level
     /// before the next event: the stroke's end journals it.
     pub fn begin_sample(&mut self, ev: &Event) -> Result<bool, DocError> {
+        self.check_writable()?;
         let EventKind::Sample(s) = &ev.kind else { return Err(DocError::BadEvent("not a sample".into())) };
         if !(ev.t.is_finite() && ev.t >= self.last_t) {
             return Err(DocError::BadEvent(format!("time {} goes back (last {})", ev.t, self.last_t)));
@@ -447,6 +492,7 @@ impl Session {
     /// An import, all or nothing ([`Session::import`]) or as a replay
     /// paints it (an `import` event applied from a trace), then saved.
     fn commit_import(&mut self, vs: &VoxelSet, name: Option<&str>, t: f64, whole: bool) -> Result<(), DocError> {
+        self.check_writable()?;
         let bad = |m: String| Err(DocError::BadEvent(m));
         if self.in_stroke {
             return bad("cannot import inside a stroke: end it first".into());
@@ -490,28 +536,7 @@ impl Session {
     /// Append the pending events to the journal and sync it.
     fn flush(&mut self) -> Result<(), DocError> {
         let jp = journal_path(&self.path);
-        let mut created = false;
-        if self.journal.is_none() {
-            let exists = jp.exists();
-            let mut f = OpenOptions::new().create(true).append(true).open(&jp).map_err(io(&jp))?;
-            if !exists || f.metadata().map_err(io(&jp))?.len() == 0 {
-                writeln!(f, "{}", journal_header(self.base_crc, self.base_events)).map_err(io(&jp))?;
-                created = true;
-            }
-            self.journal = Some(f);
-        }
-        let f = self.journal.as_mut().expect("opened above");
-        let mut text = String::new();
-        for l in &self.pending {
-            text.push_str(l);
-            text.push('\n');
-        }
-        f.write_all(text.as_bytes()).map_err(io(&jp))?;
-        f.sync_data().map_err(io(&jp))?;
-        if created {
-            // A new journal's folder entry must outlive a power cut too.
-            durable::sync_new_entry(&jp).map_err(io(&jp))?;
-        }
+        journal::append(&mut self.journal, &jp, (self.base_crc, self.base_events), &self.pending)?;
         for l in self.pending.drain(..) {
             self.trace_text.push('\n');
             self.trace_text.push_str(&l);
@@ -523,6 +548,7 @@ impl Session {
     /// Save the document (the session up to the last completed stroke;
     /// a stroke in progress is saved once it ends) and start a new journal.
     pub fn save(&mut self) -> Result<(), DocError> {
+        self.check_writable()?;
         if self.in_stroke {
             return Err(DocError::BadEvent("cannot save inside a stroke: end it first".into()));
         }
@@ -554,7 +580,7 @@ impl Session {
         self.base_crc = crc;
         self.base_events = self.events;
         let jp = journal_path(&self.path);
-        durable::write(&jp, format!("{}\n", journal_header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
+        durable::write(&jp, format!("{}\n", journal::header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
         Ok(())
     }
 
@@ -568,17 +594,4 @@ impl Session {
         t.push('\n');
         t
     }
-}
-
-fn journal_header(crc: u32, events: usize) -> String {
-    format!("{{\"journal\": \"octopaint\", \"version\": 1, \"document_crc\": {crc}, \"document_events\": {events}}}")
-}
-
-fn parse_journal_header(line: &str) -> Option<(u32, usize)> {
-    let j: serde_json::Value = serde_json::from_str(line).ok()?;
-    if j.get("journal")?.as_str()? != "octopaint" {
-        return None;
-    }
-    let num = |k: &str| j.get(k)?.as_u64();
-    Some((u32::try_from(num("document_crc")?).ok()?, usize::try_from(num("document_events")?).ok()?))
 }

@@ -61,6 +61,7 @@ fn a_saved_session_opens_as_its_replay() {
         let t = trace(name);
         let (mut s, path) = session_from(dir.path(), &t);
         s.save().unwrap();
+        drop(s);
         let want = replayed(&t);
         let opened = Session::open(&path).unwrap();
         assert_eq!(opened.recovered, 0);
@@ -196,6 +197,7 @@ fn a_session_that_dies_keeps_its_completed_strokes() {
     // starts again.
     let mut opened = opened;
     opened.save().unwrap();
+    drop(opened);
     let again = Session::open(&path).unwrap();
     assert_eq!(again.recovered, 0);
     assert_eq!(dump_bytes(&again.painting().tree), dump_bytes(&want.tree));
@@ -218,6 +220,7 @@ fn a_crash_between_save_and_new_journal_loses_nothing() {
     // As if the process died after renaming the document but before the
     // new journal replaced the old one.
     std::fs::write(&jp, &old_journal).unwrap();
+    drop(s);
     let opened = Session::open(&path).unwrap();
     assert_eq!(opened.recovered, 0, "the document holds the journal's events already");
     assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&replayed(&t).tree));
@@ -229,6 +232,7 @@ fn a_crash_between_save_and_new_journal_loses_nothing() {
     ev.t = 1e3;
     s2.apply(&ev).unwrap();
     std::fs::copy(&jp, journal_path(&p2)).unwrap();
+    drop(s2);
     match Session::open(&p2) {
         Err(DocError::Journal { why, .. }) => assert!(why.contains("another version"), "{why}"),
         other => panic!("{:?}", other.err()),
@@ -332,6 +336,7 @@ fn a_document_of_layers_opens_as_its_replay_and_one_tree_ones_stay_version_1() {
     let data = std::fs::read(&path).unwrap();
     assert_eq!(&data[16..24], &[2, 0, 0, 0, 2, 0, 0, 0], "written as version 2, read by 2 and later");
     let (_, want) = octopaint_tree::replay::replay_document(&t, None, &mut Silent).unwrap();
+    drop(s);
     let mut opened = Session::open(&path).unwrap();
     assert_eq!((opened.version, opened.recovered), (2, 0));
     assert_eq!(opened.doc.dump_bytes(), want.dump_bytes());
@@ -476,6 +481,7 @@ fn a_document_keeps_its_imports_and_refuses_any_change_to_them() {
     let data = std::fs::read(&path).unwrap();
     assert_eq!(u32::from_le_bytes(data[16..20].try_into().unwrap()), format::IMPORTS_VERSION);
     // Opened again: the same tree, the import one undo step.
+    drop(s);
     let mut again = Session::open(&path).unwrap();
     assert_eq!(dump_bytes(&again.painting().tree), after);
     assert_eq!(again.imports().len(), 1);
@@ -493,4 +499,57 @@ fn a_document_keeps_its_imports_and_refuses_any_change_to_them() {
         d[i] ^= 1;
         assert!(format::read(&d).is_err(), "flipping byte {i} went unnoticed");
     }
+}
+
+/// One writer at a time (docs/documents.md): a second session on a
+/// document is refused before it reads anything while the first lives,
+/// whatever the first has done; a reader reads what the writer journalled;
+/// once the writer is gone (its session dropped, as a process that died
+/// lets go of its lock) the next writer recovers every completed stroke.
+#[test]
+fn one_writer_at_a_time_and_readers_beside_it() {
+    let t = trace("shapes_modes");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    // A second creator and a second writer are refused, naming the
+    // document; nothing on disk changes.
+    assert!(matches!(Session::create(&path, &t.canvas, &t.meta), Err(DocError::Exists(_))));
+    let saved = std::fs::read(&path).unwrap();
+    let refused = |e: Result<Session, DocError>| match e {
+        Err(e @ DocError::Locked { .. }) => {
+            let m = e.to_string();
+            assert!(m.contains("p.octo") && m.contains("another Octopaint has this document open"), "{m}");
+        }
+        other => panic!("a second writer was not refused: {:?}", other.map(|s| s.event_count())),
+    };
+    refused(Session::open(&path));
+    // Half the trace's strokes, journalled, then one stroke in progress.
+    let ends: Vec<usize> = t.events.iter().enumerate().filter(|(_, e)| matches!(e.kind, EventKind::StrokeEnd)).map(|(i, _)| i).collect();
+    let half = ends[ends.len() / 2];
+    for ev in &t.events[..=half] {
+        s.apply(ev).unwrap();
+    }
+    let begin = half + t.events[half + 1..].iter().position(|e| matches!(e.kind, EventKind::StrokeBegin)).unwrap() + 1;
+    for ev in &t.events[half + 1..=begin + 1] {
+        s.apply(ev).unwrap();
+    }
+    refused(Session::open(&path));
+    assert_eq!(std::fs::read(&path).unwrap(), saved, "the refused writer changed the document");
+    // A reader sees the saved document plus the completed strokes, and
+    // writes nothing.
+    let mut reader = Session::open_read(&path).unwrap();
+    assert!(!reader.writable());
+    let strokes = t.events[..=half].iter().filter(|e| matches!(e.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo | EventKind::Layer(_))).count();
+    assert_eq!(reader.recovered, strokes);
+    let upto = Trace { events: t.events[..=half].to_vec(), ..t.clone() };
+    assert_eq!(dump_bytes(&reader.painting().tree), dump_bytes(&replayed(&upto).tree));
+    assert!(matches!(reader.save(), Err(DocError::ReadOnly(_))));
+    assert!(matches!(reader.apply(&Event { line: 0, t: reader.last_time(), kind: EventKind::Undo }), Err(DocError::ReadOnly(_))));
+    assert_eq!(reader.recovered, strokes, "a refused write changed the reader");
+    // The writer dies; the next writer recovers every completed stroke.
+    drop(s);
+    let next = Session::open(&path).unwrap();
+    assert_eq!(next.recovered, strokes);
+    assert_eq!(dump_bytes(&next.painting().tree), dump_bytes(&reader.painting().tree));
 }
