@@ -42,12 +42,13 @@ setup: system $(VENV)/.installed
 # benchmark against OpenVDB (painter/bench/tree_vs_openvdb.sh) builds its
 # peer with them, and conformance/tests/test_bench_tools.py runs it.
 MESA_PACKAGES := mesa-vulkan-drivers libvulkan1 libegl1 libegl-mesa0 libgl1-mesa-dri
-SYSTEM_PACKAGES := $(MESA_PACKAGES) python3-openvdb python3-numpy xvfb xdotool libopenvdb-dev libboost-dev g++
+SYSTEM_PACKAGES := $(MESA_PACKAGES) python3-openvdb python3-numpy xvfb xdotool libopenvdb-dev libboost-dev g++ strace
 system:
 	@if ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1 || ! ldconfig -p | grep -q libEGL_mesa \
 	    || ! /usr/bin/python3 -c 'import pyopenvdb, numpy' >/dev/null 2>&1 \
 	    || ! command -v Xvfb >/dev/null || ! command -v xdotool >/dev/null \
-	    || ! [ -e /usr/include/openvdb/openvdb.h ] || ! [ -e /usr/include/boost/version.hpp ] || ! command -v g++ >/dev/null; then \
+	    || ! [ -e /usr/include/openvdb/openvdb.h ] || ! [ -e /usr/include/boost/version.hpp ] || ! command -v g++ >/dev/null \
+	    || ! command -v strace >/dev/null; then \
 	  echo "installing $(SYSTEM_PACKAGES)"; \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null || \
 	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) >/dev/null; }; \

@@ -62,6 +62,13 @@ pub struct PaintArgs {
     /// Print nothing but errors.
     #[arg(long)]
     pub quiet: bool,
+    /// On a refused event or a journal write that fails, say so and go on
+    /// with the next event, as the window and the headset do (a stroke
+    /// that could not be journalled stays in the session and is written
+    /// with the next flush or the save); exit status 1 at the end if any
+    /// failed. Without it the session stops at the first failure.
+    #[arg(long)]
+    pub keep_going: bool,
 }
 
 #[derive(clap::Args)]
@@ -193,6 +200,7 @@ pub fn paint(a: &PaintArgs) -> ExitCode {
     let pace = if a.events_per_second > 0.0 { Some(Duration::from_secs_f64(1.0 / a.events_per_second)) } else { None };
     let start = Instant::now();
     let mut strokes = 0;
+    let mut failed = 0;
     for (i, ev) in input.events.iter().enumerate() {
         if let Some(p) = pace {
             let due = start + p * i as u32;
@@ -203,7 +211,11 @@ pub fn paint(a: &PaintArgs) -> ExitCode {
         let ev = Event { t: t0 + ev.t, ..ev.clone() };
         if let Err(e) = s.apply(&ev) {
             eprintln!("octopaint: {}: line {}: {e}", a.input.display(), ev.line);
-            return fail_after(e, strokes);
+            if !a.keep_going {
+                return fail_after(e, strokes);
+            }
+            failed += 1;
+            continue;
         }
         if matches!(ev.kind, EventKind::StrokeEnd) {
             strokes += 1;
@@ -231,6 +243,10 @@ pub fn paint(a: &PaintArgs) -> ExitCode {
             s.painting().tree.n_used(),
             if a.no_save { " (in the journal; not saved)" } else { ", saved" }
         );
+    }
+    if failed > 0 {
+        eprintln!("octopaint: {failed} event(s) failed (above); the rest were applied{}", if a.no_save { "" } else { " and saved" });
+        return ExitCode::from(1);
     }
     ExitCode::SUCCESS
 }

@@ -72,6 +72,19 @@ pub(crate) fn parse<'a>(jp: &Path, text: &'a str) -> Result<Option<Read<'a>>, Do
     Ok(Some(Read { crc, base, body }))
 }
 
+/// Replace the journal `jp` whole, atomically and durably: the header of
+/// `base`, then `lines` (after an append failed part way, when what is in
+/// the file cannot be trusted to end where the journal does).
+pub(crate) fn rewrite<'a>(jp: &Path, base: (u32, usize), lines: impl Iterator<Item = &'a str>) -> Result<(), DocError> {
+    let mut text = header(base.0, base.1);
+    text.push('\n');
+    for l in lines {
+        text.push_str(l);
+        text.push('\n');
+    }
+    durable::write(jp, text.as_bytes()).map_err(io(jp))
+}
+
 /// Append `lines` to the journal `jp` and sync it, opening it into `slot`
 /// first when it is not open; a journal that is missing or empty gets the
 /// header of `base` (the document's CRC and events) first.

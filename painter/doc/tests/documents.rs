@@ -553,3 +553,80 @@ fn one_writer_at_a_time_and_readers_beside_it() {
     assert_eq!(next.recovered, strokes);
     assert_eq!(dump_bytes(&next.painting().tree), dump_bytes(&reader.painting().tree));
 }
+
+/// A journal append that fails (here: a full device, the journal pointed
+/// at Linux's /dev/full, where every write is ENOSPC) is reported, keeps
+/// the session's events, and leaves no torn line behind: once the disk
+/// takes writes again the next stroke's flush writes the journal whole,
+/// and reopening recovers every stroke. (A save whose journal step fails
+/// after the document was replaced: conformance/tests/test_faults.py.)
+#[cfg(target_os = "linux")]
+#[test]
+fn a_failed_journal_append_is_written_whole_by_the_next_flush() {
+    let t = trace("shapes_modes");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let jp = journal_path(&path);
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    let ends: Vec<usize> = t.events.iter().enumerate().filter(|(_, e)| matches!(e.kind, EventKind::StrokeEnd)).map(|(i, _)| i).collect();
+    assert!(ends.len() >= 4);
+    // Two strokes journalled, then saved: the journal is a fresh header.
+    for ev in &t.events[..=ends[1]] {
+        s.apply(ev).unwrap();
+    }
+    s.save().unwrap();
+    // The disk fills: the third stroke's end cannot be journalled.
+    std::fs::remove_file(&jp).unwrap();
+    std::os::unix::fs::symlink("/dev/full", &jp).unwrap();
+    for ev in &t.events[ends[1] + 1..ends[2]] {
+        s.apply(ev).unwrap();
+    }
+    match s.apply(&t.events[ends[2]]) {
+        Err(DocError::Io { reason, .. }) => assert!(reason.contains("No space left"), "{reason}"),
+        other => panic!("the failed append was not reported: {other:?}"),
+    }
+    // Room again; the fourth stroke's end writes the journal whole.
+    std::fs::remove_file(&jp).unwrap();
+    for ev in &t.events[ends[2] + 1..=ends[3]] {
+        s.apply(ev).unwrap();
+    }
+    let text = std::fs::read_to_string(&jp).unwrap();
+    assert_eq!(text.lines().filter(|l| l.contains("\"stroke_end\"")).count(), 2, "{text}");
+    drop(s);
+    let opened = Session::open(&path).unwrap();
+    assert_eq!(opened.recovered, t.events[ends[1] + 1..=ends[3]].iter().filter(|e| matches!(e.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo)).count());
+    let upto = Trace { events: t.events[..=ends[3]].to_vec(), ..t.clone() };
+    assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&replayed(&upto).tree));
+}
+
+/// A render or snapshot name is used once per kind in a session, as in any
+/// trace: a second one is refused (changing nothing), so the saved
+/// session always reads back. (Applied twice, a trace's snapshots once
+/// made a document that could not be opened.)
+#[test]
+fn a_name_used_twice_is_refused_and_the_session_still_reads() {
+    let t = trace("undo_redo");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.octo");
+    let mut s = Session::create(&path, &t.canvas, &t.meta).unwrap();
+    for ev in &t.events {
+        s.apply(ev).unwrap();
+    }
+    let named: Vec<&Event> = t.events.iter().filter(|e| matches!(e.kind, EventKind::Render(_) | EventKind::Snapshot(_))).collect();
+    assert!(!named.is_empty(), "the trace has renders or snapshots");
+    let count = s.event_count();
+    for ev in named {
+        let again = Event { t: s.last_time(), ..ev.clone() };
+        match s.apply(&again) {
+            Err(DocError::BadEvent(m)) => assert!(m.contains("is already used by an earlier"), "{m}"),
+            other => panic!("a name used twice was taken: {other:?}"),
+        }
+    }
+    assert_eq!(s.event_count(), count);
+    s.save().unwrap();
+    drop(s);
+    let opened = Session::open(&path).unwrap();
+    assert_eq!(opened.event_count(), count);
+    // The saved session reads back as a trace.
+    assert!(parse_trace(&opened.trace_text()).is_ok());
+}

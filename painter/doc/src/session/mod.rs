@@ -25,13 +25,14 @@ use octopaint_platform::{durable, lock};
 use octopaint_tree::layers::Document as Layers;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{
-    Brush, Canvas, Event, EventKind, Import, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace,
+    Brush, Canvas, Event, EventKind, Meta, Mirror, Sample, Trace, parse_brush, parse_camera, parse_light, parse_mirror, parse_sample, parse_trace,
     parse_trace_with, segment_too_long,
 };
-use octopaint_tree::voxels::{VoxelSet, sha256_hex, voxel_set_bytes};
 use octopaint_tree::trace_write::{event_line, header_line};
 
 use crate::{DocError, io};
+
+mod import;
 use crate::journal::{self, journal_path};
 use crate::format::{self, Content, Document, Imports};
 
@@ -54,6 +55,9 @@ pub struct Session {
     /// Lines of events since the last journal flush.
     pending: Vec<String>,
     journal: Option<File>,
+    /// An append failed: what it wrote of its lines may be in the file,
+    /// so the next flush writes the journal whole ([`journal::rewrite`]).
+    journal_torn: bool,
     base_crc: u32,
     base_events: usize,
     brush: Option<Brush>,
@@ -61,6 +65,11 @@ pub struct Session {
     has_camera: bool,
     /// The last `mirror` event's planes (spec 8.11), for the next strokes.
     mirror: Option<Mirror>,
+    /// The names of the session's renders and snapshots: each is used
+    /// once per kind (the trace reader's rule), or the saved session
+    /// would not read back.
+    render_names: std::collections::HashSet<String>,
+    snapshot_names: std::collections::HashSet<String>,
     in_stroke: bool,
     last_t: f64,
     /// History bound in bytes.
@@ -169,12 +178,15 @@ impl Session {
             events,
             pending: Vec::new(),
             journal: None,
+            journal_torn: false,
             base_crc: crc,
             base_events: events,
             brush: None,
             last_sample: None,
             has_camera: false,
             mirror: None,
+            render_names: Default::default(),
+            snapshot_names: Default::default(),
             in_stroke: false,
             last_t: 0.0,
             undo_bytes: DEFAULT_UNDO_BYTES,
@@ -254,6 +266,12 @@ impl Session {
                 EventKind::Brush(b) => self.brush = Some(*b),
                 EventKind::Camera(_) => self.has_camera = true,
                 EventKind::Mirror(m) => self.mirror = m.active(),
+                EventKind::Render(n) => {
+                    self.render_names.insert(n.clone());
+                }
+                EventKind::Snapshot(n) => {
+                    self.snapshot_names.insert(n.clone());
+                }
                 _ => {}
             }
             self.last_t = ev.t;
@@ -329,7 +347,13 @@ impl Session {
             }
             EventKind::Camera(_) => self.has_camera = true,
             EventKind::Mirror(m) => self.mirror = m.active(),
-            EventKind::Light(_) | EventKind::Render(_) | EventKind::Snapshot(_) => {}
+            EventKind::Render(n) => {
+                self.render_names.insert(n.clone());
+            }
+            EventKind::Snapshot(n) => {
+                self.snapshot_names.insert(n.clone());
+            }
+            EventKind::Light(_) => {}
             // The reader took it (a version 2 session): applied to the
             // layers; one the budget refuses is skipped with a warning
             // (spec 14.2), as in a replay.
@@ -394,6 +418,8 @@ impl Session {
             EventKind::Mirror(_) if self.in_stroke => return bad("mirror inside a stroke (mirror planes change between strokes)".into()),
             EventKind::Mirror(_) => check(parse_mirror(0, &obj).map(drop))?,
             EventKind::Render(n) | EventKind::Snapshot(n) if !octopaint_tree::trace::is_valid_name(n) => return bad(format!("name {n:?}")),
+            EventKind::Render(n) if self.render_names.contains(n) => return bad(format!("name \"{n}\" is already used by an earlier render")),
+            EventKind::Snapshot(n) if self.snapshot_names.contains(n) => return bad(format!("name \"{n}\" is already used by an earlier snapshot")),
             EventKind::Render(_) if !self.has_camera => return bad("render before any camera event".into()),
             EventKind::Layer(_) if self.version != 2 => {
                 return bad("layer events need a document of layers (octopaint new --layers, or a version 2 trace imported)".into());
@@ -478,65 +504,26 @@ impl Session {
         Ok(began)
     }
 
-    /// Paint a voxel set into the selected layer (an `import` event, spec
-    /// 15) as one undoable step, and save at once: the document then holds
-    /// the voxel set with the event, so the journal never names a voxel set
-    /// it does not hold. All or nothing: refused, changing nothing, inside
-    /// a stroke, on a locked layer, or when the cell budget cannot hold the
-    /// whole import (the layer is tried on a copy first). `name` labels the
-    /// event (where the voxels came from).
-    pub fn import(&mut self, vs: &VoxelSet, name: Option<&str>) -> Result<(), DocError> {
-        self.commit_import(vs, name, self.last_t, true)
-    }
-
-    /// An import, all or nothing ([`Session::import`]) or as a replay
-    /// paints it (an `import` event applied from a trace), then saved.
-    fn commit_import(&mut self, vs: &VoxelSet, name: Option<&str>, t: f64, whole: bool) -> Result<(), DocError> {
-        self.check_writable()?;
-        let bad = |m: String| Err(DocError::BadEvent(m));
-        if self.in_stroke {
-            return bad("cannot import inside a stroke: end it first".into());
-        }
-        let canvas = *self.doc.canvas();
-        if vs.depth > canvas.max_depth {
-            return bad(format!("depth {} is deeper than the canvas's max depth {}", vs.depth, canvas.max_depth));
-        }
-        let bytes = voxel_set_bytes(vs);
-        // The voxel set as the reader will see it: its checks, once.
-        let checked = octopaint_tree::voxels::parse_voxel_set(&bytes, &canvas).map_err(DocError::BadEvent)?;
-        if let Some(n) = name
-            && let Some(why) = octopaint_tree::layers::name_problem(n)
-        {
-            return bad(format!("import name: {why}"));
-        }
-        let sha256 = sha256_hex(&bytes);
-        let file = format!("imports/{sha256}.npz");
-        let ev = Event {
-            line: 0,
-            t,
-            kind: EventKind::Import(Box::new(Import { file: file.clone(), sha256, name: name.map(str::to_string), voxels: std::sync::Arc::new(checked) })),
-        };
-        let line = event_line(&ev);
-        if whole {
-            self.doc.try_import(vs).map_err(DocError::BadEvent)?;
-        } else if !self.doc.import_voxels(vs, 0) {
-            return bad(self.doc.take_warnings().join("; "));
-        }
-        self.last_t = t;
-        self.imports.insert(file, bytes);
-        self.pending.push(line);
-        self.save()
-    }
-
-    /// The voxel sets the session's imports name, by file.
-    pub fn imports(&self) -> &Imports {
-        &self.imports
-    }
-
     /// Append the pending events to the journal and sync it.
     fn flush(&mut self) -> Result<(), DocError> {
         let jp = journal_path(&self.path);
-        journal::append(&mut self.journal, &jp, (self.base_crc, self.base_events), &self.pending)?;
+        let base = (self.base_crc, self.base_events);
+        let written = if self.journal_torn {
+            // Every event since the document, then the pending ones: the
+            // journal replaced whole, as a save replaces the document.
+            let since = self.trace_text.lines().skip(1 + self.base_events);
+            journal::rewrite(&jp, base, since.chain(self.pending.iter().map(String::as_str)))
+        } else {
+            journal::append(&mut self.journal, &jp, base, &self.pending)
+        };
+        if let Err(e) = written {
+            // The events stay pending (and applied): the next flush, or a
+            // save, writes them again.
+            self.journal = None;
+            self.journal_torn = true;
+            return Err(e);
+        }
+        self.journal_torn = false;
         for l in self.pending.drain(..) {
             self.trace_text.push('\n');
             self.trace_text.push_str(&l);
@@ -577,10 +564,17 @@ impl Session {
         // The new journal extends the new document; until it exists, the
         // old one's events are all in the document (recover() sees that).
         self.journal = None;
+        self.journal_torn = false;
         self.base_crc = crc;
         self.base_events = self.events;
         let jp = journal_path(&self.path);
-        durable::write(&jp, format!("{}\n", journal::header(crc, self.events)).as_bytes()).map_err(io(&jp))?;
+        if let Err(e) = durable::write(&jp, format!("{}\n", journal::header(crc, self.events)).as_bytes()) {
+            // The document is saved, but the journal on disk may still
+            // extend the one before it: the next flush writes it whole,
+            // naming this one, rather than append to the old one.
+            self.journal_torn = true;
+            return Err(io(&jp)(e));
+        }
         Ok(())
     }
 
