@@ -28,7 +28,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
+.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
@@ -101,6 +101,19 @@ SEEDS ?= 200
 FIRST ?= 0
 fuzz: setup painter
 	$(PY) conformance/fuzz.py --painter $(PAINTER) --first $(FIRST) --seeds $(SEEDS) --out $(OUT)/fuzz
+
+# The readers' fuzz targets (docs/documents.md, "Fuzzing"). fuzz-smoke: each
+# target's body on its generated seeds and FUZZ_RUNS variants, on stable
+# Rust (CI runs it through conformance/tests/test_fuzz_smoke.py);
+# fuzz-long: every target under libFuzzer for FUZZ_SECONDS each (installs a
+# nightly toolchain and cargo-fuzz the first time).
+FUZZ_RUNS ?= 20000
+FUZZ_SECONDS ?= 300
+fuzz-smoke: setup painter
+	$(PY) conformance/fuzz_seeds.py --painter $(PAINTER) $(OUT)/fuzz-seeds
+	$(PAINTER) fuzz-smoke $(OUT)/fuzz-seeds --runs $(FUZZ_RUNS) --crashes $(OUT)/fuzz-crashes
+fuzz-long: setup painter
+	painter/fuzz/run.sh $(FUZZ_SECONDS)
 
 # The VR session against Monado's simulated headset in a Debian 13 chroot
 # (docs/vr.md): needs root, and network the first time (debootstrap and

@@ -1,12 +1,12 @@
 """Faults injected at every step of a painting session's journal appends and
 its save, and nothing lost (docs/documents.md, "Faults").
 
-`octopaint paint` paints traces/undo_redo.jsonl (its renders and
-snapshots left out: their names are taken) onto a document made from the
-same trace, quietly, so that every `write`, `fsync`, `fdatasync` and
-`renameat` the painter makes is one of the session's own: the lock file,
-eight journal appends (a write and an fdatasync each, one per stroke end,
-undo and redo), then the save: the document's temporary file (write,
+`octopaint paint` paints a small trace (strokes, an undo, a redo, mirror
+planes: conformance/fuzz_seeds.py's) onto a document made from the same
+trace, quietly, so that every `write`, `fsync`, `fdatasync` and `renameat`
+the painter makes is one of the session's own: the lock file, a journal
+append per stroke end, undo and redo (a write and an fdatasync each), then
+the save: the document's temporary file (write,
 fsync), its rename, the folder's fsync, and the same for the new journal.
 A clean run under strace lists them in order (`-y` names each call's
 file). Then each one in turn fails, through strace's syscall fault
@@ -45,9 +45,12 @@ from typing import NamedTuple
 
 import pytest
 
-from conftest import REPO
+import fuzz_seeds
 
-TRACE = os.path.join(REPO, "traces", "undo_redo.jsonl")
+# The session: strokes, an undo, a redo, mirror planes on a small canvas
+# (fuzz_seeds.journal_trace), so that its document is small and each of
+# the many runs below quick.
+TRACE_TEXT = fuzz_seeds.journal_trace(1, fuzz_seeds.SMALL_CANVAS)
 SYSCALLS = ("write", "fsync", "fdatasync", "rename", "renameat", "renameat2")
 ERRNOS = {"EIO": "Input/output error", "ENOSPC": "No space left on device"}
 ENDS = ('"stroke_end"', '"undo"', '"redo"')
@@ -79,9 +82,11 @@ def base(painter, tmp_path_factory):
     file and its journal's header); and the session's input, the trace's
     events without its renders and snapshots."""
     folder = tmp_path_factory.mktemp("base")
+    trace = folder / "trace.jsonl"
+    trace.write_text(TRACE_TEXT)
     doc = folder / "d.octo"
-    run([painter, "import", TRACE, doc])
-    lines = open(TRACE).read().splitlines()
+    run([painter, "import", trace, doc])
+    lines = TRACE_TEXT.splitlines()
     kept = [e for e in lines[1:] if json.loads(e)["ev"] not in ("render", "snapshot")]
     session_input = folder / "input.jsonl"
     session_input.write_text("\n".join([lines[0], *kept]) + "\n")
@@ -131,7 +136,7 @@ def expected(painter, tmp_path_factory):
     ends, undos, redos) of the session, for every k: replays of the trace
     followed by its own events cut after the k-th, times after its last."""
     folder = tmp_path_factory.mktemp("expected")
-    lines = open(TRACE).read().splitlines()
+    lines = TRACE_TEXT.splitlines()
     header, events = lines[0], lines[1:]
     last_t = max(json.loads(e)["t"] for e in events)
     ends = [i for i, e in enumerate(events) if any(k in e for k in ENDS)]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import struct
 import zipfile
 from dataclasses import dataclass
 
@@ -74,6 +75,10 @@ def _array(z: zipfile.ZipFile, name: str, dtype: str, ndim: int) -> np.ndarray:
         raise ValueError(f"the entry {name}.npy is missing") from None
     if info.compress_type != zipfile.ZIP_STORED:
         raise ValueError(f"{name}.npy is compressed (write voxel sets with numpy's savez, not savez_compressed)")
+    if info.compress_size != info.file_size:
+        # A stored entry's bytes are its contents: sizes that differ are a
+        # damaged zip (Python's reader would go by one and ignore the other).
+        raise ValueError(f"damaged .npz: {name}.npy is stored in {info.compress_size} bytes but holds {info.file_size}")
     with z.open(info) as f:
         try:
             version = np.lib.format.read_magic(f)
@@ -101,17 +106,67 @@ def _array(z: zipfile.ZipFile, name: str, dtype: str, ndim: int) -> np.ndarray:
         return np.frombuffer(data, dtype=dt).reshape(shape)
 
 
+def _check_end_record(data: bytes) -> int:
+    """The archive's end-of-central-directory record as 15.1 requires it
+    (and as painter/tree/src/voxels.rs checks it): the last `PK\\5\\6` in
+    the file's final 65,557 bytes, one disk, its two entry counts equal,
+    its central directory ending where it begins (nothing between them,
+    nothing before the archive), its comment within the file. zip readers
+    differ on each (Python's takes a comment cut short and ignores disk
+    numbers), so the rule is the spec's; so are the central directory's
+    entries filling it exactly. Returns the entry count."""
+    start = max(0, len(data) - (22 + 0xFFFF))
+    tail = data[start:]
+    at = tail.rfind(b"PK\x05\x06")
+    if at < 0:
+        raise ValueError("not an .npz (zip) file: no end of central directory record")
+    if at + 22 > len(tail):
+        raise ValueError("not an .npz (zip) file: its end record is cut short")
+    _, disk, disk_cd, here, total, size_cd, offset_cd, comment = struct.unpack("<4s4H2LH", tail[at : at + 22])
+    if disk or disk_cd:
+        raise ValueError("not an .npz (zip) file: it spans several disks")
+    if here != total:
+        raise ValueError("not an .npz (zip) file: its end record counts its entries two ways")
+    if offset_cd + size_cd != start + at:
+        raise ValueError("not an .npz (zip) file: its central directory does not end where its end record begins")
+    if at + 22 + comment > len(tail):
+        raise ValueError("not an .npz (zip) file: its end record's comment runs past the end of the file")
+    # Its central directory's entries fill it exactly (zipfile would read a
+    # name running past its end cut short), each needing zip 6.3 at most.
+    p, end = offset_cd, start + at
+    for _ in range(total):
+        e = data[p : p + 46]
+        if len(e) < 46:
+            raise ValueError("not an .npz (zip) file: its central directory is cut short")
+        if e[:4] != b"PK\x01\x02":
+            raise ValueError("not an .npz (zip) file: its central directory is damaged")
+        if e[6] > 63:
+            raise ValueError(f"not an .npz (zip) file: an entry needs zip version {e[6] // 10}.{e[6] % 10} to be read")
+        n, x, c = struct.unpack("<3H", e[28:34])
+        p += 46 + n + x + c
+        if p > end:
+            raise ValueError("not an .npz (zip) file: an entry of its central directory runs past its end")
+    if p != end:
+        raise ValueError("not an .npz (zip) file: its central directory holds more than its entries")
+    return total
+
+
 def parse(data: bytes, canvas) -> VoxelSet:
     """Check `data` as a voxel set for `canvas` (15.1); ValueError says what
     is wrong."""
+    entries = _check_end_record(data)
     try:
         z = zipfile.ZipFile(io.BytesIO(data))
-    except (zipfile.BadZipFile, ValueError, OSError) as e:
+    # NotImplementedError: an entry that needs a zip version above 6.3.
+    except (zipfile.BadZipFile, ValueError, OSError, NotImplementedError) as e:
         raise ValueError(f"not an .npz (zip) file: {e}") from None
+    if len(z.infolist()) != entries:
+        raise ValueError(f"not an .npz (zip) file: its end record counts {entries} entries, its central directory holds {len(z.infolist())}")
     try:
         with z:
             arrays = {name: _array(z, name, dtype, ndim) for name, dtype, ndim in ENTRIES}
-    except (zipfile.BadZipFile, OSError, EOFError, zipfile.LargeZipFile, NotImplementedError) as e:
+    # RuntimeError: an entry flagged as encrypted (zipfile asks for a password).
+    except (zipfile.BadZipFile, OSError, EOFError, zipfile.LargeZipFile, NotImplementedError, RuntimeError) as e:
         raise ValueError(f"damaged .npz: {e}") from None
     depth = int(arrays["depth"])
     ijk, rgb, sigma = arrays["ijk"], arrays["rgb"], arrays["sigma"]

@@ -9,6 +9,7 @@ mod bench_tree;
 mod canonical;
 mod document;
 mod export;
+mod fuzz_smoke;
 mod imports;
 mod probe;
 mod render;
@@ -225,6 +226,10 @@ enum Command {
     /// stopped and why, where it started. The precision study compares
     /// them with the reference and mpmath (docs/precision.md).
     Probe(probe::Args),
+    /// Run every fuzz target's body on its seeds and deterministic variants
+    /// of them (CI's short fuzzing run; docs/documents.md, "Fuzzing").
+    #[command(hide = true)]
+    FuzzSmoke(fuzz_smoke::Args),
     /// Benchmarks that print figures (docs/benchmarks.md).
     Bench {
         #[command(subcommand)]
@@ -561,6 +566,7 @@ fn main() -> ExitCode {
         Command::Record { doc, out } => document::record(&doc, &out),
         Command::Dump { doc, out } => document::dump(&doc, &out),
         Command::Probe(args) => probe::run(&args),
+        Command::FuzzSmoke(args) => fuzz_smoke::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Undo(args) => document::step(&args, false),
         Command::Redo(args) => document::step(&args, true),

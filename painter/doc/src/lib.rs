@@ -9,8 +9,10 @@
 //! | [`format`] | the file: header, checksummed compressed sections, trailer |
 //! | [`session`] | events applied, journalled, saved; recovery; one writer at a time |
 //! | [`journal`] | the journal's lines: header, appends, what a crash leaves |
+//! | [`fuzz_harness`] | the document and journal fuzz targets' bodies |
 
 pub mod format;
+pub mod fuzz_harness;
 pub mod journal;
 pub mod session;
 

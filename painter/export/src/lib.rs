@@ -11,11 +11,15 @@
 //! | [`mesh`] | glTF binary and OBJ writers for that surface |
 //! | [`usd`] | USD stages (`.usda`) over the VDB's grids and the surface |
 //! | [`vdb_read`], [`mesh_read`], [`voxelise`], [`import`] | imports: VDB files and closed meshes read and turned into voxel sets (spec 15) |
+//! | [`fuzz_harness`] | the import fuzz targets' bodies |
 //!
-//! Nothing here writes a file: the writers take a `Write`, and the
-//! command line (`octopaint export`) writes them atomically.
+//! Nothing here writes a file (but the mesh fuzz target, which hands its
+//! bytes to the mesh reader through a temporary one): the writers take a
+//! `Write`, and the command line (`octopaint export`) writes them
+//! atomically.
 
 pub mod dual;
+pub mod fuzz_harness;
 pub mod import;
 pub mod mesh;
 pub mod mesh_read;

@@ -61,13 +61,31 @@ pub fn voxel_set_bytes(vs: &VoxelSet) -> Vec<u8> {
 /// One entry of a voxel set: checked to be stored (not compressed), with
 /// its dtype, rank (and a last dimension of 3 for rank 2), C order, and at
 /// most MAX_VOXELS rows; its shape and values.
-fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str, dtype: &str, rank: usize) -> Result<(Vec<u64>, Vec<T>), String> {
+fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, bytes: &[u8], name: &str, dtype: &str, rank: usize) -> Result<(Vec<u64>, Vec<T>), String> {
     let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| match e {
         zip::result::ZipError::FileNotFound => format!("the entry {name}.npy is missing"),
         e => format!("{name}.npy: {e}"),
     })?;
     if f.compression() != zip::CompressionMethod::Stored {
         return Err(format!("{name}.npy is compressed (write voxel sets with numpy's savez, not savez_compressed)"));
+    }
+    // A well-formed archive (spec 15.1): a stored entry's sizes agree, and
+    // its local header names the file its central directory entry does.
+    if f.compressed_size() != f.size() {
+        return Err(format!("damaged .npz: {name}.npy is stored in {} bytes but holds {}", f.compressed_size(), f.size()));
+    }
+    let local = usize::try_from(f.header_start()).ok().and_then(|h| {
+        let len = usize::from(u16::from_le_bytes(bytes.get(h + 26..h + 28)?.try_into().ok()?));
+        bytes.get(h + 30..h + 30 + len)
+    });
+    if local != Some(f.name_raw()) {
+        return Err(format!("damaged .npz: the local header of {name}.npy names another file"));
+    }
+    // Neither encrypted, patched nor strongly encrypted (its central
+    // directory entry's flags, as Python's zipfile reads them).
+    let flags = usize::try_from(f.central_header_start()).ok().and_then(|h| bytes.get(h + 8..h + 10)).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]));
+    if f.encrypted() || flags & 0x61 != 0 {
+        return Err(format!("damaged .npz: {name}.npy is encrypted or patched"));
     }
     let mut data = Vec::new();
     std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
@@ -92,14 +110,71 @@ fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &
     Ok((shape, values))
 }
 
+/// The archive's end-of-central-directory record, as spec 15.1 requires
+/// it (and as reference/octopaint_ref/voxelset.py checks it): the last
+/// `PK\5\6` in the file's final 65,557 bytes, one disk (both disk numbers
+/// 0), its two entry counts equal, its central directory ending where the
+/// record begins (nothing between them, nothing before the archive) and
+/// filled exactly by its entries, each needing zip 6.3 at most, and its
+/// comment within the file. zip readers differ on each of these (one
+/// takes a comment cut short, another refuses it), so the rule is the
+/// spec's. Returns the entry count.
+fn check_end_record(data: &[u8]) -> Result<u16, String> {
+    let damaged = |why: &str| Err(format!("not an .npz (zip) file: {why}"));
+    let tail_start = data.len().saturating_sub(22 + 0xFFFF);
+    let tail = &data[tail_start..];
+    let Some(at) = tail.windows(4).rposition(|w| w == b"PK\x05\x06") else { return damaged("no end of central directory record") };
+    let Some(rec) = tail.get(at..at + 22) else { return damaged("its end record is cut short") };
+    let u16_at = |i: usize| u16::from_le_bytes([rec[i], rec[i + 1]]);
+    let u32_at = |i: usize| u32::from_le_bytes([rec[i], rec[i + 1], rec[i + 2], rec[i + 3]]);
+    if u16_at(4) != 0 || u16_at(6) != 0 {
+        return damaged("it spans several disks");
+    }
+    if u16_at(8) != u16_at(10) {
+        return damaged("its end record counts its entries two ways");
+    }
+    let record = (tail_start + at) as u64;
+    if u64::from(u32_at(16)) + u64::from(u32_at(12)) != record {
+        return damaged("its central directory does not end where its end record begins");
+    }
+    if at + 22 + usize::from(u16_at(20)) > tail.len() {
+        return damaged("its end record's comment runs past the end of the file");
+    }
+    // Each central directory entry: a zip version this reader knows (6.3 at
+    // most, as Python's zipfile requires).
+    let mut p = u32_at(16) as usize;
+    for _ in 0..u16_at(8) {
+        let Some(e) = data.get(p..p + 46) else { return damaged("its central directory is cut short") };
+        if e[..4] != *b"PK\x01\x02" {
+            return damaged("its central directory is damaged");
+        }
+        if e[6] > 63 {
+            return damaged(&format!("an entry needs zip version {}.{} to be read", e[6] / 10, e[6] % 10));
+        }
+        let len = |i: usize| usize::from(u16::from_le_bytes([e[i], e[i + 1]]));
+        p += 46 + len(28) + len(30) + len(32);
+        if p as u64 > record {
+            return damaged("an entry of its central directory runs past its end");
+        }
+    }
+    if p as u64 != record {
+        return damaged("its central directory holds more than its entries");
+    }
+    Ok(u16_at(8))
+}
+
 /// Check `data` as a voxel set for `canvas` (spec 15.1); the error says
 /// what is wrong.
 pub fn parse_voxel_set(data: &[u8], canvas: &Canvas) -> Result<VoxelSet, String> {
+    let entries = check_end_record(data)?;
     let mut zip = zip::ZipArchive::new(Cursor::new(data)).map_err(|e| format!("not an .npz (zip) file: {e}"))?;
-    let (_, depth) = entry::<u32>(&mut zip, "depth", "<u4", 0)?;
-    let (sh, ijk) = entry::<u32>(&mut zip, "ijk", "<u4", 2)?;
-    let (sr, rgb) = entry::<u8>(&mut zip, "rgb", "|u1", 2)?;
-    let (ss, sigma) = entry::<f32>(&mut zip, "sigma", "<f4", 1)?;
+    if zip.len() != usize::from(entries) {
+        return Err(format!("not an .npz (zip) file: its end record counts {entries} entries, its central directory holds {}", zip.len()));
+    }
+    let (_, depth) = entry::<u32>(&mut zip, data, "depth", "<u4", 0)?;
+    let (sh, ijk) = entry::<u32>(&mut zip, data, "ijk", "<u4", 2)?;
+    let (sr, rgb) = entry::<u8>(&mut zip, data, "rgb", "|u1", 2)?;
+    let (ss, sigma) = entry::<f32>(&mut zip, data, "sigma", "<f4", 1)?;
     let n = sh[0];
     if sr[0] != n || ss[0] != n {
         return Err(format!("ijk, rgb and sigma hold {n}, {} and {} voxels", sr[0], ss[0]));

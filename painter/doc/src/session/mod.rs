@@ -205,7 +205,7 @@ impl Session {
         let data = std::fs::read(path).map_err(io(path))?;
         let jp = journal_path(path);
         let journal = journal::read(&jp)?;
-        let mut s = Session::load(path, &data, journal.as_deref())?;
+        let mut s = Session::from_bytes(path, &data, journal.as_deref())?;
         s.lock = Some(lock);
         Ok(s)
     }
@@ -226,14 +226,15 @@ impl Session {
             let journal = journal::read(&jp)?;
             tries += 1;
             if stamp(path)? == before || tries == 5 {
-                return Session::load(path, &data, journal.as_deref());
+                return Session::from_bytes(path, &data, journal.as_deref());
             }
         }
     }
 
     /// A session of the document `data` read from `path`, with the
-    /// journal's bytes when there is one.
-    fn load(path: &Path, data: &[u8], journal: Option<&[u8]>) -> Result<Session, DocError> {
+    /// journal's bytes when there is one; it writes nothing (as
+    /// [`Session::open_read`]).
+    pub fn from_bytes(path: &Path, data: &[u8], journal: Option<&[u8]>) -> Result<Session, DocError> {
         let loaded = format::read(data)?;
         let Document { trace_text, content, imports, .. } = loaded.doc;
         let trace = loaded.trace;
