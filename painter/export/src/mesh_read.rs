@@ -183,6 +183,15 @@ fn append(out: &mut TriMesh, what: &str, positions: Vec<[f64; 3]>, colours: Vec<
 /// its triangles' winding reversed, as glTF specifies.
 fn read_gltf(path: &Path, limits: &MeshLimits) -> Result<TriMesh, MeshError> {
     let bytes = std::fs::read(path).map_err(io_err(path))?;
+    // gltf 1.4 subtracts the header's size from a GLB's declared length
+    // unchecked (an overflow, a panic where overflow is checked: found by
+    // the `glb` fuzz target): check the length first.
+    if let Some(length) = bytes.strip_prefix(b"glTF").and_then(|rest| rest.get(4..8)) {
+        let length = u32::from_le_bytes(length.try_into().expect("4 bytes")) as usize;
+        if length < 12 || length > bytes.len() {
+            return Err(MeshError::Gltf(format!("the GLB header says the file is {length} bytes long; it is {}", bytes.len())));
+        }
+    }
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| MeshError::Gltf(e.to_string()))?;
     // gltf-json 1.4's validation indexes the POSITION accessor without a
     // bounds check (a panic on a bad index): check that one first, then
