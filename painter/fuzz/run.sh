@@ -16,11 +16,12 @@ repo="$(dirname "$(dirname "$here")")"
 seconds="${1:?usage: run.sh SECONDS [TARGET...]}"
 shift
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(trace_reader replay voxels document journal vdb glb gltf obj)
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 cargo +nightly fuzz --version >/dev/null 2>&1 || cargo install --locked cargo-fuzz
 py="$repo/.venv/bin/python"; [ -x "$py" ] || py=python3
 "$py" "$repo/conformance/fuzz_seeds.py" --painter "$repo/painter/target/release/octopaint" "$here/corpus.new"
+# Every target by default: the seed script writes a folder for each.
+[ ${#targets[@]} -gt 0 ] || mapfile -t targets < <(ls "$here/corpus.new")
 # What libFuzzer added before stays; the seeds are refreshed.
 for t in "${targets[@]}"; do
     mkdir -p "$here/corpus/$t"

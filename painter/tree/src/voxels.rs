@@ -58,6 +58,11 @@ pub fn voxel_set_bytes(vs: &VoxelSet) -> Vec<u8> {
     write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory").into_inner()
 }
 
+/// The little-endian u16 at `at` in `bytes`, if it is there.
+fn le_u16(bytes: &[u8], at: usize) -> Option<u16> {
+    Some(u16::from_le_bytes(bytes.get(at..at + 2)?.try_into().ok()?))
+}
+
 /// One entry of a voxel set: checked to be stored (not compressed), with
 /// its dtype, rank (and a last dimension of 3 for rank 2), C order, and at
 /// most MAX_VOXELS rows; its shape and values.
@@ -75,7 +80,7 @@ fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, bytes: 
         return Err(format!("damaged .npz: {name}.npy is stored in {} bytes but holds {}", f.compressed_size(), f.size()));
     }
     let local = usize::try_from(f.header_start()).ok().and_then(|h| {
-        let len = usize::from(u16::from_le_bytes(bytes.get(h + 26..h + 28)?.try_into().ok()?));
+        let len = usize::from(le_u16(bytes, h + 26)?);
         bytes.get(h + 30..h + 30 + len)
     });
     if local != Some(f.name_raw()) {
@@ -83,7 +88,7 @@ fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, bytes: 
     }
     // Neither encrypted, patched nor strongly encrypted (its central
     // directory entry's flags, as Python's zipfile reads them).
-    let flags = usize::try_from(f.central_header_start()).ok().and_then(|h| bytes.get(h + 8..h + 10)).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]));
+    let flags = usize::try_from(f.central_header_start()).ok().and_then(|h| le_u16(bytes, h + 8)).unwrap_or(0);
     if f.encrypted() || flags & 0x61 != 0 {
         return Err(format!("damaged .npz: {name}.npy is encrypted or patched"));
     }

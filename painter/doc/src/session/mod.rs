@@ -263,20 +263,27 @@ impl Session {
     /// The brush, camera and clock the session's events leave.
     fn resume_state(&mut self, trace: &Trace) {
         for ev in &trace.events {
-            match &ev.kind {
-                EventKind::Brush(b) => self.brush = Some(*b),
-                EventKind::Camera(_) => self.has_camera = true,
-                EventKind::Mirror(m) => self.mirror = m.active(),
-                EventKind::Render(n) => {
-                    self.render_names.insert(n.clone());
-                }
-                EventKind::Snapshot(n) => {
-                    self.snapshot_names.insert(n.clone());
-                }
-                _ => {}
-            }
-            self.last_t = ev.t;
+            self.remember(ev);
         }
+    }
+
+    /// What an event leaves for the events after it: the brush, a camera
+    /// seen, the mirror planes, the names of renders and snapshots, the
+    /// clock (the same for an event painted and one read at open).
+    fn remember(&mut self, ev: &Event) {
+        match &ev.kind {
+            EventKind::Brush(b) => self.brush = Some(*b),
+            EventKind::Camera(_) => self.has_camera = true,
+            EventKind::Mirror(m) => self.mirror = m.active(),
+            EventKind::Render(n) => {
+                self.render_names.insert(n.clone());
+            }
+            EventKind::Snapshot(n) => {
+                self.snapshot_names.insert(n.clone());
+            }
+            _ => {}
+        }
+        self.last_t = ev.t;
     }
 
     fn recover(&mut self, jp: &Path, bytes: &[u8]) -> Result<(), DocError> {
@@ -323,8 +330,10 @@ impl Session {
     }
 
     fn apply_parsed(&mut self, ev: &Event) {
+        self.remember(ev);
         match &ev.kind {
-            EventKind::Brush(b) => self.brush = Some(*b),
+            // Remembered above; nothing to paint.
+            EventKind::Brush(_) | EventKind::Camera(_) | EventKind::Mirror(_) | EventKind::Render(_) | EventKind::Snapshot(_) | EventKind::Light(_) => {}
             EventKind::StrokeBegin => {
                 let b = self.brush.as_ref().expect("validated");
                 self.doc.begin_stroke(&Brush { mirror: self.mirror, ..*b }, ev.line);
@@ -346,15 +355,6 @@ impl Session {
             EventKind::Redo => {
                 self.doc.redo();
             }
-            EventKind::Camera(_) => self.has_camera = true,
-            EventKind::Mirror(m) => self.mirror = m.active(),
-            EventKind::Render(n) => {
-                self.render_names.insert(n.clone());
-            }
-            EventKind::Snapshot(n) => {
-                self.snapshot_names.insert(n.clone());
-            }
-            EventKind::Light(_) => {}
             // The reader took it (a version 2 session): applied to the
             // layers; one the budget refuses is skipped with a warning
             // (spec 14.2), as in a replay.
@@ -367,7 +367,6 @@ impl Session {
                 self.doc.import_voxels(&imp.voxels, ev.line);
             }
         }
-        self.last_t = ev.t;
     }
 
     /// The time of the last event (the next must not be earlier).
