@@ -72,7 +72,9 @@ pub fn run(opts: Options) -> Result<(), String> {
     let event_loop = EventLoop::new().map_err(|e| format!("cannot open a window ({e}); is there a display (DISPLAY or WAYLAND_DISPLAY)?"))?;
     let first_camera = app::frame_document(&session.doc);
     let lattice = Lattice::new(session.doc.canvas());
-    let settings = Settings::new(first_camera.camera([64, 64], octopaint_tree::view::BACKGROUND));
+    let mut settings = Settings::new(first_camera.camera([64, 64], octopaint_tree::view::BACKGROUND));
+    // A session of hours: the engine's records stay a few seconds long.
+    settings.keep_records = Some(octopaint_pipeline::settings::LIVE_RECORDS);
     let gate = opts.hold_painting.as_ref().map(|_| std::sync::Arc::new(Gate::default()));
     let engine = Engine::start(Box::new(OpenDocument::new(session)), &settings, &Hooks { render: None, stroke: gate.clone() });
     let mut app = app::App::new(opts, engine, settings, lattice, first_camera);

@@ -215,7 +215,7 @@ impl Engine {
         let size = *canvas.document().canvas();
         let shared = Arc::new(Shared {
             canvas: Mutex::new(Some(canvas)),
-            ledger: Mutex::new(Ledger::default()),
+            ledger: Mutex::new(settings.keep_records.map_or_else(Ledger::default, Ledger::keeping)),
             jobs: JobQueue::new(settings.job_queue),
             pending: PendingSet::default(),
             staged: StagedStack::new(settings.staging_buffers),
@@ -295,19 +295,19 @@ impl Engine {
 
     /// The stroke-to-display latency of the newest shown job, ms.
     pub fn last_latency_ms(&self) -> Option<f64> {
-        self.shared.ledger.lock().expect("ledger").jobs.iter().rev().find_map(|j| j.latency_ms())
+        self.shared.ledger.lock().expect("ledger").shown.last_latency_ms
     }
 
-    /// Every shown job's stroke-to-display latency so far, ms, in job
-    /// order (a front end's closing summary, benchmarks).
-    pub fn latencies_ms(&self) -> Vec<f64> {
-        self.shared.ledger.lock().expect("ledger").jobs.iter().filter_map(|j| j.latency_ms()).collect()
+    /// Running figures of every job shown so far (a front end's closing
+    /// summary): latency quantiles, the heaviest sample.
+    pub fn shown(&self) -> crate::ledger::Shown {
+        self.shared.ledger.lock().expect("ledger").shown.clone()
     }
 
-    /// The stroke thread's painting time of every sample so far, ms (the
-    /// levels, the document's lock held).
-    pub fn sample_paint_ms(&self) -> Vec<f64> {
-        self.shared.ledger.lock().expect("ledger").jobs.iter().filter(|j| j.kind == "sample").map(|j| j.paint_seconds * 1e3).collect()
+    /// Job records the ledger holds now (a live session's stay bounded:
+    /// `Settings::keep_records`).
+    pub fn records_held(&self) -> usize {
+        self.shared.ledger.lock().expect("ledger").jobs.len()
     }
 
     /// Frames ended so far (by the front end's [`crate::frames::Frames`]).
@@ -322,7 +322,7 @@ impl Engine {
 
     /// Jobs shown by some frame.
     pub fn jobs_shown(&self) -> usize {
-        self.shared.ledger.lock().expect("ledger").jobs.iter().filter(|j| j.shown.is_some()).count()
+        self.shared.ledger.lock().expect("ledger").shown.jobs as usize
     }
 
     /// Stop taking jobs, let every queued job run and staging copy what is
@@ -544,6 +544,7 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
             let t1 = Instant::now();
             let cells: u64 = copies.iter().map(|c| c.cells.len() as u64).sum();
             records.push(StagingRecord { cells, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
+            crate::settings::trim_records(&mut records, settings.keep_records);
             shared.staged.push(StagedItem::Batch(copies));
             continue;
         }
@@ -564,6 +565,7 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
         drop(guard);
         let t1 = Instant::now();
         records.push(StagingRecord { cells: len as u64, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
+        crate::settings::trim_records(&mut records, settings.keep_records);
         version += 1;
         let copy = StagedCopy { layer: t.layer, group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t1 };
         shared.staged.push(StagedItem::One(copy));

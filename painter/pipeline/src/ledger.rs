@@ -9,6 +9,12 @@
 //! every publication up to P is on the GPU. A job is shown by the first
 //! frame whose cut reaches its last publication (after the job finished):
 //! its stroke-to-display latency ends with that frame.
+//!
+//! A benchmark's or a test's ledger keeps every job's record for its
+//! report; a live session's ([`Ledger::keeping`]: the window, the headset,
+//! `bench soak`) keeps the newest shown ones only, with running figures
+//! of all of them ([`Shown`]), so that hours of painting take no more of
+//! it than minutes.
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::time::Instant;
@@ -39,24 +45,103 @@ impl JobRecord {
     }
 }
 
+/// Bins of [`Shown::latency`] a decade: a latency is known to within
+/// 10^(1/200), about 1.2 %.
+const BINS_A_DECADE: f64 = 200.0;
+/// The histogram's range: 1 µs (bin 0 holds everything shorter) to 10^4 s
+/// (the last bin, everything longer).
+const FIRST_MS: f64 = 1e-3;
+const BINS: usize = 7 * BINS_A_DECADE as usize + 1;
+
+/// Running figures of every job shown so far, in constant memory: a live
+/// session's closing summary, whatever the ledger still keeps.
+#[derive(Clone)]
+pub struct Shown {
+    pub jobs: u64,
+    /// Stroke-to-display latencies, counted in logarithmic bins.
+    latency: Vec<u64>,
+    /// The heaviest sample's painting time, seconds.
+    pub heaviest_sample_seconds: f64,
+    /// The newest shown job's latency, ms.
+    pub last_latency_ms: Option<f64>,
+}
+
+impl Default for Shown {
+    fn default() -> Shown {
+        Shown { jobs: 0, latency: vec![0; BINS], heaviest_sample_seconds: 0.0, last_latency_ms: None }
+    }
+}
+
+impl Shown {
+    fn bin(ms: f64) -> usize {
+        if !(ms > FIRST_MS) {
+            return 0;
+        }
+        ((ms / FIRST_MS).log10() * BINS_A_DECADE).ceil().min((BINS - 1) as f64) as usize
+    }
+
+    fn add(&mut self, job: &JobRecord) {
+        self.jobs += 1;
+        if let Some(ms) = job.latency_ms() {
+            self.latency[Shown::bin(ms)] += 1;
+            self.last_latency_ms = Some(ms);
+        }
+        if job.kind == "sample" {
+            self.heaviest_sample_seconds = self.heaviest_sample_seconds.max(job.paint_seconds);
+        }
+    }
+
+    /// The latency at quantile `q` (0..=1) by nearest rank, ms: the upper
+    /// edge of the bin the job of that rank fell in (within 1.2 % above
+    /// its latency); None before any job was shown.
+    pub fn latency_quantile_ms(&self, q: f64) -> Option<f64> {
+        let n: u64 = self.latency.iter().sum();
+        if n == 0 {
+            return None;
+        }
+        let rank = ((n - 1) as f64 * q.clamp(0.0, 1.0)).round() as u64;
+        let mut seen = 0;
+        for (b, &c) in self.latency.iter().enumerate() {
+            seen += c;
+            if seen > rank {
+                return Some(FIRST_MS * 10f64.powf(b as f64 / BINS_A_DECADE));
+            }
+        }
+        unreachable!("the rank is below the count")
+    }
+}
+
 #[derive(Default)]
 pub struct Ledger {
+    /// The jobs' records, oldest first: every job's, or (a ledger
+    /// [`keeping`](Ledger::keeping) a number) the newest ones, from job
+    /// `dropped + 1`.
     pub jobs: Vec<JobRecord>,
+    /// Jobs whose records were let go (all of them shown).
+    pub dropped: u64,
+    /// Shown records kept at least, when records are let go at all.
+    keep: Option<usize>,
+    /// Every shown job, counted.
+    pub shown: Shown,
     /// Publication number (from 1) of the last publication recorded.
     pub last_pub: u64,
-    /// The job of every publication (index: number − 1).
-    pub pub_jobs: Vec<u64>,
     /// Per block: the publications that dirtied it and are not uploaded yet.
     uncovered: HashMap<u64, VecDeque<u64>>,
     /// The oldest uncovered publication of each block, counted.
     fronts: BTreeMap<u64, usize>,
-    /// Jobs before this index are all shown.
+    /// Jobs before this index of `jobs` are all shown.
     next_unshown: usize,
 }
 
 impl Ledger {
+    /// A ledger that lets the records of shown jobs go once more than
+    /// `2 keep` are shown, keeping the newest `keep` (a live session).
+    pub fn keeping(keep: usize) -> Ledger {
+        Ledger { keep: Some(keep.max(1)), ..Ledger::default() }
+    }
+
     pub fn submitted(&mut self, seq: u64, kind: &'static str, at: Instant) {
-        debug_assert_eq!(seq as usize, self.jobs.len() + 1, "jobs are recorded in order");
+        debug_assert_eq!(seq, self.dropped + self.jobs.len() as u64 + 1, "jobs are recorded in order");
         self.jobs.push(JobRecord {
             seq,
             kind,
@@ -71,8 +156,10 @@ impl Ledger {
         });
     }
 
+    /// Job `seq`'s record: a job is let go only once shown, and nothing
+    /// records anything of it after that.
     fn job(&mut self, seq: u64) -> &mut JobRecord {
-        &mut self.jobs[seq as usize - 1]
+        &mut self.jobs[(seq - self.dropped) as usize - 1]
     }
 
     pub fn started(&mut self, seq: u64) {
@@ -84,7 +171,6 @@ impl Ledger {
     pub fn published(&mut self, seq: u64, blocks: &[u64]) -> u64 {
         self.last_pub += 1;
         let n = self.last_pub;
-        self.pub_jobs.push(seq);
         if seq > 0 {
             let job = self.job(seq);
             job.first_pub.get_or_insert(n);
@@ -160,9 +246,18 @@ impl Ledger {
             }
             j.shown = Some(at);
             j.shown_frame = Some(frame);
+            self.shown.add(j);
             self.next_unshown += 1;
         }
-        self.next_unshown as u64
+        if let Some(keep) = self.keep
+            && self.next_unshown > 2 * keep
+        {
+            let go = self.next_unshown - keep;
+            self.jobs.drain(..go);
+            self.dropped += go as u64;
+            self.next_unshown -= go;
+        }
+        self.dropped + self.next_unshown as u64
     }
 
     /// Jobs not shown yet.
@@ -213,5 +308,31 @@ mod tests {
         l.uploaded(0, p);
         assert_eq!(l.frame_ended(3, t), 2);
         assert_eq!(l.unshown(), 0);
+    }
+
+    #[test]
+    fn a_live_ledger_keeps_the_newest_records_and_counts_every_job() {
+        let mut l = Ledger::keeping(3);
+        let t = Instant::now();
+        for seq in 1..=100u64 {
+            l.submitted(seq, "sample", t);
+            let p = l.published(seq, &[seq % 5]);
+            l.painted(seq, seq as f64 * 1e-3);
+            l.finished(seq);
+            l.uploaded(seq % 5, p);
+            assert_eq!(l.frame_ended(seq, t + std::time::Duration::from_micros(seq * 100)), seq);
+            assert!(l.jobs.len() <= 7, "at most 2 keep shown and the one in hand");
+        }
+        assert_eq!(l.dropped + l.jobs.len() as u64, 100);
+        assert_eq!(l.jobs.last().unwrap().seq, 100);
+        assert_eq!(l.shown.jobs, 100);
+        assert!((l.shown.heaviest_sample_seconds - 0.1).abs() < 1e-12);
+        // Latencies 0.1 .. 10 ms: p50 is rank 50 of 0..=99 (round(49.5)),
+        // job 51's 5.1 ms, to within a bin above.
+        let p50 = l.shown.latency_quantile_ms(0.5).unwrap();
+        assert!((5.1..5.1 * 1.012).contains(&p50), "{p50}");
+        let max = l.shown.latency_quantile_ms(1.0).unwrap();
+        assert!((10.0..10.0 * 1.012).contains(&max), "{max}");
+        assert!((l.shown.last_latency_ms.unwrap() - 10.0).abs() < 1e-9);
     }
 }

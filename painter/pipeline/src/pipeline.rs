@@ -193,6 +193,7 @@ fn render_thread(
     mut r: Renderer,
 ) -> Result<(Renderer, Vec<FrameRecord>, Vec<(u32, u64, u64)>), GpuError> {
     let mut records = Vec::new();
+    let mut index = 0;
     let camera = settings.camera;
     let lat = octopaint_tree::lattice::Lattice::new(&shared.size);
     let mut params = RayParams::new(&lat, &camera);
@@ -213,8 +214,9 @@ fn render_thread(
         r.gpu.wait();
         let end = Instant::now();
         let (shown_jobs, unshown) = frames.ended(end);
+        index += 1;
         records.push(FrameRecord {
-            index: records.len() as u64 + 1,
+            index,
             start,
             end,
             uploads: prepared.uploads,
@@ -228,6 +230,7 @@ fn render_thread(
             cast_seconds: (end - t_g3).as_secs_f64(),
             digest,
         });
+        crate::settings::trim_records(&mut records, settings.keep_records);
         // Done when asked to finish and everything has reached the screen:
         // no job left unshown, nothing staged, staging closed.
         if shared.finishing.load(Ordering::Acquire) && shared.staged.is_closed() && shared.staged.is_empty() && shared.jobs.is_empty() && unshown == 0 {

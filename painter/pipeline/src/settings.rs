@@ -70,6 +70,25 @@ pub struct Settings {
     /// passes give the same bytes for any count). Default: the cores less
     /// two, kept for the render and staging threads, at least 1.
     pub core_threads: usize,
+    /// Records kept of jobs, frames and staged copies: None every one, for
+    /// the run's report (benchmarks, tests); `Some(n)` the newest `n` to
+    /// `2 n` of each, with running figures of all (a live session: the
+    /// window, the headset, `bench soak`, whose memory must not grow with
+    /// the hours painted).
+    pub keep_records: Option<usize>,
+}
+
+/// [`Settings::keep_records`] of a live session: a few seconds of jobs.
+pub const LIVE_RECORDS: usize = 4096;
+
+/// Let the oldest of `records` go as [`Settings::keep_records`] says:
+/// once there are more than `2 keep`, the newest `keep` stay.
+pub(crate) fn trim_records<T>(records: &mut Vec<T>, keep: Option<usize>) {
+    if let Some(keep) = keep
+        && records.len() > 2 * keep.max(1)
+    {
+        records.drain(..records.len() - keep.max(1));
+    }
 }
 
 /// The default of [`Settings::core_threads`].
@@ -92,6 +111,7 @@ impl Settings {
             target_hz: None,
             capture: false,
             core_threads: default_core_threads(),
+            keep_records: None,
         }
     }
 }

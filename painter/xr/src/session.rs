@@ -128,7 +128,9 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     // on, before the document goes to the stroke thread.
     let bounds = Bounds::shown(&doc.doc);
     let drawer = Drawer::new(&renderer, &eyes, Lattice::new(doc.doc.canvas()), opts.precision, view);
-    let settings = Settings::new(Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.5, -0.5], size: [64, 64], background: [0.0; 3] });
+    let mut settings = Settings::new(Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.5, -0.5], size: [64, 64], background: [0.0; 3] });
+    // A session of hours: the engine's records stay a few seconds long.
+    settings.keep_records = Some(octopaint_pipeline::settings::LIVE_RECORDS);
     let gate = opts.hold_painting.as_ref().map(|_| Arc::new(octopaint_pipeline::Gate::default()));
     let engine = Engine::start(Box::new(OpenDocument::new(doc)), &settings, &Hooks { render: None, stroke: gate.clone() });
     let hold = opts.hold_painting.clone().zip(gate).map(|(path, gate)| octopaint_pipeline::play::hold_while(path, gate));
