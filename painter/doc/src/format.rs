@@ -35,6 +35,7 @@ use octopaint_tree::pool::{CellRecord, FREE, NONE, Tree};
 use octopaint_tree::trace::{Trace, parse_trace_with};
 
 use crate::DocError;
+use crate::trace_log::Deflated;
 
 pub const MAGIC: &[u8; 16] = b"OCTOPAINTDOC\r\n\x1a\n";
 /// The newest version this reader reads and the version a document of
@@ -156,42 +157,104 @@ fn history_bytes(h: &History, tree: &Tree) -> Vec<u8> {
     out
 }
 
-fn section(out: &mut Vec<u8>, tag: &[u8; 4], raw: &[u8], flags: u32) -> std::io::Result<()> {
-    let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::fast());
-    z.write_all(raw)?;
-    let stored = z.finish()?;
+/// A document's `TRCE` section: the session's text, deflated when
+/// written, or deflated already (a writing session's [`TraceLog`]).
+///
+/// [`TraceLog`]: crate::trace_log::TraceLog
+pub enum TraceSection<'a> {
+    Text(&'a str),
+    Deflated(Deflated<'a>),
+}
+
+impl<'a> From<&'a str> for TraceSection<'a> {
+    fn from(t: &'a str) -> Self {
+        TraceSection::Text(t)
+    }
+}
+
+impl<'a> From<&'a String> for TraceSection<'a> {
+    fn from(t: &'a String) -> Self {
+        TraceSection::Text(t)
+    }
+}
+
+impl<'a> From<Deflated<'a>> for TraceSection<'a> {
+    fn from(d: Deflated<'a>) -> Self {
+        TraceSection::Deflated(d)
+    }
+}
+
+/// A section's content: raw bytes, or a zlib stream made already (in
+/// two parts) with its raw length and CRC.
+enum Body<'a> {
+    Raw(&'a [u8]),
+    Stored(Deflated<'a>),
+}
+
+impl<'a> From<TraceSection<'a>> for Body<'a> {
+    fn from(t: TraceSection<'a>) -> Self {
+        match t {
+            TraceSection::Text(t) => Body::Raw(t.as_bytes()),
+            TraceSection::Deflated(d) => Body::Stored(d),
+        }
+    }
+}
+
+fn section(out: &mut Vec<u8>, tag: &[u8; 4], body: &Body<'_>, flags: u32) -> std::io::Result<()> {
+    let (deflated, raw_len, crc);
+    let stored: [&[u8]; 2] = match body {
+        Body::Raw(raw) => {
+            let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::fast());
+            z.write_all(raw)?;
+            deflated = z.finish()?;
+            (raw_len, crc) = (raw.len() as u64, crc32fast::hash(raw));
+            [&deflated, &[]]
+        }
+        Body::Stored(d) => {
+            (raw_len, crc) = (d.raw_len, d.crc);
+            [d.stream, &d.end]
+        }
+    };
     out.extend_from_slice(tag);
     put_u32(out, flags | ZLIB);
-    out.extend_from_slice(&(stored.len() as u64).to_le_bytes());
-    out.extend_from_slice(&(raw.len() as u64).to_le_bytes());
-    put_u32(out, crc32fast::hash(raw));
+    out.extend_from_slice(&((stored[0].len() + stored[1].len()) as u64).to_le_bytes());
+    out.extend_from_slice(&raw_len.to_le_bytes());
+    put_u32(out, crc);
     put_u32(out, 0);
-    out.extend_from_slice(&stored);
+    out.extend_from_slice(stored[0]);
+    out.extend_from_slice(stored[1]);
     Ok(())
 }
 
 /// A document's parts as bytes, and the file's CRC (the identity a
 /// journal refers to).
-pub fn write(trace_text: &str, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
+pub fn write<'a>(trace_text: impl Into<TraceSection<'a>>, tree: &Tree, history: &History, meta: &str) -> std::io::Result<(Vec<u8>, u32)> {
     write_with(trace_text, tree, history, meta, &Imports::new())
 }
 
 /// [`write`] with the voxel sets the session imported (format version 3
 /// when there are any).
-pub fn write_with(trace_text: &str, tree: &Tree, history: &History, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
+pub fn write_with<'a>(
+    trace_text: impl Into<TraceSection<'a>>,
+    tree: &Tree,
+    history: &History,
+    meta: &str,
+    imports: &Imports,
+) -> std::io::Result<(Vec<u8>, u32)> {
     // One tree: version 1, which every reader opens, unless it imported.
     let (pools, hist) = (pools_bytes(tree), history_bytes(history, tree));
     let voxl: Vec<Vec<u8>> = imports.iter().map(|(f, d)| voxl_bytes(f, d)).collect();
-    let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"POOL", pools.as_slice(), 0), (b"HIST", hist.as_slice(), 0)];
-    sections.extend(voxl.iter().map(|raw| (b"VOXL", raw.as_slice(), 0)));
-    sections.push((b"META", meta.as_bytes(), OPTIONAL));
+    let trace: TraceSection<'a> = trace_text.into();
+    let mut sections = vec![(b"TRCE", Body::from(trace), 0), (b"POOL", Body::Raw(&pools), 0), (b"HIST", Body::Raw(&hist), 0)];
+    sections.extend(voxl.iter().map(|raw| (b"VOXL", Body::Raw(raw), 0)));
+    sections.push((b"META", Body::Raw(meta.as_bytes()), OPTIONAL));
     file_bytes(if imports.is_empty() { 1 } else { IMPORTS_VERSION }, &sections)
 }
 
 /// A file of `version` (also the oldest version that reads it): header,
 /// the sections (tag, raw bytes, flags) in order, trailer; and the CRC of
 /// everything but the trailer (the identity a journal refers to).
-fn file_bytes(version: u32, sections: &[(&[u8; 4], &[u8], u32)]) -> std::io::Result<(Vec<u8>, u32)> {
+fn file_bytes(version: u32, sections: &[(&[u8; 4], Body<'_>, u32)]) -> std::io::Result<(Vec<u8>, u32)> {
     let mut out = Vec::new();
     out.extend_from_slice(MAGIC);
     put_u32(&mut out, version);
@@ -199,8 +262,8 @@ fn file_bytes(version: u32, sections: &[(&[u8; 4], &[u8], u32)]) -> std::io::Res
     put_u32(&mut out, sections.len() as u32);
     let crc = crc32fast::hash(&out);
     put_u32(&mut out, crc);
-    for (tag, raw, flags) in sections {
-        section(&mut out, tag, raw, *flags)?;
+    for (tag, body, flags) in sections {
+        section(&mut out, tag, body, *flags)?;
     }
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(b"END!");
@@ -276,15 +339,21 @@ fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
 /// A document of layers as bytes (format version 2: `TRCE`, `DOCU`, one
 /// `LAYR` per layer the document or its history holds, `META`), and the
 /// file's CRC.
-pub fn write_layers(trace_text: &str, doc: &layers::Document, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
+pub fn write_layers<'a>(
+    trace_text: impl Into<TraceSection<'a>>,
+    doc: &layers::Document,
+    meta: &str,
+    imports: &Imports,
+) -> std::io::Result<(Vec<u8>, u32)> {
     let (layers, ..) = doc.parts();
     let docu = document_bytes(doc);
     let layrs: Vec<Vec<u8>> = layers.map(|(id, l)| layer_bytes(id, l)).collect();
     let voxl: Vec<Vec<u8>> = imports.iter().map(|(f, d)| voxl_bytes(f, d)).collect();
-    let mut sections = vec![(b"TRCE", trace_text.as_bytes(), 0), (b"DOCU", docu.as_slice(), 0)];
-    sections.extend(layrs.iter().map(|raw| (b"LAYR", raw.as_slice(), 0)));
-    sections.extend(voxl.iter().map(|raw| (b"VOXL", raw.as_slice(), 0)));
-    sections.push((b"META", meta.as_bytes(), OPTIONAL));
+    let trace: TraceSection<'a> = trace_text.into();
+    let mut sections = vec![(b"TRCE", Body::from(trace), 0), (b"DOCU", Body::Raw(&docu), 0)];
+    sections.extend(layrs.iter().map(|raw| (b"LAYR", Body::Raw(raw), 0)));
+    sections.extend(voxl.iter().map(|raw| (b"VOXL", Body::Raw(raw), 0)));
+    sections.push((b"META", Body::Raw(meta.as_bytes()), OPTIONAL));
     file_bytes(if imports.is_empty() { 2 } else { IMPORTS_VERSION }, &sections)
 }
 

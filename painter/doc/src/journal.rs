@@ -29,6 +29,16 @@ pub(crate) fn read(jp: &Path) -> Result<Option<Vec<u8>>, DocError> {
     }
 }
 
+/// The complete event lines the journal of document `doc` holds beyond
+/// the saved document, as a writer's recovery would replay them (None:
+/// there is no journal; 0 right after a save).
+pub fn lines_beyond(doc: &Path) -> Result<Option<usize>, DocError> {
+    let jp = journal_path(doc);
+    let Some(bytes) = read(&jp)? else { return Ok(None) };
+    let text = String::from_utf8_lossy(&bytes);
+    Ok(Some(parse(&jp, &text)?.map_or(0, |r| r.body.len())))
+}
+
 pub(crate) fn header(crc: u32, events: usize) -> String {
     format!("{{\"journal\": \"octopaint\", \"version\": 1, \"document_crc\": {crc}, \"document_events\": {events}}}")
 }

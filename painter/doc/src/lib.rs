@@ -9,12 +9,14 @@
 //! | [`format`] | the file: header, checksummed compressed sections, trailer |
 //! | [`session`] | events applied, journalled, saved; recovery; one writer at a time |
 //! | [`journal`] | the journal's lines: header, appends, what a crash leaves |
+//! | [`trace_log`] | a writing session's trace: saved events deflated, the rest as text |
 //! | [`fuzz_harness`] | the document and journal fuzz targets' bodies |
 
 pub mod format;
 pub mod fuzz_harness;
 pub mod journal;
 pub mod session;
+pub mod trace_log;
 
 pub use journal::journal_path;
 pub use session::Session;

@@ -35,6 +35,7 @@ use crate::{DocError, io};
 mod import;
 use crate::journal::{self, journal_path};
 use crate::format::{self, Content, Document, Imports};
+use crate::trace_log::TraceLog;
 
 /// Undo history kept by default (the history beyond it is forgotten,
 /// oldest strokes first).
@@ -47,8 +48,9 @@ pub struct Session {
     pub doc: Layers,
     /// The session's trace version: 1 one tree, 2 layers.
     pub version: u32,
-    /// The session's trace: header and the events committed so far.
-    trace_text: String,
+    /// The session's trace: header and the events committed so far (the
+    /// saved ones deflated once sealed).
+    trace: TraceLog,
     /// The voxel sets its `import` events name (spec 15), by file.
     imports: Imports,
     events: usize,
@@ -142,17 +144,18 @@ impl Session {
         if self.in_stroke {
             return Err(DocError::BadEvent("cannot make layers inside a stroke: end it first".into()));
         }
-        let (head, rest) = self.trace_text.split_once('\n').map_or((self.trace_text.as_str(), ""), |(h, r)| (h, r));
+        let whole = self.trace.text();
+        let (head, rest) = whole.split_once('\n').map_or((whole.as_str(), ""), |(h, r)| (h, r));
         let trace = parse_trace(head).map_err(|e| DocError::BadEvent(e.to_string()))?;
         let mut text = octopaint_tree::trace_write::header_line_version(&trace.canvas, &trace.meta, 2);
         if !rest.is_empty() {
             text.push('\n');
             text.push_str(rest);
         }
-        let old = std::mem::replace(&mut self.trace_text, text);
+        let old = std::mem::replace(&mut self.trace, TraceLog::new(text));
         self.version = 2;
         if let Err(e) = self.save() {
-            self.trace_text = old;
+            self.trace = old;
             self.version = 1;
             return Err(e);
         }
@@ -173,7 +176,7 @@ impl Session {
             path: path.to_path_buf(),
             doc,
             version,
-            trace_text,
+            trace: TraceLog::new(trace_text),
             imports: Imports::new(),
             events,
             pending: Vec::new(),
@@ -295,7 +298,8 @@ impl Session {
         if crc != self.base_crc || base != self.events {
             // Saved already (the crash came between the save and the new
             // journal)? Then the document holds these events.
-            let saved: Vec<&str> = self.trace_text.lines().skip(1).collect();
+            let text = self.trace.text();
+            let saved: Vec<&str> = text.lines().skip(1).collect();
             if base + body.len() <= saved.len() && saved[base..base + body.len()] == *body {
                 return Ok(());
             }
@@ -307,7 +311,7 @@ impl Session {
         if body.is_empty() {
             return Ok(());
         }
-        let mut all = self.trace_text.clone();
+        let mut all = self.trace.text();
         for l in body {
             all.push('\n');
             all.push_str(l);
@@ -322,7 +326,9 @@ impl Session {
                 self.recovered += 1;
             }
         }
-        self.trace_text = all;
+        for l in body {
+            self.trace.push(l);
+        }
         self.events = trace.events.len();
         // The journal stays as it is: it still extends the saved document.
         self.pending.clear();
@@ -385,6 +391,11 @@ impl Session {
     /// The mirror planes the next stroke paints with (spec 8.11).
     pub fn mirror(&self) -> Option<Mirror> {
         self.mirror
+    }
+
+    /// Bytes the session's trace takes in memory (`bench soak`'s figure).
+    pub fn trace_bytes(&self) -> usize {
+        self.trace.bytes() + self.pending.iter().map(String::capacity).sum::<usize>()
     }
 
     /// Events in the session, saved or not.
@@ -511,7 +522,7 @@ impl Session {
         let written = if self.journal_torn {
             // Every event since the document, then the pending ones: the
             // journal replaced whole, as a save replaces the document.
-            let since = self.trace_text.lines().skip(1 + self.base_events);
+            let since = self.trace.since_lines();
             journal::rewrite(&jp, base, since.chain(self.pending.iter().map(String::as_str)))
         } else {
             journal::append(&mut self.journal, &jp, base, &self.pending)
@@ -525,8 +536,7 @@ impl Session {
         }
         self.journal_torn = false;
         for l in self.pending.drain(..) {
-            self.trace_text.push('\n');
-            self.trace_text.push_str(&l);
+            self.trace.push(&l);
             self.events += 1;
         }
         Ok(())
@@ -541,8 +551,7 @@ impl Session {
         }
         // Brush and camera events since the last stroke go with the save.
         for l in self.pending.drain(..) {
-            self.trace_text.push('\n');
-            self.trace_text.push_str(&l);
+            self.trace.push(&l);
             self.events += 1;
         }
         let meta = format!(
@@ -553,14 +562,18 @@ impl Session {
             self.doc.len(),
             self.doc.steps().0
         );
+        // The trace deflates only what is new since the last save.
+        let trace = self.trace.seal().map_err(io(&self.path))?;
         let written = if self.version == 2 {
-            format::write_layers(&self.trace_text, &self.doc, &meta, &self.imports)
+            format::write_layers(trace, &self.doc, &meta, &self.imports)
         } else {
-            let p = self.painting();
-            format::write_with(&self.trace_text, &p.tree, &p.history, &meta, &self.imports)
+            let p = &self.doc.current().painting;
+            format::write_with(trace, &p.tree, &p.history, &meta, &self.imports)
         };
         let (bytes, crc) = written.map_err(io(&self.path))?;
         durable::write(&self.path, &bytes).map_err(io(&self.path))?;
+        drop(bytes);
+        self.trace.saved();
         // The new journal extends the new document; until it exists, the
         // old one's events are all in the document (recover() sees that).
         self.journal = None;
@@ -580,7 +593,7 @@ impl Session {
 
     /// The whole session as a trace: replaying it gives this tree.
     pub fn trace_text(&self) -> String {
-        let mut t = self.trace_text.clone();
+        let mut t = self.trace.text();
         for l in &self.pending {
             t.push('\n');
             t.push_str(l);
