@@ -42,7 +42,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         strokes += usize::from(matches!(ev.kind, EventKind::StrokeEnd));
     }
     let session_s = t.elapsed().as_secs_f64();
-    let text = s.trace_text();
+    let text = s.trace_text().map_err(|e| anyhow::anyhow!("{e}"))?;
     let (tree, history) = (&s.painting().tree, &s.painting().history);
     let (mut enc, mut save, mut dec, mut dump, mut dump_save, mut dump_read) = (vec![], vec![], vec![], vec![], vec![], vec![]);
     let (mut doc_bytes, mut dump_bytes) = (0, 0);

@@ -329,7 +329,14 @@ pub fn record(doc: &Path, out: &Path) -> ExitCode {
             return ExitCode::from(1);
         }
     }
-    match octopaint_platform::durable::write(out, s.trace_text().as_bytes()) {
+    let text = match s.trace_text() {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("octopaint: {e}");
+            return ExitCode::from(1);
+        }
+    };
+    match octopaint_platform::durable::write(out, text.as_bytes()) {
         Ok(()) => {
             eprintln!("{}: {} events ({} imported voxel sets beside it)", out.display(), s.event_count(), s.imports().len());
             ExitCode::SUCCESS

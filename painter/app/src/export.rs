@@ -354,7 +354,8 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
             // --at in a document: its session, replayed to the snapshot.
             let s = octopaint_doc::Session::open_read(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
             let resolve = octopaint_doc::format::resolver(s.imports());
-            octopaint_tree::trace::parse_trace_with(&s.trace_text(), Some(&resolve)).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
+            let text = s.trace_text().map_err(|e| refuse(format!("{}: {e}", args.input.display())))?;
+            octopaint_tree::trace::parse_trace_with(&text, Some(&resolve)).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
         } else {
             read_trace(&args.input).map_err(|e| refuse(format!("{}: {e}", args.input.display())))?
         };

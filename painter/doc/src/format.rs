@@ -185,7 +185,7 @@ impl<'a> From<Deflated<'a>> for TraceSection<'a> {
 }
 
 /// A section's content: raw bytes, or a zlib stream made already (in
-/// two parts) with its raw length and CRC.
+/// three parts) with its raw length and CRC.
 enum Body<'a> {
     Raw(&'a [u8]),
     Stored(Deflated<'a>),
@@ -202,27 +202,28 @@ impl<'a> From<TraceSection<'a>> for Body<'a> {
 
 fn section(out: &mut Vec<u8>, tag: &[u8; 4], body: &Body<'_>, flags: u32) -> std::io::Result<()> {
     let (deflated, raw_len, crc);
-    let stored: [&[u8]; 2] = match body {
+    let stored: [&[u8]; 3] = match body {
         Body::Raw(raw) => {
             let mut z = ZlibEncoder::new(Vec::with_capacity(raw.len() / 4), Compression::fast());
             z.write_all(raw)?;
             deflated = z.finish()?;
             (raw_len, crc) = (raw.len() as u64, crc32fast::hash(raw));
-            [&deflated, &[]]
+            [&deflated, &[], &[]]
         }
         Body::Stored(d) => {
             (raw_len, crc) = (d.raw_len, d.crc);
-            [d.stream, &d.end]
+            [&d.spilled, d.stream, &d.end]
         }
     };
     out.extend_from_slice(tag);
     put_u32(out, flags | ZLIB);
-    out.extend_from_slice(&((stored[0].len() + stored[1].len()) as u64).to_le_bytes());
+    out.extend_from_slice(&(stored.iter().map(|s| s.len()).sum::<usize>() as u64).to_le_bytes());
     out.extend_from_slice(&raw_len.to_le_bytes());
     put_u32(out, crc);
     put_u32(out, 0);
-    out.extend_from_slice(stored[0]);
-    out.extend_from_slice(stored[1]);
+    for s in stored {
+        out.extend_from_slice(s);
+    }
     Ok(())
 }
 

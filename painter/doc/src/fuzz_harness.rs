@@ -64,5 +64,5 @@ pub fn journal(data: &[u8]) {
         let problems = check_tree(layer.tree());
         assert!(problems.is_empty(), "{problems:?}");
     }
-    assert!(octopaint_tree::trace::parse_trace(&s.trace_text()).is_ok());
+    assert!(octopaint_tree::trace::parse_trace(&s.trace_text().expect("a read session's trace is in memory")).is_ok());
 }

@@ -1,25 +1,32 @@
 //! The session's trace as a writing session holds it between saves: what
 //! has been saved once is kept deflated, as the document's `TRCE` section
-//! stores it, and only the events since the last save are kept as text.
-//! A session of hours so holds a few bytes a sample instead of the whole
-//! text, and a save deflates only what is new: the stream is never
-//! finished, only flushed (zlib's sync flush, which ends on a byte), and
-//! each save's section is that stream with an empty final block and the
-//! Adler-32 of everything after it, an ordinary zlib stream any reader
-//! inflates (docs/documents.md, "Memory over a long session").
+//! stores it, and out of memory, in a spill file of the session's own
+//! beside the document; only the events since the last save are kept as
+//! text. A session of hours so holds no more of its trace than the events
+//! of one save interval, and a save deflates only what is new: the stream
+//! is never finished, only flushed (zlib's sync flush, which ends on a
+//! byte), and each save's section is that stream with an empty final
+//! block and the Adler-32 of everything before, an ordinary zlib stream
+//! any reader inflates (docs/documents.md, "Memory over a long session").
 //!
-//! The text is the trace format's: the header line, then `\n` and one
-//! event line per event, with no newline at the end.
+//! The spill file is an anonymous temporary file in the document's folder
+//! (on the document's disk, not a RAM-backed /tmp), gone when the session
+//! ends however it ends; where one cannot be made the stream stays in
+//! memory. The text is the trace format's: the header line, then `\n` and
+//! one event line per event, with no newline at the end.
 
-use std::io::{Read, Write};
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::Path;
 
 use flate2::Compression;
 use flate2::read::ZlibDecoder;
 use flate2::write::ZlibEncoder;
 
-/// A `TRCE` section's content, deflated: `stream` then `end`, `raw_len`
-/// bytes of text whose CRC-32 is `crc`.
+/// A `TRCE` section's content, deflated: `spilled`, `stream` then `end`,
+/// `raw_len` bytes of text whose CRC-32 is `crc`.
 pub struct Deflated<'a> {
+    pub spilled: Vec<u8>,
     pub stream: &'a [u8],
     pub end: [u8; 6],
     pub raw_len: u64,
@@ -28,15 +35,20 @@ pub struct Deflated<'a> {
 
 /// What the stream holds so far, with its checksums.
 struct Stream {
+    /// The stream's bytes not yet in the spill file.
     z: ZlibEncoder<Vec<u8>>,
+    /// The spill file and the stream's bytes in it (None: the stream is
+    /// all in `z`).
+    spill: Option<(File, u64)>,
     crc: crc32fast::Hasher,
     adler: adler2::Adler32,
     raw_len: u64,
 }
 
 impl Stream {
-    fn new() -> Stream {
-        Stream { z: ZlibEncoder::new(Vec::new(), Compression::fast()), crc: crc32fast::Hasher::new(), adler: adler2::Adler32::new(), raw_len: 0 }
+    fn new(folder: &Path) -> Stream {
+        let spill = tempfile::tempfile_in(folder).ok().map(|f| (f, 0));
+        Stream { z: ZlibEncoder::new(Vec::new(), Compression::fast()), spill, crc: crc32fast::Hasher::new(), adler: adler2::Adler32::new(), raw_len: 0 }
     }
 
     fn write(&mut self, text: &str) -> std::io::Result<()> {
@@ -45,6 +57,30 @@ impl Stream {
         self.adler.write_slice(text.as_bytes());
         self.raw_len += text.len() as u64;
         Ok(())
+    }
+
+    /// Move the bytes in `z` to the end of the spill file (kept in `z`
+    /// when that fails: the next seal tries again).
+    fn spill(&mut self) -> std::io::Result<()> {
+        let Some((f, len)) = &mut self.spill else { return Ok(()) };
+        f.seek(SeekFrom::Start(*len))?;
+        f.write_all(self.z.get_ref())?;
+        *len += self.z.get_ref().len() as u64;
+        self.z.get_mut().clear();
+        Ok(())
+    }
+
+    /// The spilled bytes, read back.
+    fn spilled(&self) -> std::io::Result<Vec<u8>> {
+        let Some((f, len)) = &self.spill else { return Ok(Vec::new()) };
+        let mut out = Vec::with_capacity(*len as usize);
+        let mut f = f;
+        f.seek(SeekFrom::Start(0))?;
+        f.take(*len).read_to_end(&mut out)?;
+        if out.len() as u64 != *len {
+            return Err(std::io::Error::new(std::io::ErrorKind::UnexpectedEof, "the trace's spill file is shorter than written"));
+        }
+        Ok(out)
     }
 
     /// The empty final block (static Huffman: BFINAL 1, BTYPE 01, the
@@ -94,24 +130,29 @@ impl TraceLog {
         self.since_events
     }
 
-    /// The whole text: the header and every event.
-    pub fn text(&self) -> String {
+    /// The whole text: the header and every event (the spilled part read
+    /// back from its file).
+    pub fn text(&self) -> std::io::Result<String> {
         let mut out = String::new();
         if let Some(s) = &self.stream {
-            let mut whole = s.z.get_ref().clone();
+            let mut whole = s.spilled()?;
+            whole.extend_from_slice(s.z.get_ref());
             whole.extend_from_slice(&s.end());
-            ZlibDecoder::new(whole.as_slice()).read_to_string(&mut out).expect("the log's own stream inflates");
+            ZlibDecoder::new(whole.as_slice())
+                .read_to_string(&mut out)
+                .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, format!("the trace's deflated part does not inflate: {e}")))?;
         }
         out.push_str(&self.head);
         out.push_str(&self.since[self.sealed..]);
-        out
+        Ok(out)
     }
 
     /// Deflate everything not yet in the stream, and give the section a
-    /// save writes; [`TraceLog::saved`] once that save is on disk.
-    pub fn seal(&mut self) -> std::io::Result<Deflated<'_>> {
+    /// save writes; [`TraceLog::saved`] once that save is on disk. The
+    /// spill file, if there is one, is made in `folder` (the document's).
+    pub fn seal(&mut self, folder: &Path) -> std::io::Result<Deflated<'_>> {
         if self.stream.is_none() {
-            let mut s = Stream::new();
+            let mut s = Stream::new(folder);
             s.write(&self.head)?;
             self.head = String::new();
             self.stream = Some(s);
@@ -120,7 +161,9 @@ impl TraceLog {
         stream.write(&self.since[self.sealed..])?;
         self.sealed = self.since.len();
         stream.z.flush()?;
-        Ok(Deflated { stream: stream.z.get_ref(), end: stream.end(), raw_len: stream.raw_len, crc: stream.crc.clone().finalize() })
+        stream.spill()?;
+        let spilled = stream.spilled()?;
+        Ok(Deflated { spilled, stream: stream.z.get_ref(), end: stream.end(), raw_len: stream.raw_len, crc: stream.crc.clone().finalize() })
     }
 
     /// The sealed text is the saved document's: nothing is "since" any more.
@@ -130,11 +173,17 @@ impl TraceLog {
         self.sealed = 0;
     }
 
-    /// Bytes the log holds: the deflated stream's and the text's (the
-    /// stream's spare capacity is never written, so never resident), for
-    /// the soak's figures.
+    /// Bytes the log holds in memory: the deflated stream's not spilled
+    /// (its spare capacity is never written, so never resident) and the
+    /// text's, for the soak's figures.
     pub fn bytes(&self) -> usize {
         self.stream.as_ref().map_or(0, |s| s.z.get_ref().len()) + self.head.len() + self.since.len()
+    }
+
+    /// Whether the saved part is spilled to a file (false before the
+    /// first save, or where no spill file could be made).
+    pub fn spilled(&self) -> bool {
+        self.stream.as_ref().is_some_and(|s| s.spill.is_some())
     }
 }
 
@@ -143,7 +192,8 @@ mod tests {
     use super::*;
 
     fn inflate(d: &Deflated<'_>) -> String {
-        let mut whole = d.stream.to_vec();
+        let mut whole = d.spilled.clone();
+        whole.extend_from_slice(d.stream);
         whole.extend_from_slice(&d.end);
         let mut out = String::new();
         ZlibDecoder::new(whole.as_slice()).read_to_string(&mut out).unwrap();
@@ -154,6 +204,7 @@ mod tests {
 
     #[test]
     fn every_seal_is_a_whole_zlib_stream_of_the_text_so_far() {
+        let dir = tempfile::tempdir().unwrap();
         let mut log = TraceLog::new("{\"octopaint_trace\": 2}".into());
         let mut want = String::from("{\"octopaint_trace\": 2}");
         for save in 0..5 {
@@ -163,38 +214,56 @@ mod tests {
                 want.push('\n');
                 want.push_str(&line);
             }
-            assert_eq!(log.text(), want);
-            let got = inflate(&log.seal().unwrap());
+            assert_eq!(log.text().unwrap(), want);
+            let got = inflate(&log.seal(dir.path()).unwrap());
             assert_eq!(got, want);
             log.saved();
+            assert!(log.spilled());
             assert_eq!(log.since_events(), 0);
-            assert_eq!(log.text(), want);
+            assert_eq!(log.text().unwrap(), want);
         }
-        // Deflated, the text takes a small share of its length.
-        assert!(log.bytes() < want.len() / 3, "{} of {}", log.bytes(), want.len());
+        // Spilled, the saved text takes no memory; the spill file is
+        // anonymous: nothing is left in the folder.
+        assert_eq!(log.bytes(), 0);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
     #[test]
     fn a_seal_whose_save_failed_keeps_its_events_since_the_save() {
+        let dir = tempfile::tempdir().unwrap();
         let mut log = TraceLog::new("H".into());
         log.push("a");
         log.push("b");
-        let _ = log.seal().unwrap(); // the save then fails: no saved()
+        let _ = log.seal(dir.path()).unwrap(); // the save then fails: no saved()
         log.push("c");
         assert_eq!(log.since_lines().collect::<Vec<_>>(), ["a", "b", "c"]);
-        assert_eq!(log.text(), "H\na\nb\nc");
-        assert_eq!(inflate(&log.seal().unwrap()), "H\na\nb\nc");
+        assert_eq!(log.text().unwrap(), "H\na\nb\nc");
+        assert_eq!(inflate(&log.seal(dir.path()).unwrap()), "H\na\nb\nc");
         log.saved();
         assert_eq!(log.since_lines().count(), 0);
         log.push("d");
         assert_eq!(log.since_lines().collect::<Vec<_>>(), ["d"]);
-        assert_eq!(log.text(), "H\na\nb\nc\nd");
+        assert_eq!(log.text().unwrap(), "H\na\nb\nc\nd");
+    }
+
+    #[test]
+    fn without_a_spill_file_the_stream_stays_in_memory() {
+        let mut log = TraceLog::new("H".into());
+        log.push("a");
+        let d = log.seal(Path::new("/no/such/folder")).unwrap();
+        assert!(d.spilled.is_empty());
+        assert_eq!(inflate(&d), "H\na");
+        log.saved();
+        assert!(!log.spilled() && log.bytes() > 0);
+        log.push("b");
+        assert_eq!(inflate(&log.seal(Path::new("/no/such/folder")).unwrap()), "H\na\nb");
     }
 
     #[test]
     fn an_empty_log_seals_to_an_empty_stream() {
+        let dir = tempfile::tempdir().unwrap();
         let mut log = TraceLog::new(String::new());
-        let d = log.seal().unwrap();
+        let d = log.seal(dir.path()).unwrap();
         assert_eq!(inflate(&d), "");
         assert_eq!(&d.end[..2], &[0x03, 0x00]);
     }

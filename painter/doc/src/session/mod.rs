@@ -144,7 +144,7 @@ impl Session {
         if self.in_stroke {
             return Err(DocError::BadEvent("cannot make layers inside a stroke: end it first".into()));
         }
-        let whole = self.trace.text();
+        let whole = self.trace.text().map_err(io(&self.path))?;
         let (head, rest) = whole.split_once('\n').map_or((whole.as_str(), ""), |(h, r)| (h, r));
         let trace = parse_trace(head).map_err(|e| DocError::BadEvent(e.to_string()))?;
         let mut text = octopaint_tree::trace_write::header_line_version(&trace.canvas, &trace.meta, 2);
@@ -298,7 +298,7 @@ impl Session {
         if crc != self.base_crc || base != self.events {
             // Saved already (the crash came between the save and the new
             // journal)? Then the document holds these events.
-            let text = self.trace.text();
+            let text = self.trace.text().map_err(io(jp))?;
             let saved: Vec<&str> = text.lines().skip(1).collect();
             if base + body.len() <= saved.len() && saved[base..base + body.len()] == *body {
                 return Ok(());
@@ -311,7 +311,7 @@ impl Session {
         if body.is_empty() {
             return Ok(());
         }
-        let mut all = self.trace.text();
+        let mut all = self.trace.text().map_err(io(jp))?;
         for l in body {
             all.push('\n');
             all.push_str(l);
@@ -563,7 +563,11 @@ impl Session {
             self.doc.steps().0
         );
         // The trace deflates only what is new since the last save.
-        let trace = self.trace.seal().map_err(io(&self.path))?;
+        let folder = match self.path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let trace = self.trace.seal(folder).map_err(io(&self.path))?;
         let written = if self.version == 2 {
             format::write_layers(trace, &self.doc, &meta, &self.imports)
         } else {
@@ -591,14 +595,16 @@ impl Session {
         Ok(())
     }
 
-    /// The whole session as a trace: replaying it gives this tree.
-    pub fn trace_text(&self) -> String {
-        let mut t = self.trace.text();
+    /// The whole session as a trace: replaying it gives this tree. Its
+    /// saved part is read back from the session's spill file (an I/O
+    /// error there is the only failure).
+    pub fn trace_text(&self) -> Result<String, DocError> {
+        let mut t = self.trace.text().map_err(io(&self.path))?;
         for l in &self.pending {
             t.push('\n');
             t.push_str(l);
         }
         t.push('\n');
-        t
+        Ok(t)
     }
 }
