@@ -28,7 +28,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-export gpu-campaign clean \
+.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-soak bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
@@ -223,6 +223,15 @@ gpu-campaign: setup painter
 bench-realtime: setup painter
 	$(PAINTER) bench realtime traces/scene.jsonl --out $(OUT)/realtime
 	$(PY) painter/bench/plot_realtime.py $(OUT)/realtime/results.json docs/realtime
+
+# A million stamps through the window's engine, memory sampled (docs/benchmarks.md,
+# "The soak"; about 15 minutes on 2 cores, 3 GiB of memory on lavapipe); the figure
+# goes to docs/soak/rss.png.
+SOAK_STAMPS ?= 1000000
+SOAK_UNDO_MIB ?= 256
+bench-soak: setup painter
+	$(PAINTER) bench soak --stamps $(SOAK_STAMPS) --undo-mib $(SOAK_UNDO_MIB) --out $(OUT)/soak
+	$(PY) painter/bench/plot_soak.py $(OUT)/soak/soak.json docs/soak/rss.png
 
 # Paint in the desktop window on the scene (imported into out/scene.octo
 # the first time); needs a display.

@@ -5,6 +5,7 @@
 mod bench_doc;
 mod bench_gpu;
 mod bench_realtime;
+mod bench_soak;
 mod bench_tree;
 mod canonical;
 mod document;
@@ -302,6 +303,8 @@ enum Bench {
     Realtime(bench_realtime::Args),
     /// Documents: save and open against a tree dump of the same painting.
     Doc(bench_doc::Args),
+    /// Hours of painting through the window's engine: memory, journal, saves.
+    Soak(bench_soak::Args),
 }
 
 /// Prints warnings as they happen; shows progress on a terminal; records a
@@ -570,33 +573,21 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(&args),
         Command::Undo(args) => document::step(&args, false),
         Command::Redo(args) => document::step(&args, true),
-        Command::Bench { which: Bench::Tree(args) } => match bench_tree::run(&args) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("octopaint: bench tree: {e:#}");
-                ExitCode::from(1)
+        Command::Bench { which } => {
+            let (name, done) = match which {
+                Bench::Tree(args) => ("tree", bench_tree::run(&args)),
+                Bench::Gpu(args) => ("gpu", bench_gpu::run(&args)),
+                Bench::Realtime(args) => ("realtime", bench_realtime::run(&args)),
+                Bench::Doc(args) => ("doc", bench_doc::run(&args)),
+                Bench::Soak(args) => ("soak", bench_soak::run(&args)),
+            };
+            match done {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("octopaint: bench {name}: {e:#}");
+                    ExitCode::from(1)
+                }
             }
-        },
-        Command::Bench { which: Bench::Realtime(args) } => match bench_realtime::run(&args) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("octopaint: bench realtime: {e:#}");
-                ExitCode::from(1)
-            }
-        },
-        Command::Bench { which: Bench::Doc(args) } => match bench_doc::run(&args) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("octopaint: bench doc: {e:#}");
-                ExitCode::from(1)
-            }
-        },
-        Command::Bench { which: Bench::Gpu(args) } => match bench_gpu::run(&args) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("octopaint: bench gpu: {e:#}");
-                ExitCode::from(1)
-            }
-        },
+        }
     }
 }

@@ -44,6 +44,11 @@ pub trait Canvas: Send + 'static {
     fn forgotten(&self) -> usize {
         0
     }
+    /// The document's session when this canvas is an open document (its
+    /// journal, its trace: `bench soak` reads its figures).
+    fn session(&self) -> Option<&octopaint_doc::Session> {
+        None
+    }
 }
 
 /// Where a ray from the eye places a sample ([`Aim`]): the surface of the

@@ -122,4 +122,8 @@ impl Canvas for OpenDocument {
     fn forgotten(&self) -> usize {
         self.session.forgotten
     }
+
+    fn session(&self) -> Option<&Session> {
+        Some(&self.session)
+    }
 }

@@ -1,11 +1,18 @@
-//! The process's peak resident memory, for the benchmarks' figures, and
-//! pages mapped in ahead of their first write.
+//! The process's resident memory, now and at its peak, for the benchmarks'
+//! figures, and pages mapped in ahead of their first write.
 
 /// Peak resident set size in KiB since the process started, where the
 /// platform reports it: Linux (`VmHWM` in /proc/self/status) and Windows
 /// (`PeakWorkingSetSize`); None elsewhere (macOS) or if the call fails.
 pub fn peak_rss_kib() -> Option<u64> {
     imp::peak_rss_kib()
+}
+
+/// Resident set size in KiB now, where the platform reports it: Linux
+/// (`VmRSS`) and Windows (`WorkingSetSize`); None elsewhere or if the call
+/// fails (`bench soak` samples it).
+pub fn rss_kib() -> Option<u64> {
+    imp::rss_kib()
 }
 
 /// Whether [`populate_for_write`] can do anything here (Linux); elsewhere
@@ -25,10 +32,18 @@ pub fn populate_for_write(addr: usize, len: usize) -> bool {
 
 #[cfg(target_os = "linux")]
 mod imp {
-    pub fn peak_rss_kib() -> Option<u64> {
+    fn status_kib(field: &str) -> Option<u64> {
         let status = std::fs::read_to_string("/proc/self/status").ok()?;
-        let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+        let line = status.lines().find(|l| l.starts_with(field))?;
         line.split_whitespace().nth(1)?.parse().ok()
+    }
+
+    pub fn peak_rss_kib() -> Option<u64> {
+        status_kib("VmHWM:")
+    }
+
+    pub fn rss_kib() -> Option<u64> {
+        status_kib("VmRSS:")
     }
 
     unsafe extern "C" {
@@ -62,7 +77,7 @@ mod imp {
     use windows_sys::Win32::System::ProcessStatus::{GetProcessMemoryInfo, PROCESS_MEMORY_COUNTERS};
     use windows_sys::Win32::System::Threading::GetCurrentProcess;
 
-    pub fn peak_rss_kib() -> Option<u64> {
+    fn counters() -> Option<PROCESS_MEMORY_COUNTERS> {
         let size = std::mem::size_of::<PROCESS_MEMORY_COUNTERS>() as u32;
         // SAFETY: PROCESS_MEMORY_COUNTERS is plain data (all zeros is a
         // valid value); the call writes at most `size` bytes into it, and
@@ -70,7 +85,15 @@ mod imp {
         let mut c: PROCESS_MEMORY_COUNTERS = unsafe { std::mem::zeroed() };
         c.cb = size;
         let ok = unsafe { GetProcessMemoryInfo(GetCurrentProcess(), &mut c, size) };
-        (ok != 0).then(|| c.PeakWorkingSetSize as u64 / 1024)
+        (ok != 0).then_some(c)
+    }
+
+    pub fn peak_rss_kib() -> Option<u64> {
+        counters().map(|c| c.PeakWorkingSetSize as u64 / 1024)
+    }
+
+    pub fn rss_kib() -> Option<u64> {
+        counters().map(|c| c.WorkingSetSize as u64 / 1024)
     }
 
     /// No Windows call maps in committed, never-touched pages without
@@ -83,6 +106,10 @@ mod imp {
 #[cfg(not(any(target_os = "linux", windows)))]
 mod imp {
     pub fn peak_rss_kib() -> Option<u64> {
+        None
+    }
+
+    pub fn rss_kib() -> Option<u64> {
         None
     }
 
@@ -101,6 +128,8 @@ mod tests {
         std::hint::black_box(&v);
         let after = super::peak_rss_kib().unwrap();
         assert!(after >= before.max(64 * 1024), "{before} KiB then {after} KiB after touching 64 MiB");
+        let now = super::rss_kib().unwrap();
+        assert!((64 * 1024..=after).contains(&now), "{now} KiB resident holding 64 MiB, peak {after} KiB");
     }
 
     #[cfg(target_os = "linux")]

@@ -63,6 +63,20 @@ pub fn replay_document(
     out_dir: Option<&Path>,
     obs: &mut dyn ReplayObserver,
 ) -> std::io::Result<(ReplayStats, Document)> {
+    replay_document_within(trace, out_dir, obs, None)
+}
+
+/// [`replay_document`] keeping at most `undo_bytes` of undo history, as a
+/// document session does (its oldest steps forgotten after every stroke,
+/// `Document::trim_to`); None keeps it all. A recorded session replays to
+/// the same document either way (an undo the session recorded took a step
+/// it still held), in bounded memory this way (`bench soak`).
+pub fn replay_document_within(
+    trace: &Trace,
+    out_dir: Option<&Path>,
+    obs: &mut dyn ReplayObserver,
+    undo_bytes: Option<usize>,
+) -> std::io::Result<(ReplayStats, Document)> {
     let mut stats = ReplayStats::default();
     for w in &trace.warnings {
         obs.warning(w);
@@ -90,7 +104,12 @@ pub fn replay_document(
                 doc.add_sample(s, ev.line);
                 stats.samples += 1;
             }
-            EventKind::StrokeEnd => doc.end_stroke(),
+            EventKind::StrokeEnd => {
+                doc.end_stroke();
+                if let Some(bound) = undo_bytes {
+                    doc.trim_to(bound);
+                }
+            }
             EventKind::Undo => {
                 doc.undo();
             }
