@@ -128,6 +128,8 @@ pub(crate) struct Shared {
     pub finished_jobs: AtomicU64,
     pub frames: AtomicU64,
     pub finishing: AtomicBool,
+    /// The cells the GPU's pages hold (the front end's frames set it).
+    pub gpu_cells: AtomicU64,
     /// The canvas: its roots, lattice and budget (every layer's mask is
     /// kept at the budget's region size: spec 3.5).
     pub size: CanvasSize,
@@ -226,6 +228,7 @@ impl Engine {
             finished_jobs: AtomicU64::new(0),
             frames: AtomicU64::new(0),
             finishing: AtomicBool::new(false),
+            gpu_cells: AtomicU64::new(0),
             size,
         });
         let stroke = {
@@ -308,6 +311,12 @@ impl Engine {
     /// `Settings::keep_records`).
     pub fn records_held(&self) -> usize {
         self.shared.ledger.lock().expect("ledger").jobs.len()
+    }
+
+    /// The cells the GPU's pages hold, as the last frame left them (16
+    /// bytes of cell and 12 of g3 each).
+    pub fn gpu_cells_held(&self) -> u64 {
+        self.shared.gpu_cells.load(Ordering::Acquire)
     }
 
     /// Frames ended so far (by the front end's [`crate::frames::Frames`]).

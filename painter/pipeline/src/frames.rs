@@ -140,6 +140,7 @@ impl Frames {
     pub fn prepare(&mut self, r: &mut Renderer) -> Result<Prepared, GpuError> {
         let start = Instant::now();
         let layout = self.layout.get_or_insert_with(|| Layout::new(r.pools.max_cells()));
+        layout.hold(r.pools.cells_held());
         // Grouped staging uploads every staged batch: batches are
         // consistent states only together with the ones before them (a LIFO
         // bounded by K would upload newer batches over older ones left out).
@@ -169,6 +170,7 @@ impl Frames {
             write.push(fresh);
         }
         r.pools.ensure(&r.gpu, layout.end())?;
+        self.shared.gpu_cells.store(r.pools.cells_held(), Ordering::Release);
         r.pools.move_ranges(&r.gpu, &moves);
         let (mut uploads, mut cells_uploaded) = (0u32, 0u64);
         let mut covered: Vec<(Vec<u64>, u64)> = Vec::new();

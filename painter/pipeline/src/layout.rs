@@ -24,12 +24,17 @@ pub struct Move {
     pub cells: u64,
 }
 
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct Layout {
     /// By first cell: (layer id, cells reserved).
     ranges: BTreeMap<u64, (u32, u64)>,
     /// The cells the pages can ever hold.
     limit: u64,
+    /// The cells the pages hold now ([`Layout::hold`]): a fit that would
+    /// reach past them packs the ranges instead when they fit in them
+    /// packed, so that layers added, deleted and grown over a long
+    /// session do not grow the pages (which never shrink) with gaps.
+    held: u64,
 }
 
 fn whole_blocks(cells: u64) -> u64 {
@@ -38,7 +43,17 @@ fn whole_blocks(cells: u64) -> u64 {
 
 impl Layout {
     pub fn new(limit: u64) -> Layout {
-        Layout { ranges: BTreeMap::new(), limit }
+        Layout { ranges: BTreeMap::new(), limit, held: 0 }
+    }
+
+    /// The pages hold `cells` cells now.
+    pub fn hold(&mut self, cells: u64) {
+        self.held = cells;
+    }
+
+    /// Cells reserved over all ranges.
+    fn reserved(&self) -> u64 {
+        self.ranges.values().map(|&(_, r)| r).sum()
     }
 
     fn find(&self, id: u32) -> Option<(u64, u64)> {
@@ -88,6 +103,27 @@ impl Layout {
     /// (`GpuPools::move_ranges`); Err when the pages cannot hold every
     /// layer even packed.
     pub fn fit(&mut self, id: u32, cells: u64) -> Result<Vec<Move>, String> {
+        let before = self.clone();
+        let moves = self.fit_somewhere(id, cells)?;
+        let grows = self.end() > self.held.max(before.end());
+        if !grows || self.reserved() > self.held {
+            return Ok(moves);
+        }
+        // The pages would grow, but every range fits in them packed.
+        *self = before;
+        let cells = whole_blocks(cells);
+        if self.find(id).is_some() {
+            return self.pack(Some((id, cells)));
+        }
+        let moves = self.pack(None)?;
+        let at = self.end();
+        self.ranges.insert(at, (id, cells));
+        Ok(moves)
+    }
+
+    /// [`Layout::fit`] without regard to the pages held: in place, a gap,
+    /// past the end, or packed when nothing else is left.
+    fn fit_somewhere(&mut self, id: u32, cells: u64) -> Result<Vec<Move>, String> {
         let cells = whole_blocks(cells);
         let Some((base, have)) = self.find(id) else {
             let used: u64 = self.ranges.values().map(|&(_, r)| r).sum();
@@ -201,6 +237,32 @@ mod tests {
         // More than the pages hold: refused, nothing changed.
         assert!(l.fit(3, 2 * B).unwrap_err().contains("more than its pages hold"));
         assert_eq!(l.ids(), vec![0, 2]);
+        disjoint(&l);
+    }
+
+    #[test]
+    fn layers_that_come_and_go_do_not_grow_the_pages_they_fit_in() {
+        // Pages holding 8 blocks; layers added, grown and freed in turn
+        // (a long session's duplicates and deletes): whenever they fit in
+        // the pages packed, no range reaches past them.
+        let mut l = Layout::new(64 * B);
+        l.hold(8 * B);
+        for round in 0..50u32 {
+            let id = 10 + round;
+            l.fit(id, 2 * B).unwrap();
+            l.fit(id, 3 * B).unwrap();
+            disjoint(&l);
+            let reserved: u64 = l.ranges.values().map(|&(_, r)| r).sum();
+            if reserved <= 8 * B {
+                assert!(l.end() <= 8 * B, "round {round}: {:?}", l.ranges);
+            }
+            if round >= 1 {
+                l.free(id - 1);
+            }
+        }
+        // More than the pages hold, packed: past them, as it must.
+        l.fit(100, 6 * B).unwrap();
+        assert!(l.end() > 8 * B);
         disjoint(&l);
     }
 }
