@@ -35,6 +35,8 @@ def main() -> int:
     ax.plot(x, [p["pool_mib"] for p in pts], lw=1, label="pools (every layer the history holds)")
     ax.plot(x, [p["undo_mib"] for p in pts], lw=1, label="undo history")
     ax.plot(x, [p["trace_kib"] / 1024 for p in pts], lw=1, label="trace in memory")
+    if "gpu_mib" in pts[0]:
+        ax.plot(x, [p["gpu_mib"] for p in pts], lw=1, label="GPU pages (host memory on lavapipe)")
     ax.axhline(run["undo_budget_mib"], color="tab:orange", lw=0.6, ls="--", label=f"undo budget ({run['undo_budget_mib']:.0f} MiB)")
     if run.get("budget_reached_at") is not None:
         ax.axvline(run["budget_reached_at"], color="tab:orange", lw=0.6, ls=":", label="history reaches the budget")

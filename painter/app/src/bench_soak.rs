@@ -223,6 +223,8 @@ struct Point {
     journal_kib: f64,
     trace_kib: f64,
     records: usize,
+    /// The GPU's pages: cells they hold, MiB (16 + 12 bytes a cell).
+    gpu_mib: f64,
 }
 
 /// What the stroke thread reports of the document for a point.
@@ -385,11 +387,12 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 journal_kib: journal_len() as f64 / 1024.0,
                 trace_kib: h.trace_bytes as f64 / 1024.0,
                 records: p.engine().records_held(),
+                gpu_mib: mib((p.engine().gpu_cells_held() * 28) as f64),
             });
             let last = points.last().expect("pushed");
             eprintln!(
-                "{:>8} stamps  {:>7.0} s  rss {:>7.1} MiB  cells {:>8}  undo {:>7.1} MiB  journal {:>7.1} KiB  trace {:>7.1} KiB  records {}",
-                last.stamps, last.wall_s, last.rss_mib, last.cells_used, last.undo_mib, last.journal_kib, last.trace_kib, last.records
+                "{:>8} stamps  {:>7.0} s  rss {:>7.1} MiB  cells {:>8}  gpu {:>6.0} MiB  undo {:>7.1} MiB  journal {:>7.1} KiB  trace {:>7.1} KiB  records {}",
+                last.stamps, last.wall_s, last.rss_mib, last.cells_used, last.gpu_mib, last.undo_mib, last.journal_kib, last.trace_kib, last.records
             );
             next_point += a.stamps.div_ceil(a.points);
             if stamps >= a.stamps {
