@@ -225,7 +225,7 @@ bench-realtime: setup painter
 	$(PY) painter/bench/plot_realtime.py $(OUT)/realtime/results.json docs/realtime
 
 # A million stamps through the window's engine, memory sampled (docs/benchmarks.md,
-# "The soak"; about 15 minutes on 2 cores, 3 GiB of memory on lavapipe); the figure
+# "The soak"; 30 to 40 minutes on 2 cores, 4 GiB of memory on lavapipe); the figure
 # goes to docs/soak/rss.png.
 SOAK_STAMPS ?= 1000000
 SOAK_UNDO_MIB ?= 256
