@@ -29,6 +29,7 @@ use anyhow::{Context, bail, ensure};
 use octopaint_doc::{Session, journal_path};
 use octopaint_pipeline::settings::LIVE_RECORDS;
 use octopaint_pipeline::{Canvas, Engine, Hooks, Job, OpenDocument, Pipeline, Settings};
+use octopaint_tree::fuzz_harness::SplitMix64;
 use octopaint_tree::layers::Model;
 use octopaint_tree::trace::{Brush, Camera, Canvas as CanvasSize, EventKind, LayerOp, LayerOpKind, Meta, Mirror, Mode, Sample, Shape, parse_trace};
 use octopaint_tree::view::OrbitCamera;
@@ -73,16 +74,12 @@ const MIDDLE: f64 = ROOT_SIZE / 2.0;
 /// The script's clock: a sample every 1/90 s (a controller's rate).
 const SAMPLE_SECONDS: f64 = 1.0 / 90.0;
 
-/// A seeded generator (SplitMix64): the same script for the same seed.
-struct Rng(u64);
+/// The script's numbers: the same script for the same seed.
+struct Rng(SplitMix64);
 
 impl Rng {
     fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next()
     }
     fn unit(&mut self) -> f64 {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64
@@ -358,7 +355,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     settings.target_hz = Some(a.hz);
     let p = Pipeline::start_on(Box::new(OpenDocument::new(session)), settings, Hooks::default()).map_err(|e| anyhow::anyhow!("{e}"))?;
 
-    let mut r = Rng(a.seed);
+    let mut r = Rng(SplitMix64(a.seed));
     let (mut stamps, mut strokes, mut undos, mut redos, mut layer_ops, mut serial) = (0u64, 0u64, 0u64, 0u64, 0u64, 0u32);
     let (mut sim, mut next_save, mut next_point) = (0.0, a.save_every, 0u64);
     let (mut points, mut saves, mut said) = (Vec::new(), Vec::new(), Vec::new());

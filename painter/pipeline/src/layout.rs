@@ -126,7 +126,7 @@ impl Layout {
     fn fit_somewhere(&mut self, id: u32, cells: u64) -> Result<Vec<Move>, String> {
         let cells = whole_blocks(cells);
         let Some((base, have)) = self.find(id) else {
-            let used: u64 = self.ranges.values().map(|&(_, r)| r).sum();
+            let used = self.reserved();
             if used + cells > self.limit {
                 return Err(self.full(used + cells));
             }
@@ -252,8 +252,7 @@ mod tests {
             l.fit(id, 2 * B).unwrap();
             l.fit(id, 3 * B).unwrap();
             disjoint(&l);
-            let reserved: u64 = l.ranges.values().map(|&(_, r)| r).sum();
-            if reserved <= 8 * B {
+            if l.reserved() <= 8 * B {
                 assert!(l.end() <= 8 * B, "round {round}: {:?}", l.ranges);
             }
             if round >= 1 {

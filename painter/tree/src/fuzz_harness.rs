@@ -81,20 +81,28 @@ pub fn voxels(data: &[u8]) {
     }
 }
 
+/// A seeded generator, SplitMix64: the same numbers on every machine (the
+/// mutator below, `bench soak`'s script).
+pub struct SplitMix64(pub u64);
+
+impl SplitMix64 {
+    pub fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+}
+
 /// The `n`-th deterministic variant of `seed` (the same on every machine:
 /// splitmix64 of `n` and nothing else): one to four of bit flips, bytes set
 /// to values readers treat specially, cuts, deletions, duplicated runs and
 /// splices from `others`. What `octopaint fuzz-smoke` feeds the targets
 /// besides their seeds; libFuzzer (painter/fuzz) mutates guided by coverage.
 pub fn mutate(seed: &[u8], others: &[Vec<u8>], n: u64) -> Vec<u8> {
-    let mut state = n.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ seed.len() as u64;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    };
+    let mut rng = SplitMix64(n.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ seed.len() as u64);
+    let mut next = move || rng.next();
     const SPECIAL: [u8; 12] = [0, 0xff, 0x7f, 0x80, 1, b'"', b'{', b'}', b'9', b'-', b'\n', b'e'];
     let mut out = seed.to_vec();
     for _ in 0..1 + next() % 4 {

@@ -395,7 +395,7 @@ impl Session {
 
     /// Bytes the session's trace takes in memory (`bench soak`'s figure).
     pub fn trace_bytes(&self) -> usize {
-        self.trace.bytes() + self.pending.iter().map(String::capacity).sum::<usize>()
+        self.trace.bytes() + self.pending.iter().map(String::len).sum::<usize>()
     }
 
     /// Events in the session, saved or not.
