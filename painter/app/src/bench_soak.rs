@@ -155,17 +155,23 @@ fn stroke(r: &mut Rng, b: &Brush, half: f64) -> Vec<Sample> {
     out
 }
 
-/// The layers as they are (undo and redo change them too): names, locks
-/// and the selection, asked of the stroke thread.
-fn model(engine: &Engine) -> anyhow::Result<Model> {
+/// What `f` finds in the painting, asked of the stroke thread and waited
+/// for.
+fn asked<T: Send + 'static>(engine: &Engine, f: impl FnOnce(&dyn Canvas) -> T + Send + 'static) -> anyhow::Result<T> {
     let (tx, rx) = mpsc::channel();
     engine
         .ask(move |c| {
-            let doc = c.document();
-            let _ = tx.send(Model { names: doc.layers().map(|l| l.name.clone()).collect(), locked: doc.layers().map(|l| l.locked).collect(), selected: doc.selected() });
+            let _ = tx.send(f(c));
         })
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     rx.recv().context("the stroke thread ended")
+}
+
+/// The layers as they are (undo and redo change them too): names, locks
+/// and the selection.
+fn model(c: &dyn Canvas) -> Model {
+    let doc = c.document();
+    Model { names: doc.layers().map(|l| l.name.clone()).collect(), locked: doc.layers().map(|l| l.locked).collect(), selected: doc.selected() }
 }
 
 /// A layer operation the document takes now, chosen at random.
@@ -247,16 +253,6 @@ fn held(c: &dyn Canvas) -> Held {
         layers: doc.len(),
         trace_bytes: c.session().map_or(0, Session::trace_bytes),
     }
-}
-
-fn ask_held(engine: &Engine) -> anyhow::Result<Held> {
-    let (tx, rx) = mpsc::channel();
-    engine
-        .ask(move |c| {
-            let _ = tx.send(held(c));
-        })
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
-    rx.recv().context("the stroke thread ended")
 }
 
 /// A save, as the journal was before and after it.
@@ -366,7 +362,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     loop {
         if stamps >= next_point || stamps >= a.stamps {
             settle(&p, &mut said);
-            let h = ask_held(p.engine())?;
+            let h = asked(p.engine(), held)?;
             if budget_reached_at.is_none() && (h.forgotten > 0 || h.undo_bytes >= undo_bytes) {
                 budget_reached_at = Some(stamps);
             }
@@ -422,7 +418,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         }
         if r.unit() < 0.025 {
             settle(&p, &mut said);
-            let m = model(p.engine())?;
+            let m = asked(p.engine(), model)?;
             if let Some(op) = layer_op(&mut r, &m, &mut serial) {
                 submit(Job::Event(EventKind::Layer(op)))?;
                 layer_ops += 1;
