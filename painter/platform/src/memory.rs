@@ -126,9 +126,12 @@ mod tests {
         let before = super::peak_rss_kib().unwrap();
         let v = vec![1u8; 64 << 20];
         std::hint::black_box(&v);
+        // Resident first, then the peak: the peak is never below what was
+        // resident at any earlier moment, whereas the other order races
+        // with the test threads beside this one, which allocate meanwhile.
+        let now = super::rss_kib().unwrap();
         let after = super::peak_rss_kib().unwrap();
         assert!(after >= before.max(64 * 1024), "{before} KiB then {after} KiB after touching 64 MiB");
-        let now = super::rss_kib().unwrap();
         assert!((64 * 1024..=after).contains(&now), "{now} KiB resident holding 64 MiB, peak {after} KiB");
     }
 
