@@ -195,7 +195,21 @@ struct StackInner {
     free_buffers: Vec<Vec<GpuCell>>,
     /// Buffers not yet created (the pool is allocated lazily).
     unborn: usize,
+    /// The most free buffers kept: the pool's size. Grouped staging takes
+    /// more than that while a big publication is staged (a buffer a dirty
+    /// group); those beyond it are freed when given back, so one big
+    /// publication does not hold its memory for the session's life.
+    keep: usize,
     closed: bool,
+}
+
+impl StackInner {
+    fn keep_spare(&mut self, mut buf: Vec<GpuCell>) {
+        if self.free_buffers.len() < self.keep {
+            buf.clear();
+            self.free_buffers.push(buf);
+        }
+    }
 }
 
 /// The staging buffers and the stack of staged copies.
@@ -207,7 +221,7 @@ pub struct StagedStack {
 impl StagedStack {
     pub fn new(buffers: usize) -> StagedStack {
         StagedStack {
-            inner: Mutex::new(StackInner { items: Vec::new(), free_buffers: Vec::new(), unborn: buffers.max(1), closed: false }),
+            inner: Mutex::new(StackInner { items: Vec::new(), free_buffers: Vec::new(), unborn: buffers.max(1), keep: buffers.max(1), closed: false }),
             buffer_freed: Condvar::new(),
         }
     }
@@ -235,47 +249,67 @@ impl StagedStack {
     }
 
     /// Give a buffer back to the pool.
-    pub fn give_back(&self, mut buf: Vec<GpuCell>) {
-        buf.clear();
-        self.inner.lock().expect("staged lock").free_buffers.push(buf);
+    pub fn give_back(&self, buf: Vec<GpuCell>) {
+        self.inner.lock().expect("staged lock").keep_spare(buf);
         self.buffer_freed.notify_all();
     }
 
-    /// Push a staged item; older copies of the same groups still on the
-    /// stack are dropped (their buffers go back to the pool).
+    /// Buffers in the pool, free now.
+    pub fn spares(&self) -> usize {
+        self.inner.lock().expect("staged lock").free_buffers.len()
+    }
+
+    /// Push a staged item. An older copy of a group the item holds, still
+    /// on the stack, is dropped (its buffer goes back to the pool) and its
+    /// regions and blocks pass to the newer copy. A pushed batch also takes
+    /// in the older batches' other copies: a group left out of the newer
+    /// batch was not dirtied since, so its older copy is still current and
+    /// the merged batch is the newer consistent state (the render thread
+    /// uploads every staged batch together in any case). So at most one
+    /// batch waits, and a slow frame holds one copy per dirty group, not one
+    /// per staging round.
     pub fn push(&self, mut item: StagedItem) {
         let mut inner = self.inner.lock().expect("staged lock");
         let mut kept = Vec::with_capacity(inner.items.len());
         let mut freed = Vec::new();
+        let mut adopted = Vec::new();
         for old in inner.items.drain(..) {
-            match old {
-                StagedItem::One(c) => {
-                    let newer = match &mut item {
-                        StagedItem::One(n) if (n.layer, n.group) == (c.layer, c.group) => Some(n),
-                        StagedItem::Batch(ns) => ns.iter_mut().find(|n| (n.layer, n.group) == (c.layer, c.group)),
-                        _ => None,
-                    };
-                    match newer {
-                        // The newer copy holds the older one's cells as they
-                        // are now; it takes over its regions and blocks.
-                        Some(n) => {
-                            n.mask.union(&c.mask);
-                            for b in c.blocks {
-                                if !n.blocks.contains(&b) {
-                                    n.blocks.push(b);
-                                }
-                            }
-                            freed.push(c.cells);
-                        }
-                        None => kept.push(StagedItem::One(c)),
-                    }
+            let (olds, was_batch) = match old {
+                StagedItem::One(c) => (vec![c], false),
+                StagedItem::Batch(cs) if matches!(item, StagedItem::Batch(_)) => (cs, true),
+                batch => {
+                    kept.push(batch);
+                    continue;
                 }
-                batch => kept.push(batch),
+            };
+            for c in olds {
+                let newer = match &mut item {
+                    StagedItem::One(n) if (n.layer, n.group) == (c.layer, c.group) => Some(n),
+                    StagedItem::Batch(ns) => ns.iter_mut().find(|n| (n.layer, n.group) == (c.layer, c.group)),
+                    _ => None,
+                };
+                match newer {
+                    // The newer copy holds the older one's cells as they
+                    // are now; it takes over its regions and blocks.
+                    Some(n) => {
+                        n.mask.union(&c.mask);
+                        for b in c.blocks {
+                            if !n.blocks.contains(&b) {
+                                n.blocks.push(b);
+                            }
+                        }
+                        freed.push(c.cells);
+                    }
+                    None if was_batch => adopted.push(c),
+                    None => kept.push(StagedItem::One(c)),
+                }
             }
         }
-        for mut buf in freed {
-            buf.clear();
-            inner.free_buffers.push(buf);
+        if let StagedItem::Batch(ns) = &mut item {
+            ns.append(&mut adopted);
+        }
+        for buf in freed {
+            inner.keep_spare(buf);
         }
         inner.items = kept;
         inner.items.push(item);
@@ -308,5 +342,82 @@ impl StagedStack {
 
     pub fn is_closed(&self) -> bool {
         self.inner.lock().expect("staged lock").closed
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn copy(layer: u32, group: u32, version: u64, region: usize) -> StagedCopy {
+        let mut mask = NeighbourMask::default();
+        mask.set(region);
+        StagedCopy {
+            layer,
+            group,
+            first: u64::from(group) * 4,
+            cells: vec![GpuCell::FREE; 4],
+            covered_pub: version,
+            mask,
+            blocks: vec![key(layer, group), key(layer, 100 + version as u32)],
+            version,
+            staged_at: Instant::now(),
+        }
+    }
+
+    fn groups(item: &StagedItem) -> Vec<(u32, u32, u64)> {
+        let StagedItem::Batch(cs) = item else { panic!("a batch") };
+        let mut g: Vec<_> = cs.iter().map(|c| (c.layer, c.group, c.version)).collect();
+        g.sort();
+        g
+    }
+
+    #[test]
+    fn batches_staged_while_the_render_thread_is_behind_merge_into_one() {
+        let stack = StagedStack::new(2);
+        // A thousand staging rounds of the same two groups, and one round
+        // that also holds a third, before any frame takes them.
+        stack.push(StagedItem::Batch(vec![copy(0, 7, 1, 3)]));
+        for v in 2..1002 {
+            stack.push(StagedItem::Batch(vec![copy(0, 1, v, v as usize % 64), copy(1, 1, v, 5)]));
+        }
+        assert_eq!(stack.len(), 1, "one batch waits");
+        let items = stack.take(usize::MAX);
+        // The newest copy of each group, and the third group's only copy.
+        assert_eq!(groups(&items[0]), vec![(0, 1, 1001), (0, 7, 1), (1, 1, 1001)]);
+        let StagedItem::Batch(cs) = &items[0] else { unreachable!() };
+        let newest = cs.iter().find(|c| (c.layer, c.group) == (0, 1)).unwrap();
+        // Every older copy's regions and blocks passed to it.
+        assert!((2..1002).all(|v| newest.mask.get(v % 64)), "a region of an older copy was lost");
+        assert_eq!(newest.blocks.len(), 1 + 1000, "the group's block and every round's own");
+        // The dropped copies' buffers: the pool keeps its size, no more.
+        assert_eq!(stack.spares(), 2);
+    }
+
+    #[test]
+    fn a_single_copy_replaces_only_its_own_group() {
+        let stack = StagedStack::new(4);
+        stack.push(StagedItem::One(copy(0, 1, 1, 0)));
+        stack.push(StagedItem::One(copy(0, 2, 2, 0)));
+        stack.push(StagedItem::One(copy(0, 1, 3, 1)));
+        let items = stack.take(usize::MAX);
+        let got: Vec<_> = items
+            .iter()
+            .map(|i| match i {
+                StagedItem::One(c) => (c.group, c.version, c.mask.get(0)),
+                StagedItem::Batch(_) => panic!("no batch was pushed"),
+            })
+            .collect();
+        assert_eq!(got, vec![(1, 3, true), (2, 2, true)], "newest first, the older copy of group 1 merged into the newer");
+    }
+
+    #[test]
+    fn given_back_buffers_beyond_the_pool_are_freed() {
+        let stack = StagedStack::new(3);
+        let bufs: Vec<_> = (0..10).map(|_| stack.spare()).collect();
+        for b in bufs {
+            stack.give_back(b);
+        }
+        assert_eq!(stack.spares(), 3);
     }
 }
