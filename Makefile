@@ -28,7 +28,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test test-lanes setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-soak bench-export gpu-campaign clean \
+.PHONY: demo test test-lanes check-circles setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-soak bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
@@ -85,6 +85,11 @@ DETAIL := 19999.6,19999.7,19999.5,20000.6,20000.5,20000.3
 test-painter: system
 	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml
 
+# No new module circle inside a crate (painter/tools/module_circles.baseline).
+check-circles:
+	python3 painter/tools/test_module_circles.py
+	python3 painter/tools/module_circles.py
+
 # The reference's own tests need no painter.
 test-reference: setup
 	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider tests
@@ -139,7 +144,7 @@ test:
 # printed whole when it ends; a failure stops both lanes after their
 # current target. Cargo runs outside make's job server (CARGO above), so a
 # build takes both cores whenever the other lane is idle.
-test-lanes: test-painter test-reference test-conformance conformance test-vr test-windows check-macos
+test-lanes: check-circles test-painter test-reference test-conformance conformance test-vr test-windows check-macos
 ifneq ($(filter test-lanes,$(MAKECMDGOALS)),)
 system-windows: | system
 painter: | system-windows
