@@ -1,7 +1,7 @@
 """The rules of layer events (spec 14.2), shared by the trace reader's model
 and the replay's document (layers.py): what an operation needs, where the
 layers go, and what the reader's model of names, locks and selection becomes.
-Painter twin: painter/tree/src/layers.rs.
+Painter twin: painter/model/src/layer_rules.rs.
 """
 
 from __future__ import annotations

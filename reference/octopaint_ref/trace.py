@@ -2,7 +2,7 @@
 
 The format is docs/spec.md section 12 (and ../shared/TRACE-FORMAT.md). Every
 error names the line and the field; a bad trace raises `TraceError` and the
-caller writes nothing. The painter's reader (painter/tree/src/trace.rs) must
+caller writes nothing. The painter's reader (painter/trace/src/read.rs) must
 accept and reject exactly the same traces, and refuse each bad one on the same
 line with the same error kind (spec 12.2); the wording is each reader's own.
 """

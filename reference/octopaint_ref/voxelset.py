@@ -4,7 +4,8 @@ A voxel set is an `.npz` of `depth`, `ijk`, `rgb` and `sigma` (15.1). This
 module reads and checks one against a canvas, writes one (the trace
 generator and the tests make them), and indexes one for the import's
 decisions: which cells it reaches, the value at a cell's centre, and
-whether a leaf is settled (15.3). Painter twin: painter/tree/src/voxels.rs.
+whether a leaf is settled (15.3). Painter twins: painter/trace/src/voxels.rs
+(the file) and painter/tree/src/voxels.rs (painting it).
 """
 
 from __future__ import annotations
@@ -108,7 +109,7 @@ def _array(z: zipfile.ZipFile, name: str, dtype: str, ndim: int) -> np.ndarray:
 
 def _check_end_record(data: bytes) -> int:
     """The archive's end-of-central-directory record as 15.1 requires it
-    (and as painter/tree/src/voxels.rs checks it): the last `PK\\5\\6` in
+    (and as painter/trace/src/voxels.rs checks it): the last `PK\\5\\6` in
     the file's final 65,557 bytes, one disk, its two entry counts equal,
     its central directory ending where it begins (nothing between them,
     nothing before the archive), its comment within the file. zip readers

@@ -178,13 +178,13 @@ pub(crate) fn panel(root: &mut egui::Ui, b: &mut BrushUi, l: &mut LayersUi, s: &
     status_line(root, s);
     egui::Panel::left("brush").resizable(false).show(root, |ui| egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("Brush");
-        egui::ComboBox::from_label("shape").selected_text(SHAPES[b.shape as usize]).show_ui(ui, |ui| {
-            for (v, name) in [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise].into_iter().zip(SHAPES) {
+        egui::ComboBox::from_label("shape").selected_text(b.shape.name()).show_ui(ui, |ui| {
+            for (v, name) in Shape::ALL.into_iter().zip(SHAPES) {
                 ui.selectable_value(&mut b.shape, v, name);
             }
         });
-        egui::ComboBox::from_label("mode").selected_text(MODES[b.mode as usize]).show_ui(ui, |ui| {
-            for (v, name) in [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup].into_iter().zip(MODES) {
+        egui::ComboBox::from_label("mode").selected_text(b.mode.name()).show_ui(ui, |ui| {
+            for (v, name) in Mode::ALL.into_iter().zip(MODES) {
                 ui.selectable_value(&mut b.mode, v, name);
             }
         });

@@ -4,6 +4,8 @@
 //! palette drawn where each eye sees the left controller (so it sits at
 //! the controller's depth).
 
+use octopaint_tree::trace::{Mode, Shape};
+
 use crate::paint::{PALETTE, Page, Painter};
 
 pub struct Status<'a> {
@@ -27,9 +29,6 @@ pub struct Status<'a> {
     /// and the selected one; None for a one-tree document.
     pub layers: Option<(Vec<(String, bool, f32, bool)>, usize)>,
 }
-
-const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
-const MODES: [&str; 5] = ["paint", "erase", "recolor", "mix", "pickup"];
 
 /// Lay the panel out for a `size` eye image and upload its textures;
 /// returns what `egui_wgpu::Renderer::render` draws and the textures to
@@ -91,7 +90,7 @@ pub fn prepare(
                                     }
                                 }
                             });
-                            ui.label(format!("{} · {}", MODES[p.mode], SHAPES[p.shape]));
+                            ui.label(format!("{} · {}", Mode::ALL[p.mode].name(), Shape::ALL[p.shape].name()));
                         }
                         Page::Layers => match &s.layers {
                             // Top first, as the window lists them.
@@ -140,7 +139,7 @@ pub fn prepare(
                         (false, true) => " · grid",
                         (false, false) => "",
                     };
-                    ui.label(format!("{} · {} · {:.1} cm{view}", MODES[p.mode], SHAPES[p.shape], p.room_radius * 100.0));
+                    ui.label(format!("{} · {} · {:.1} cm{view}", Mode::ALL[p.mode].name(), Shape::ALL[p.shape].name(), p.room_radius * 100.0));
                 });
                 if let Some((rows, selected)) = &s.layers {
                     // The status line's layer, as in the window.

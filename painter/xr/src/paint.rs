@@ -39,8 +39,6 @@ pub const PALETTE: [[f64; 3]; 8] = [
     [0.95, 0.95, 0.95],
     [0.08, 0.08, 0.1],
 ];
-const SHAPES: [Shape; 5] = [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise];
-const MODES: [Mode; 5] = [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup];
 
 /// What the controllers are doing to the painting and the canvas.
 pub struct Painter {
@@ -130,7 +128,7 @@ impl Painter {
 
     /// The brush as the canvas sees it at `placement`'s zoom.
     pub fn brush(&self, placement: &Placement) -> Brush {
-        Brush::new(SHAPES[self.shape], MODES[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
+        Brush::new(Shape::ALL[self.shape], Mode::ALL[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
     }
 
     fn apply(&mut self, doc: &Live, job: Job) {
@@ -205,13 +203,13 @@ impl Painter {
                         self.colour = (self.colour + PALETTE.len() - 1) % PALETTE.len();
                     }
                     if up {
-                        self.mode = (self.mode + 1) % MODES.len();
+                        self.mode = (self.mode + 1) % Mode::ALL.len();
                     }
                     if down {
-                        self.mode = (self.mode + MODES.len() - 1) % MODES.len();
+                        self.mode = (self.mode + Mode::ALL.len() - 1) % Mode::ALL.len();
                     }
                     if x {
-                        self.shape = (self.shape + 1) % SHAPES.len();
+                        self.shape = (self.shape + 1) % Shape::ALL.len();
                     }
                     if y {
                         self.view = (self.view + 1) % VIEWS.len();

@@ -4,10 +4,13 @@
 
 use serde_json::Value;
 
-use super::{
-    Brush, Camera, Canvas, ErrorKind, LIGHT_INTENSITY_MAX, LayerOp, LayerOpKind, Light, Mirror, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
-    Mode, Sample, Shape, TINY, TraceError,
+use octopaint_model::layer_rules::{MAX_LAYERS, name_problem};
+use octopaint_model::{
+    Brush, Camera, Canvas, LIGHT_INTENSITY_MAX, LayerOp, LayerOpKind, Light, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT, Mirror, Mode,
+    Sample, Shape, TINY,
 };
+
+use crate::error::{ErrorKind, TraceError};
 
 const SPACING_RANGE: (f64, f64) = (0.01, 100.0);
 const ASPECT_RANGE: (f64, f64) = (1e-3, 1e3);
@@ -181,10 +184,8 @@ pub fn parse_canvas(line: usize, obj: &Value) -> R<Canvas> {
 }
 
 pub fn parse_brush(line: usize, obj: &Value) -> R<Brush> {
-    use Mode::*;
-    use Shape::*;
-    let shape = one_of(line, "shape", require(line, obj, "shape", "")?, &super::SHAPES, &[Sphere, Cylinder, Box, Cone, Noise])?;
-    let mode = one_of(line, "mode", require(line, obj, "mode", "")?, &super::MODES, &[Paint, Erase, Recolor, Mix, Pickup])?;
+    let shape = one_of(line, "shape", require(line, obj, "shape", "")?, &octopaint_model::SHAPES, &Shape::ALL)?;
+    let mode = one_of(line, "mode", require(line, obj, "mode", "")?, &octopaint_model::MODES, &Mode::ALL)?;
     let radius = finite(line, "radius", require(line, obj, "radius", "")?)?;
     if radius <= 0.0 {
         return Err(range(line, "radius", format!("{radius:?} must be > 0")));
@@ -192,7 +193,7 @@ pub fn parse_brush(line: usize, obj: &Value) -> R<Brush> {
     let color = vec_ranged::<3>(line, "color", require(line, obj, "color", "")?, 0.0, 1.0)?;
     let opacity = ranged(line, "opacity", require(line, obj, "opacity", "")?, 0.0, 1.0)?;
     let hardness = ranged(line, "hardness", require(line, obj, "hardness", "")?, 0.0, 1.0)?;
-    let mut b = super::Brush::new(shape, mode, radius, color, opacity, hardness);
+    let mut b = Brush::new(shape, mode, radius, color, opacity, hardness);
     if let Some(v) = obj.get("spacing") {
         b.spacing = ranged(line, "spacing", v, SPACING_RANGE.0, SPACING_RANGE.1)?;
     }
@@ -371,7 +372,7 @@ fn layer_ref(line: usize, obj: &Value) -> R<String> {
 
 fn layer_name(line: usize, obj: &Value) -> R<String> {
     match require(line, obj, "name", "")? {
-        Value::String(s) => match crate::layers::name_problem(s) {
+        Value::String(s) => match name_problem(s) {
             Some(why) => Err(range(line, "name", why)),
             None => Ok(s.clone()),
         },
@@ -380,7 +381,7 @@ fn layer_name(line: usize, obj: &Value) -> R<String> {
 }
 
 /// The `layer` event (spec 14.2): `op`, then its fields in order. The rules
-/// that need the document (names, locks, counts) are crate::layers's.
+/// that need the document (names, locks, counts) are octopaint_model::layer_rules's.
 pub fn parse_layer(line: usize, obj: &Value) -> R<LayerOp> {
     let op = require(line, obj, "op", "")?;
     let Value::String(code) = op else {
@@ -399,7 +400,7 @@ pub fn parse_layer(line: usize, obj: &Value) -> R<LayerOp> {
     match kind {
         LayerOpKind::Rename | LayerOpKind::Duplicate => out.name = Some(layer_name(line, obj)?),
         LayerOpKind::Move => {
-            let to = int(line, "to", require(line, obj, "to", "")?, 0, crate::layers::MAX_LAYERS as i64 - 1)?;
+            let to = int(line, "to", require(line, obj, "to", "")?, 0, MAX_LAYERS as i64 - 1)?;
             out.to = Some(to as usize);
         }
         LayerOpKind::Set => {
@@ -436,7 +437,7 @@ pub(super) fn parse_import_fields(line: usize, obj: &Value) -> R<(String, String
     let name = match obj.get("name") {
         None => None,
         Some(Value::String(s)) => {
-            if let Some(why) = crate::layers::name_problem(s) {
+            if let Some(why) = name_problem(s) {
                 return Err(range(line, "name", why));
             }
             Some(s.clone())

@@ -6,9 +6,11 @@ use std::collections::HashSet;
 
 use serde_json::Value;
 
-use super::fields::{fail, finite, name, parse_brush, parse_import_fields, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
-use crate::layers::Model;
-use super::{Brush, ErrorKind, Event, EventKind, Meta, Sample, Trace, TraceError};
+use octopaint_model::layer_rules::Model;
+use octopaint_model::{Brush, Canvas, Event, EventKind, Import, LayerOpKind, Meta, Sample, Trace, VoxelSet};
+
+use crate::error::{ErrorKind, TraceError};
+use crate::fields::{fail, finite, name, parse_brush, parse_import_fields, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
 
 /// Deepest bracket nesting a trace line may have; below serde_json's own
 /// limit (128), so the two readers refuse deep lines by the same rule.
@@ -81,7 +83,7 @@ fn is_blank_char(c: char) -> bool {
 }
 
 /// The header line: format, version, canvas, meta.
-fn header(lineno: usize, obj: &Value) -> R<(super::Canvas, Meta, u32)> {
+fn header(lineno: usize, obj: &Value) -> R<(Canvas, Meta, u32)> {
     if obj.get("format").and_then(Value::as_str) != Some("ddo-trace") {
         return Err(fail(lineno, "format", ErrorKind::Header, "the first line must be a header with \"format\": \"ddo-trace\""));
     }
@@ -106,7 +108,7 @@ fn header(lineno: usize, obj: &Value) -> R<(super::Canvas, Meta, u32)> {
 /// What the order rules need to know of the events so far.
 #[derive(Default)]
 struct Order<'a> {
-    canvas: Option<super::Canvas>,
+    canvas: Option<Canvas>,
     resolve: Option<Resolve<'a>>,
     brush: Option<Brush>,
     in_stroke: bool,
@@ -257,7 +259,7 @@ impl Order<'_> {
                 let voxels = self.read_import(lineno, &file, &sha256)?;
                 self.done.push(None);
                 self.undone.clear();
-                EventKind::Import(Box::new(super::Import { file, sha256, name: label, voxels: std::sync::Arc::new(voxels) }))
+                EventKind::Import(Box::new(Import { file, sha256, name: label, voxels: std::sync::Arc::new(voxels) }))
             }
             "layer" if self.version == 2 => {
                 if self.in_stroke {
@@ -268,7 +270,7 @@ impl Order<'_> {
                     return Err(TraceError::new(lineno, ErrorKind::Layer, why));
                 }
                 let after = self.layers.apply(&op);
-                if op.op != super::LayerOpKind::Select {
+                if op.op != LayerOpKind::Select {
                     self.done.push(Some(Box::new((self.layers.clone(), after.clone()))));
                     self.undone.clear();
                 }
@@ -284,7 +286,7 @@ impl Order<'_> {
 impl Order<'_> {
     /// The voxel set of an `import` event (spec 15.2): read through the
     /// resolver, its digest checked, then its content for this canvas.
-    fn read_import(&self, lineno: usize, file: &str, sha256: &str) -> R<crate::voxels::VoxelSet> {
+    fn read_import(&self, lineno: usize, file: &str, sha256: &str) -> R<VoxelSet> {
         let import = |field: &str, msg: String| fail(lineno, field, ErrorKind::Import, msg);
         let Some(resolve) = self.resolve else {
             return Err(import("file", "this trace was not read from a folder, so its imports cannot be found".into()));

@@ -1,127 +1,11 @@
-//! Traces (spec 12; ../../shared/TRACE-FORMAT.md): the event model here,
-//! the field rules in [`fields`], reading a whole trace in [`read`]. A bad
-//! trace gives one [`TraceError`]: its line and its [`ErrorKind`] are the
-//! contract both readers keep (the reference's is
-//! reference/octopaint_ref/trace.py; `traces/malformed/expected.json` and
-//! the conformance driver hold them to it); the message is this reader's
-//! own.
+//! The events of a trace (spec 12; ../../shared/TRACE-FORMAT.md) and the
+//! values they carry: the canvas, brushes with their shapes and modes,
+//! samples, cameras, lights, mirror planes, layer operations and imports.
+//! Plain data: octopaint-trace reads and writes them, the tree paints them.
+//! Reference twin: the dataclasses of reference/octopaint_ref/trace.py.
 
-mod fields;
-mod read;
-
-pub use fields::{is_valid_name, parse_brush, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, segment_too_long};
-pub use read::{MAX_NESTING, Resolve, folder_resolver, io_reason, nesting_depth, parse_trace, parse_trace_bytes, parse_trace_with, read_trace};
-
-pub const SHAPES: [&str; 5] = ["sphere", "cylinder", "box", "cone", "noise"];
-pub const MODES: [&str; 5] = ["paint", "erase", "recolor", "mix", "pickup"];
-pub const MAX_DEPTH_LIMIT: i64 = 28;
-/// The largest multiple of 8 below NONE.
-pub const MAX_CAPACITY: i64 = 0xFFFF_FFF8;
-pub const MAX_IMAGE_SIZE: i64 = 16384;
-pub const MAX_ROOTS: u64 = 1 << 24;
-pub const MAX_STAMPS_PER_SEGMENT: f64 = 65536.0;
-/// Smallest normal f64; smaller magnitudes read as +0 (spec 8.9).
-/// The largest `intensity` of a `light` event (spec 6.1).
-pub const LIGHT_INTENSITY_MAX: f64 = 16.0;
-pub const TINY: f64 = 2.2250738585072014e-308;
-
-/// What is wrong with a refused trace, as the short stable code of spec
-/// 12.2 that both readers must agree on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ErrorKind {
-    /// The file cannot be read (line 0).
-    Io,
-    /// Bytes that are not UTF-8.
-    Utf8,
-    /// A line that is not JSON under the rules of spec 12.2.
-    Json,
-    /// No `ddo-trace` header first, or a version this reader does not know.
-    Header,
-    /// A line or field of the wrong JSON type.
-    Type,
-    /// A required field is absent.
-    Missing,
-    /// A value outside what its field allows.
-    Range,
-    /// More work or memory than the limits allow (stamps per segment,
-    /// roots, the cell budget against the roots).
-    Budget,
-    /// An unknown `ev`.
-    Event,
-    /// An event out of place (time going back, a sample outside a stroke,
-    /// undo with nothing to undo, ...).
-    EventOrder,
-    /// A render or snapshot name that is no plain name or is used twice.
-    Name,
-    /// A `layer` event or a stroke the document cannot take (spec 14.2).
-    Layer,
-    /// An `import` event's file: unreadable, another digest, or not a voxel
-    /// set for this canvas (spec 15.2).
-    Import,
-}
-
-impl ErrorKind {
-    pub const ALL: [ErrorKind; 13] = [
-        ErrorKind::Io,
-        ErrorKind::Utf8,
-        ErrorKind::Json,
-        ErrorKind::Header,
-        ErrorKind::Type,
-        ErrorKind::Missing,
-        ErrorKind::Range,
-        ErrorKind::Budget,
-        ErrorKind::Event,
-        ErrorKind::EventOrder,
-        ErrorKind::Name,
-        ErrorKind::Layer,
-        ErrorKind::Import,
-    ];
-
-    /// The code as the spec writes it.
-    pub fn code(self) -> &'static str {
-        match self {
-            ErrorKind::Io => "io",
-            ErrorKind::Utf8 => "utf8",
-            ErrorKind::Json => "json",
-            ErrorKind::Header => "header",
-            ErrorKind::Type => "type",
-            ErrorKind::Missing => "missing",
-            ErrorKind::Range => "range",
-            ErrorKind::Budget => "budget",
-            ErrorKind::Event => "event",
-            ErrorKind::EventOrder => "event-order",
-            ErrorKind::Name => "name",
-            ErrorKind::Layer => "layer",
-            ErrorKind::Import => "import",
-        }
-    }
-
-    pub fn from_code(code: &str) -> Option<ErrorKind> {
-        ErrorKind::ALL.into_iter().find(|k| k.code() == code)
-    }
-}
-
-/// A trace that must not be replayed: where (1-based line, 0 when the file
-/// cannot be read), what kind of error, and a message naming the field.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{}", self.text())]
-pub struct TraceError {
-    pub line: usize,
-    pub kind: ErrorKind,
-    pub message: String,
-}
-
-impl TraceError {
-    pub fn new(line: usize, kind: ErrorKind, message: impl Into<String>) -> Self {
-        TraceError { line, kind, message: message.into() }
-    }
-
-    /// `line N: MESSAGE` (the message alone at line 0).
-    pub fn text(&self) -> String {
-        if self.line == 0 { self.message.clone() } else { format!("line {}: {}", self.line, self.message) }
-    }
-}
-
+/// A canvas (spec 1): the root array, the deepest level, a root's edge
+/// in metres and the cell budget.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Canvas {
     pub roots: [u32; 3],
@@ -130,6 +14,7 @@ pub struct Canvas {
     pub capacity: u32,
 }
 
+/// A stamp shape (spec 8.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Shape {
     Sphere,
@@ -139,6 +24,28 @@ pub enum Shape {
     Noise,
 }
 
+impl Shape {
+    /// Every shape, in the order of spec 8.2 (a shape's index is its
+    /// position here: `Shape::ALL[s as usize] == s`).
+    pub const ALL: [Shape; 5] = [Shape::Sphere, Shape::Cylinder, Shape::Box, Shape::Cone, Shape::Noise];
+
+    /// The `shape` string of a `brush` event.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Shape::Sphere => "sphere",
+            Shape::Cylinder => "cylinder",
+            Shape::Box => "box",
+            Shape::Cone => "cone",
+            Shape::Noise => "noise",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Shape> {
+        Shape::ALL.into_iter().find(|s| s.name() == name)
+    }
+}
+
+/// A blend mode (spec 8.5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Mode {
     Paint,
@@ -147,6 +54,48 @@ pub enum Mode {
     Mix,
     Pickup,
 }
+
+impl Mode {
+    /// Every mode, in the order of spec 8.5 (`Mode::ALL[m as usize] == m`).
+    pub const ALL: [Mode; 5] = [Mode::Paint, Mode::Erase, Mode::Recolor, Mode::Mix, Mode::Pickup];
+
+    /// The `mode` string of a `brush` event.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Mode::Paint => "paint",
+            Mode::Erase => "erase",
+            Mode::Recolor => "recolor",
+            Mode::Mix => "mix",
+            Mode::Pickup => "pickup",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Mode> {
+        Mode::ALL.into_iter().find(|m| m.name() == name)
+    }
+}
+
+/// The shapes' names, indexed as [`Shape::ALL`].
+pub const SHAPES: [&str; 5] = {
+    let mut names = [""; 5];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = Shape::ALL[i].name();
+        i += 1;
+    }
+    names
+};
+
+/// The modes' names, indexed as [`Mode::ALL`].
+pub const MODES: [&str; 5] = {
+    let mut names = [""; 5];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = Mode::ALL[i].name();
+        i += 1;
+    }
+    names
+};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Noise {
@@ -294,7 +243,7 @@ pub struct Import {
     pub file: String,
     pub sha256: String,
     pub name: Option<String>,
-    pub voxels: std::sync::Arc<crate::voxels::VoxelSet>,
+    pub voxels: std::sync::Arc<crate::voxel_set::VoxelSet>,
 }
 
 /// One `layer` event (spec 14.2), as read: the fields its `op` uses.
@@ -396,4 +345,32 @@ pub struct Trace {
     pub warnings: Vec<String>,
     /// 1, or 2 for a document of layers (spec 14).
     pub version: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shape_or_mode_is_its_index_and_its_name_reads_back() {
+        for (i, s) in Shape::ALL.into_iter().enumerate() {
+            assert_eq!(s as usize, i);
+            assert_eq!(SHAPES[i], s.name());
+            assert_eq!(Shape::from_name(s.name()), Some(s));
+        }
+        for (i, m) in Mode::ALL.into_iter().enumerate() {
+            assert_eq!(m as usize, i);
+            assert_eq!(MODES[i], m.name());
+            assert_eq!(Mode::from_name(m.name()), Some(m));
+        }
+        assert_eq!(Shape::from_name("Sphere"), None);
+        assert_eq!(Mode::from_name(""), None);
+    }
+
+    #[test]
+    fn mirror_copies_are_every_combination_of_the_set_axes() {
+        let m = Mirror { axes: [true, false, true], centre: [0.0; 3] };
+        assert_eq!(m.copies().collect::<Vec<_>>(), vec![1, 4, 5]);
+        assert_eq!(Mirror { axes: [false; 3], centre: [0.0; 3] }.active(), None);
+    }
 }

@@ -1,0 +1,18 @@
+//! The limits a trace's values are read against (spec 12.2), shared by the
+//! reader and the tree that must never see more.
+
+/// The deepest `max_depth` a canvas may have (spec 12.2).
+pub const MAX_DEPTH_LIMIT: i64 = 28;
+/// The largest multiple of 8 below NONE.
+pub const MAX_CAPACITY: i64 = 0xFFFF_FFF8;
+/// The widest or tallest image a camera may ask for, in pixels.
+pub const MAX_IMAGE_SIZE: i64 = 16384;
+/// The most roots a canvas may have.
+pub const MAX_ROOTS: u64 = 1 << 24;
+/// The most stamps one segment of a stroke may take (spec 12.2).
+pub const MAX_STAMPS_PER_SEGMENT: f64 = 65536.0;
+/// The largest `intensity` of a `light` event (spec 6.1).
+pub const LIGHT_INTENSITY_MAX: f64 = 16.0;
+/// Smallest normal f64; smaller magnitudes read as +0 (spec 8.9).
+pub const TINY: f64 = 2.2250738585072014e-308;
+
