@@ -2,10 +2,10 @@
 //! `octopaint-ref check` (spec 11.2) on the live pools instead of a dump.
 //! Reference twin: reference/octopaint_ref/check.py.
 
-use crate::dump::origins;
 use crate::g3::{g3_brute_force, g3_table, g3_table_per_cell};
 use crate::lattice::FACES;
-use crate::pool::{FREE, NONE, Tree, UNIT};
+use crate::pool::{FREE, NONE, Tree, UNIT, origins};
+use crate::trace::Canvas;
 
 /// Every problem found, in the order of spec 11.2; empty for a valid tree.
 pub fn check_tree(t: &Tree) -> Vec<String> {
@@ -86,4 +86,40 @@ pub fn check_tree(t: &Tree) -> Vec<String> {
         p.push("g3 top down differs from g3 cell by cell".into());
     }
     p
+}
+
+impl Tree {
+    /// A tree from its pools (a saved document), refused unless it is a
+    /// valid tree for `canvas` (every check of [`check_tree`] and the
+    /// allocator's). The error names the first problem.
+    pub fn from_pools(
+        canvas: &Canvas,
+        parent: Vec<u32>,
+        first_child: Vec<u32>,
+        depth: Vec<u8>,
+        rgb: Vec<[u8; 3]>,
+        sigma: Vec<f32>,
+    ) -> Result<Tree, String> {
+        let mut t = Tree::new(canvas);
+        let n = parent.len();
+        if [first_child.len(), depth.len(), rgb.len(), sigma.len()].iter().any(|&l| l != n) {
+            return Err("the pools have different lengths".into());
+        }
+        if n < t.lat.padded as usize || n % UNIT as usize != 0 || n as u64 > u64::from(canvas.capacity) {
+            return Err(format!("{n} cells: not a multiple of 8 between {} and the capacity {}", t.lat.padded, canvas.capacity));
+        }
+        t.parent = parent;
+        t.first_child = first_child;
+        t.depth = depth;
+        t.rgb = rgb;
+        t.sigma = sigma;
+        t.rebuild_free_units();
+        let mut problems = check_tree(&t);
+        problems.extend(t.check_allocator());
+        match problems.first() {
+            None => Ok(t),
+            Some(p) if problems.len() == 1 => Err(p.clone()),
+            Some(p) => Err(format!("{p} (and {} more problems)", problems.len() - 1)),
+        }
+    }
 }

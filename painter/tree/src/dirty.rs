@@ -3,16 +3,16 @@
 //! bytes changed, to be staged and uploaded) and dirty cells (cells whose g3
 //! must be recomputed), folded into the 64×32 neighbour mask.
 //!
-//! Writes mark blocks as they happen (pool.rs). Topology changes are
+//! Writes mark blocks as they happen (pool/changes.rs). Topology changes are
 //! recorded as "cell X gained or lost children" plus "unit U was created or
 //! freed"; the dirty cells are derived from them when a publication is
 //! taken, against the tree as it is then (spec 3.4 rules 1 and 2).
 
+pub use crate::pool::changes::BLOCK_CELLS;
+
 use crate::lattice::FACES;
 use crate::pool::{FREE, NONE, Tree, UNIT};
 
-/// Cells per block: the staging granule.
-pub const BLOCK_CELLS: u32 = 65536;
 /// Neighbour mask: 64 columns × 32 rows of regions.
 pub const MASK_COLUMNS: usize = 64;
 pub const MASK_ROWS: usize = 32;
@@ -66,67 +66,6 @@ pub struct Publication {
     /// Cells whose g3 must be recomputed, ascending.
     pub dirty_cells: Vec<u32>,
     pub mask: NeighbourMask,
-}
-
-#[derive(Clone)]
-pub(crate) struct Changes {
-    /// Everything is dirty: a new consumer (a GPU) has seen nothing yet,
-    /// or nobody has taken a publication yet. Nothing is recorded cell by
-    /// cell meanwhile.
-    everything: bool,
-    blocks: Vec<u64>,
-    any_block: bool,
-    topo_cells: Vec<u32>,
-    topo_units: Vec<u32>,
-    direct: Vec<u32>,
-}
-
-impl Changes {
-    pub fn new(capacity: u32) -> Self {
-        let n_blocks = capacity.div_ceil(BLOCK_CELLS) as usize;
-        Changes {
-            everything: true,
-            blocks: vec![0; n_blocks.div_ceil(64)],
-            any_block: false,
-            topo_cells: Vec::new(),
-            topo_units: Vec::new(),
-            direct: Vec::new(),
-        }
-    }
-
-    #[inline]
-    pub fn mark_block(&mut self, c: u32) {
-        let b = (c / BLOCK_CELLS) as usize;
-        self.blocks[b / 64] |= 1 << (b % 64);
-        self.any_block = true;
-    }
-
-    /// Cell `x` gained or lost the children in `unit`.
-    #[inline]
-    pub fn topology(&mut self, x: u32, unit: u32) {
-        if self.recording() {
-            self.topo_cells.push(x);
-            self.topo_units.push(unit);
-        }
-    }
-
-    #[inline]
-    pub fn direct(&mut self, c: u32) {
-        if self.recording() {
-            self.direct.push(c);
-        }
-    }
-
-    /// Whether changes are recorded cell by cell: not while the next
-    /// publication covers everything anyway. A tree starts that way (its
-    /// first publication covers everything: nobody has seen it yet), so a
-    /// tree nobody publishes (a replay without a renderer, an export, a
-    /// benchmark) keeps no lists at all, where it used to keep 8 bytes for
-    /// every unit it ever made.
-    #[inline]
-    fn recording(&self) -> bool {
-        !self.everything
-    }
 }
 
 impl Tree {

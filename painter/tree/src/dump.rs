@@ -13,8 +13,10 @@ use std::io::{Cursor, Seek, Write};
 
 pub use octopaint_trace::npz::{NpyArray, Values, write_npz};
 
+pub use crate::pool::origins;
+
 use crate::g3::g3_table;
-use crate::pool::{FREE, NONE, Tree};
+use crate::pool::Tree;
 
 /// One entry of a dump: `name.npy` with dtype `dtype` (numpy's descr,
 /// e.g. `<u4`) and a shape whose given dimensions (None: any) it must
@@ -71,29 +73,6 @@ pub fn read_dump(bytes: &[u8]) -> Result<Tree, String> {
 fn fmt_shape(shape: &[Option<u64>]) -> String {
     let dims: Vec<String> = shape.iter().map(|d| d.map_or("N".to_string(), |d| d.to_string())).collect();
     format!("[{}]", dims.join(", "))
-}
-
-/// Lattice origin of every cell (NONE for free cells), parents first.
-pub fn origins(tree: &Tree) -> Vec<[u32; 3]> {
-    let n = tree.n_used() as usize;
-    let mut o = vec![[NONE; 3]; n];
-    let mut stack: Vec<u32> = (0..tree.lat.n_roots).collect();
-    for &r in &stack {
-        o[r as usize] = tree.lat.root_origin(r);
-    }
-    while let Some(c) = stack.pop() {
-        let fc = tree.first_child[c as usize];
-        if fc == NONE {
-            continue;
-        }
-        let d = u32::from(tree.depth[c as usize]);
-        for k in 0..8 {
-            o[(fc + k) as usize] = tree.child_origin(o[c as usize], d, k);
-            stack.push(fc + k);
-        }
-    }
-    debug_assert!((0..n).all(|c| (tree.depth[c] == FREE) == (o[c][0] == NONE)));
-    o
 }
 
 /// The dump of a tree, as bytes (spec 11.1).
@@ -171,6 +150,7 @@ mod tests {
     use zip::CompressionMethod;
 
     use super::*;
+    use crate::pool::FREE;
 
     /// The entries of an `.npz`, read back by the zip and npyz crates:
     /// name, dtype descr, shape and values as f64.

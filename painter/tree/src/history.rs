@@ -1,8 +1,8 @@
 //! Undo and redo of whole strokes (spec 10). Reference twin:
 //! reference/octopaint_ref/history.py.
 //!
-//! While a stroke runs, a journal saves each cell's record before its first
-//! write (pool.rs calls it on every write). At commit, the saved cells whose
+//! While a stroke runs, a journal (pool/journal.rs) saves each cell's record
+//! before its first write (the pools' writes call it). At commit, the saved cells whose
 //! record really changed become an undo step with their records before and
 //! after the stroke, plus the used length before and after. Undo writes the
 //! before-records back and restores the used length, so the pools are byte
@@ -24,56 +24,6 @@
 
 use crate::par;
 use crate::pool::{CellRecord, FREE, NONE, Tree, UNIT};
-
-#[derive(Clone, Default)]
-pub(crate) struct Journal {
-    n_before: u32,
-    saved: Vec<u64>,
-    cells: Vec<u32>,
-    before: Vec<CellRecord>,
-}
-
-impl Journal {
-    /// Whether `c`'s record must be saved before its first write. Cells at
-    /// or past the used length of the stroke's start were free then: their
-    /// before-record is known and commit adds them without a save.
-    #[inline]
-    pub fn needs_save(&self, c: u32) -> bool {
-        if c >= self.n_before {
-            return false;
-        }
-        let w = (c / 64) as usize;
-        w >= self.saved.len() || self.saved[w] >> (c % 64) & 1 == 0
-    }
-
-    /// Every cell of the unit at `unit` was free when the stroke began
-    /// (past its used length): none needs a save.
-    #[inline]
-    pub fn unit_is_new(&self, unit: u32) -> bool {
-        unit >= self.n_before
-    }
-
-    /// The journal with nothing saved, its vectors kept: the saved bits are
-    /// cleared word by word from the saved cells, not the whole bitset.
-    fn emptied(mut self) -> Journal {
-        for &c in &self.cells {
-            self.saved[(c / 64) as usize] = 0;
-        }
-        self.cells.clear();
-        self.before.clear();
-        self
-    }
-
-    pub fn save(&mut self, c: u32, rec: CellRecord) {
-        let w = (c / 64) as usize;
-        if w >= self.saved.len() {
-            self.saved.resize((w + 1).next_power_of_two(), 0);
-        }
-        self.saved[w] |= 1 << (c % 64);
-        self.cells.push(c);
-        self.before.push(rec);
-    }
-}
 
 /// One stroke's effect on the pools: for each changed cell its record
 /// before and after the stroke, kept by what changed so that most cells

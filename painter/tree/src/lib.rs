@@ -1,6 +1,7 @@
 //! Octopaint's CPU octree (the painter core): a root array of 2:1-balanced
 //! octrees in pooled arrays, the brushes that paint it, topology cleaning,
-//! undo, the g3 CPU port, tree dumps and the trace reader. No GPU
+//! undo, the g3 CPU port, tree dumps and documents of layers, over
+//! octopaint-model's vocabulary and octopaint-trace's reader. No GPU
 //! dependency. Everything follows docs/spec.md, whose sections the comments
 //! cite as "spec N.M"; reference/octopaint_ref is the oracle it is checked
 //! against, index for index.
@@ -8,12 +9,12 @@
 //! | module | what it holds | reference twin |
 //! | --- | --- | --- |
 //! | [`lattice`] | root array, lattice, canvas units, target depth | tree.py |
-//! | [`pool`] | pools, allocator, cell writes | tree.py |
+//! | [`pool`] | pools, allocator, cell writes with their undo journal and change log | tree.py, history.py (the journal) |
 //! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
 //! | [`g3`] | g3, shader-shaped, plus brute force | g3.py |
 //! | [`raycast`] | the ray caster's CPU port, shader-shaped | raycast.py |
 //! | [`view`] | orbit cameras, the view framing the painting | camera.py (orbit_camera) |
-//! | [`dirty`] | dirty blocks, dirty cells, neighbour mask | tree.py |
+//! | [`dirty`] | publications: dirty blocks, dirty cells, neighbour mask | tree.py |
 //! | [`brush`] | primitives, reach, coverage, blend modes | brush.py |
 //! | [`noise`] | hashed permutation, improved Perlin noise | noise.py |
 //! | [`stroke`] | samples to capsules and stamps | stroke.py |
@@ -22,10 +23,12 @@
 //! | [`history`] | undo and redo | history.py |
 //! | [`lanes`] | a unit's 8 children against capsules in vector registers | — |
 //! | [`par`] | parallel passes, the same bytes on any pool; a radix sort of cell lists | — |
-//! | [`layers`] | documents of layers, merge down, document dumps | layers.py, layer_rules.py |
+//! | [`layers`] | documents of layers, merge down, document dumps (the rules: octopaint-model) | layers.py |
+//! | [`voxels`] | imports painted into a tree | paint.py (`import_voxels`), voxelset.py (`VoxelIndex`) |
+//! | [`check`] | whether pools form a valid tree; a tree from pools | check.py |
 //! | [`dump`] | `.npz` tree dumps | dump.py |
-//! | [`trace`] | the event model and the trace reader | trace.py |
-//! | [`trace_write`] | writing traces (recorded sessions) | — |
+//! | [`trace`] | octopaint-model's events and octopaint-trace's reader, re-exported | trace.py |
+//! | [`trace_write`] | octopaint-trace's writer, re-exported | — |
 //! | [`replay`] | replaying a trace | replay.py |
 
 pub mod balance;

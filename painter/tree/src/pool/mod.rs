@@ -2,29 +2,44 @@
 //! reference/octopaint_ref/tree.py (pools, allocator); both must produce
 //! identical indices.
 //!
-//! One pool per field, structure of arrays, 16 bytes per cell (spec 2.2):
+//! One pool per field, structure of arrays (spec 2.2): cell `c` is entry
+//! `c` of each of five vectors, 16 bytes a cell in all. A [`CellRecord`]
+//! holds one cell's five fields together where they travel as one (the
+//! undo journal, a history step); the GPU's cell is another layout
+//! (docs/buffer-layouts.md).
 //!
 //! ```text
-//!  byte 0          4          8     9            12         16
-//!       +----------+----------+-----+------------+----------+
-//!       |  parent  |first_chld|depth| r   g   b  |  sigma   |
-//!       |   u32    |   u32    | u8  |   u8 x3    |   f32    |
-//!       +----------+----------+-----+------------+----------+
+//!  pool         element     bytes a cell
+//!  parent       u32         4
+//!  first_child  u32         4
+//!  depth        u8          1    (FREE = 255)
+//!  rgb          [u8; 3]     3
+//!  sigma        f32         4
 //! ```
 //!
 //! Every pool is exactly `n_used` long: the used length of spec 2.3, so
 //! cells at or past it are free by construction. Origins are not stored: a
 //! cell's origin follows from its parent chain ([`Tree::origin`]).
 //!
-//! Every write to a cell goes through this file, which tells the two
-//! observers of change: the undo journal (history.rs) saves the cell's old
-//! record before the first write in a stroke, and the change log (dirty.rs)
-//! marks its block dirty and records topology changes for g3.
+//! The tree's writes tell two observers of change, kept here beside the
+//! pools: the undo journal ([`journal`]) saves a cell's old record before
+//! its first write in a stroke, and the change log ([`changes`]) marks the
+//! cell's block dirty and records topology changes for g3. The writes
+//! through this module's methods do both. One writer bypasses them: the
+//! paint pass's runs (paint.rs, `Disjoint`, on several threads) write in
+//! place the colour and density of leaves the stroke has journalled
+//! already, and hand back their blocks and the leaves' first writes, which
+//! the pass marks and writes through [`Tree::set_value`] in order on one
+//! thread.
+
+pub(crate) mod changes;
+pub(crate) mod journal;
 
 use std::collections::BTreeSet;
 
-use crate::dirty::Changes;
-use crate::history::Journal;
+use changes::Changes;
+use journal::Journal;
+
 use crate::lattice::Lattice;
 use crate::pager::{Pager, spare};
 use crate::trace::Canvas;
@@ -153,40 +168,6 @@ impl Tree {
             changes: Changes::new(0),
             journal: None,
             spare_journal: Journal::default(),
-        }
-    }
-
-    /// A tree from its pools (a saved document), refused unless it is a
-    /// valid tree for `canvas` (every check of `check::check_tree` and the
-    /// allocator's). The error names the first problem.
-    pub fn from_pools(
-        canvas: &Canvas,
-        parent: Vec<u32>,
-        first_child: Vec<u32>,
-        depth: Vec<u8>,
-        rgb: Vec<[u8; 3]>,
-        sigma: Vec<f32>,
-    ) -> Result<Tree, String> {
-        let mut t = Tree::new(canvas);
-        let n = parent.len();
-        if [first_child.len(), depth.len(), rgb.len(), sigma.len()].iter().any(|&l| l != n) {
-            return Err("the pools have different lengths".into());
-        }
-        if n < t.lat.padded as usize || n % UNIT as usize != 0 || n as u64 > u64::from(canvas.capacity) {
-            return Err(format!("{n} cells: not a multiple of 8 between {} and the capacity {}", t.lat.padded, canvas.capacity));
-        }
-        t.parent = parent;
-        t.first_child = first_child;
-        t.depth = depth;
-        t.rgb = rgb;
-        t.sigma = sigma;
-        t.rebuild_free_units();
-        let mut problems = crate::check::check_tree(&t);
-        problems.extend(t.check_allocator());
-        match problems.first() {
-            None => Ok(t),
-            Some(p) if problems.len() == 1 => Err(p.clone()),
-            Some(p) => Err(format!("{p} (and {} more problems)", problems.len() - 1)),
         }
     }
 
@@ -426,7 +407,7 @@ impl Tree {
         if self.journal.as_ref().is_none_or(|j| j.unit_is_new(unit)) {
             // Nothing to save, and a unit lies in one dirty block (blocks
             // hold a whole number of units).
-            const { assert!(crate::dirty::BLOCK_CELLS % UNIT == 0) };
+            const { assert!(changes::BLOCK_CELLS % UNIT == 0) };
             self.changes.mark_block(unit);
         } else {
             for c in unit..unit + UNIT {
@@ -559,4 +540,27 @@ impl Tree {
             + self.rgb.capacity() * 3
             + self.sigma.capacity() * 4
     }
+}
+
+/// Lattice origin of every cell (NONE for free cells), parents first.
+pub fn origins(tree: &Tree) -> Vec<[u32; 3]> {
+    let n = tree.n_used() as usize;
+    let mut o = vec![[NONE; 3]; n];
+    let mut stack: Vec<u32> = (0..tree.lat.n_roots).collect();
+    for &r in &stack {
+        o[r as usize] = tree.lat.root_origin(r);
+    }
+    while let Some(c) = stack.pop() {
+        let fc = tree.first_child[c as usize];
+        if fc == NONE {
+            continue;
+        }
+        let d = u32::from(tree.depth[c as usize]);
+        for k in 0..8 {
+            o[(fc + k) as usize] = tree.child_origin(o[c as usize], d, k);
+            stack.push(fc + k);
+        }
+    }
+    debug_assert!((0..n).all(|c| (tree.depth[c] == FREE) == (o[c][0] == NONE)));
+    o
 }
