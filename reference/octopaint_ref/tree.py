@@ -1,6 +1,6 @@
 """The octree: pools, the allocator, refinement with 2:1 face balance, coarsening.
 
-Rules: docs/spec.md sections 2-4. The painter's twin is painter/tree/src/pool.rs
+Rules: docs/spec.md sections 2-4. The painter's twin is painter/tree/src/pool/mod.rs
 and painter/tree/src/balance.rs; both must produce identical indices.
 
 Pools are numpy arrays in structure-of-arrays layout, grown by doubling:

@@ -6,7 +6,7 @@
 //! | module | what it holds | shader | CPU port |
 //! | --- | --- | --- | --- |
 //! | [`context`] | adapter and device | | |
-//! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | tree/src/pool.rs |
+//! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | tree/src/pool/mod.rs |
 //! | [`g3`] | the g3 pass | g3.wgsl | tree/src/g3.rs |
 //! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
 //! | [`digest`] | a cast image's 64-bit digest, for frame-by-frame comparisons | digest.wgsl | digest.rs (`rgb_digest`) |
