@@ -1,5 +1,5 @@
 //! What handing a short parallel pass to a second thread costs
-//! (docs/benchmarks.md, issue 15, eleventh step): `R` rounds of a serial
+//! (docs/benchmarks.md, "How the core got here", the 11th step): `R` rounds of a serial
 //! stretch of `GAP` microseconds followed by a pass of two tasks of `TASK`
 //! microseconds each (a stroke's rhythm: serial allocation, then a
 //! parallel batch), run three ways on two threads:

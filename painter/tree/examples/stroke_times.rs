@@ -3,7 +3,7 @@
 //! counters' change over the stroke (leaves visited by paint passes, of
 //! those hit, cells written, cells created, settled tests that settled),
 //! the time in paint passes, refinement levels and the stroke's end, and
-//! the brush. docs/benchmarks.md (issue 15, sixteenth step) shows it on
+//! the brush. docs/history/core-speed.md (the sixteenth step) shows it on
 //! the scene.
 //!
 //!     cd painter && RAYON_NUM_THREADS=1 cargo run --release --locked -p octopaint-tree \

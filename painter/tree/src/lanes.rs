@@ -844,7 +844,7 @@ mod tests {
             for (near, seg_is_last) in [(&prims[..prims.len() - 1], false), (&prims[..], true)] {
                 let Some(m) = unit_maximum(near, hardness, &seg, seg_is_last, &xs, h) else { return assert!(!available()) };
                 for (l, &x) in xs.iter().enumerate() {
-                    // The scalar stroke maximum (paint.rs's, for capsules).
+                    // The scalar stroke maximum (paint/walks.rs's, for capsules).
                     let (mut best, mut k) = (0.0, 0);
                     let mut poisoned = false;
                     for (i, p) in near.iter().enumerate() {

@@ -2,9 +2,9 @@
 //!
 //! A pool that grows gets capacity the process has never written: its first
 //! write to each page takes a page fault, and the kernel zeroes the page
-//! before the write goes on. At r = 10 the pools grow to 343 MB, and those
-//! faults were a sixth of the painting thread's time on this project's
-//! virtual machines (docs/benchmarks.md, issue 15, eighteenth step). When a
+//! before the write goes on. On a large stroke those faults were a good part
+//! of the painting thread's time on this project's virtual machines
+//! (docs/benchmarks.md, "How the core got here", the 18th step). When a
 //! pass may use more than one thread, a pool growth hands its new capacity
 //! to a pager thread, which maps the pages in ahead of the painting
 //! ([`octopaint_platform::memory::populate_for_write`]: no byte changes, so

@@ -1,4 +1,4 @@
-//! The stroke's map from cell to slot (paint.rs), in pages.
+//! The stroke's map from cell to slot (paint/), in pages.
 //!
 //! A stroke looks up every cell it visits, so the map must answer at once;
 //! but it touches a small part of the pools, and a map as long as the

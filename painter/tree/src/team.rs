@@ -6,8 +6,8 @@
 //! tests), with serial work between them. A pool whose idle threads go to
 //! sleep after a few yields pays a wake-up for every pass, and on a virtual
 //! machine a wake-up costs about as much as a pass of a few thousand cells
-//! (docs/benchmarks.md, issue 15, eleventh step): rayon's second thread made
-//! such strokes no faster. Here a helper that finishes a pass keeps
+//! (`examples/hand_off.rs`; docs/benchmarks.md, "How the core got here",
+//! the 11th step): rayon's second thread made such strokes no faster. Here a helper that finishes a pass keeps
 //! looking for the next one for [`STAY_AWAKE`], yielding its core to any
 //! other runnable thread meanwhile, and only then parks; the thread that
 //! posts a pass unparks the helpers that sleep.

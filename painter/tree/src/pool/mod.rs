@@ -26,7 +26,7 @@
 //! its first write in a stroke, and the change log ([`changes`]) marks the
 //! cell's block dirty and records topology changes for g3. The writes
 //! through this module's methods do both. One writer bypasses them: the
-//! paint pass's runs (paint.rs, `Disjoint`, on several threads) write in
+//! paint pass's runs (paint/runs.rs, `Disjoint`, on several threads) write in
 //! place the colour and density of leaves the stroke has journalled
 //! already, and hand back their blocks and the leaves' first writes, which
 //! the pass marks and writes through [`Tree::set_value`] in order on one
