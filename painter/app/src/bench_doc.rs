@@ -15,9 +15,9 @@ use std::time::Instant;
 use anyhow::Context;
 
 use crate::bench_gpu::median;
+use octopaint_doc::Session;
 use octopaint_doc::format;
 use octopaint_platform::durable;
-use octopaint_doc::Session;
 use octopaint_tree::trace::{EventKind, read_trace};
 
 #[derive(clap::Args)]
@@ -73,7 +73,14 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         dump_bytes = back.len();
     }
     let (enc, save, dec, dump, dump_save, dump_read) = (median(enc), median(save), median(dec), median(dump), median(dump_save), median(dump_read));
-    println!("{}: {} events, {} strokes, {} cells, undo history {:.1} MiB", a.trace.display(), trace.events.len(), strokes, tree.n_used(), history.bytes() as f64 / 1048576.0);
+    println!(
+        "{}: {} events, {} strokes, {} cells, undo history {:.1} MiB",
+        a.trace.display(),
+        trace.events.len(),
+        strokes,
+        tree.n_used(),
+        history.bytes() as f64 / 1048576.0
+    );
     println!("live session (paint + journal, fdatasync per stroke): {session_s:.2} s");
     println!("| | encode s | write (atomic) s | read + check s | MiB |");
     println!("| --- | ---: | ---: | ---: | ---: |");

@@ -14,8 +14,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
-use octopaint_gpu::pools::stage_range;
 use octopaint_gpu::context::warm_median;
+use octopaint_gpu::pools::stage_range;
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::raycast::RayParams;
@@ -173,7 +173,17 @@ fn grow(painting: &mut Painting, target: u64, like: &Brush) -> (u64, u64, Vec<[f
     let (mut k, mut samples, mut corners) = (0u64, 0u64, Vec::new());
     let mut last = u64::from(painting.tree.n_used());
     while u64::from(painting.tree.n_used()) < target {
-        let brush = Brush { shape: Shape::Sphere, mode: Mode::Paint, radius, color: stroke_colour(k), opacity: 0.85, hardness: 0.55, spacing: 0.5, mirror: None, ..*like };
+        let brush = Brush {
+            shape: Shape::Sphere,
+            mode: Mode::Paint,
+            radius,
+            color: stroke_colour(k),
+            opacity: 0.85,
+            hardness: 0.55,
+            spacing: 0.5,
+            mirror: None,
+            ..*like
+        };
         let y = origin[1] + (k % 48) as f64 * 0.07;
         let z = origin[2] + (k / 48) as f64 * 0.07;
         painting.begin_stroke(&brush);
@@ -233,7 +243,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     report.insert("trace".into(), json!(a.trace.display().to_string()));
     report.insert("trace_seconds".into(), json!(t.elapsed().as_secs_f64()));
     if let Some(n) = a.grow {
-        let like_brush = trace.events.iter().find_map(|e| if let EventKind::Brush(b) = &e.kind { Some(*b) } else { None }).context("--grow: the trace has no brush")?;
+        let like_brush =
+            trace.events.iter().find_map(|e| if let EventKind::Brush(b) = &e.kind { Some(*b) } else { None }).context("--grow: the trace has no brush")?;
         let t = Instant::now();
         let (k, samples, corners) = grow(&mut painting, n, &like_brush);
         let secs = t.elapsed().as_secs_f64();
@@ -327,7 +338,9 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             let (st, up) = (median(stage_s), median(upload_s));
             let mb = (count * block as u64 * 16) as f64 / 1e6;
             println!("| {block} | {count} | {:.1} | {:.1} | {:.0} |", st * 1e3, up * 1e3, mb / (st + up));
-            rows.push(json!({"block": block, "blocks": count, "stage_ms": st * 1e3, "upload_ms": up * 1e3, "mb_per_s": mb / (st + up), "upload_mb_per_s": mb / up}));
+            rows.push(
+                json!({"block": block, "blocks": count, "stage_ms": st * 1e3, "upload_ms": up * 1e3, "mb_per_s": mb / (st + up), "upload_mb_per_s": mb / up}),
+            );
         }
         report.insert("blocks".into(), Value::Array(rows));
     }

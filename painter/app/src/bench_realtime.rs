@@ -389,11 +389,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(hz.is_finite() && hz > 0.0, "--hz {hz}: expected a positive rate");
     }
     let trace = read_trace(&a.trace).map_err(|e| anyhow::anyhow!("{}: {e}", a.trace.display()))?;
-    let mut camera = *trace
-        .events
-        .iter()
-        .find_map(|e| if let EventKind::Camera(c) = &e.kind { Some(c) } else { None })
-        .context("the trace has no camera")?;
+    let mut camera = *trace.events.iter().find_map(|e| if let EventKind::Camera(c) = &e.kind { Some(c) } else { None }).context("the trace has no camera")?;
     camera.size = [w, h];
     let jobs = from_trace(&trace);
     let begins: Vec<usize> = jobs.iter().enumerate().filter(|(_, (_, j))| matches!(j, Job::BeginStroke(_))).map(|(i, _)| i).collect();

@@ -433,7 +433,14 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             settle(&p, &mut said);
             let ms = t.elapsed().as_secs_f64() * 1e3;
             let lines_after = octopaint_doc::journal::lines_beyond(&path).map_err(|e| anyhow::anyhow!("{e}"))?.context("no journal after a save")?;
-            saves.push(Save { stamps, journal_before: before, journal_after: journal_len(), lines_after, document_bytes: std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0), ms });
+            saves.push(Save {
+                stamps,
+                journal_before: before,
+                journal_after: journal_len(),
+                lines_after,
+                document_bytes: std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0),
+                ms,
+            });
         }
     }
     submit(Job::Save)?;

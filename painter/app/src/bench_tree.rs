@@ -217,7 +217,10 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(a.radius.is_finite() && a.radius >= 0.5 && a.radius <= 256.0, "--radius must be in [0.5, 256] finest cells");
     anyhow::ensure!((0.0..=1.0).contains(&a.hardness), "--hardness must be in [0, 1]");
     anyhow::ensure!(a.spacing.is_finite() && (0.05..=4.0).contains(&a.spacing), "--spacing must be in [0.05, 4] radii");
-    anyhow::ensure!(a.write_strokes.is_none() || (a.shape == BenchShape::Sphere && !a.mirror), "--write-strokes writes unmirrored sphere strokes only (what the OpenVDB peer paints)");
+    anyhow::ensure!(
+        a.write_strokes.is_none() || (a.shape == BenchShape::Sphere && !a.mirror),
+        "--write-strokes writes unmirrored sphere strokes only (what the OpenVDB peer paints)"
+    );
     let set = stroke_set(a);
     if let Some(p) = &a.write_strokes {
         write_strokes(&set, p)?;

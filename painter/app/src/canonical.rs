@@ -42,15 +42,9 @@ pub fn canonical(result: &Result<Trace, TraceError>) -> Vec<String> {
             EventKind::Light(_) => vec![json!(false)],
             EventKind::Render(n) | EventKind::Snapshot(n) => vec![json!(n)],
             EventKind::StrokeBegin | EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo => vec![],
-            EventKind::Layer(op) => vec![
-                json!(op.op.code()),
-                json!(op.layer),
-                json!(op.name),
-                json!(op.to),
-                json!(op.visible),
-                json!(op.opacity.map(f64::from)),
-                json!(op.locked),
-            ],
+            EventKind::Layer(op) => {
+                vec![json!(op.op.code()), json!(op.layer), json!(op.name), json!(op.to), json!(op.visible), json!(op.opacity.map(f64::from)), json!(op.locked)]
+            }
             EventKind::Import(imp) => vec![json!(imp.file), json!(imp.sha256), json!(imp.name), json!(imp.voxels.depth), json!(imp.voxels.len())],
         };
         row.extend(fields);

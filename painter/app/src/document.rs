@@ -165,11 +165,7 @@ pub fn import(trace: &Path, doc: &Path) -> ExitCode {
 
 fn say_recovered(s: &Session) {
     if s.recovered > 0 {
-        eprintln!(
-            "octopaint: {}: recovered {} stroke(s), undo(s) and redo(s) from its journal",
-            s.path.display(),
-            s.recovered
-        );
+        eprintln!("octopaint: {}: recovered {} stroke(s), undo(s) and redo(s) from its journal", s.path.display(), s.recovered);
     }
 }
 
@@ -267,7 +263,12 @@ pub fn info(doc: &Path) -> ExitCode {
     println!("document   {} ({} bytes)", doc.display(), size);
     println!(
         "canvas     roots {}x{}x{}, root size {}, max depth {}, capacity {} cells",
-        l.roots[0], l.roots[1], l.roots[2], l.root_size, l.max_depth, s.doc.canvas().capacity
+        l.roots[0],
+        l.roots[1],
+        l.roots[2],
+        l.root_size,
+        l.max_depth,
+        s.doc.canvas().capacity
     );
     println!("session    {} events", s.event_count());
     if s.version == 2 {
@@ -456,7 +457,6 @@ fn create_default(doc: &Path) -> Result<(), DocError> {
     Ok(())
 }
 
-
 /// What drives a VR session besides the controllers (a script of
 /// controller states, a trace played, a test's hold on painting), and
 /// where its frame log goes.
@@ -486,7 +486,17 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
         Ok(r) => {
             eprintln!(
                 "octopaint: {} frame(s) in the headset on {}: {}x{} per eye ({}), frame interval {:.1} ms mean, {:.1} ms p50, {:.1} ms p99, {:.1} ms max; both eyes cast and drawn in {:.1} ms mean; {} stroke(s) painted, saved",
-                r.frames, r.adapter, r.eye_size[0], r.eye_size[1], r.format, r.frame_ms.0, r.frame_p50_p99_ms.0, r.frame_p50_p99_ms.1, r.frame_ms.1, r.render_ms, r.strokes
+                r.frames,
+                r.adapter,
+                r.eye_size[0],
+                r.eye_size[1],
+                r.format,
+                r.frame_ms.0,
+                r.frame_p50_p99_ms.0,
+                r.frame_p50_p99_ms.1,
+                r.frame_ms.1,
+                r.render_ms,
+                r.strokes
             );
             eprintln!(
                 "octopaint: dynamic resolution: eyes cast at {:.0}% of their size on average, {:.0}% at least; {} still frame(s) at full size, {} of them drawn from the last cast",

@@ -14,8 +14,8 @@ use std::time::Instant;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use octopaint_export::voxels::{self, VoxelGrid};
 use octopaint_export::{ColourSpace, Crop, ExportError, Placement, SurfaceOptions, default_iso, mesh, surface, usd, vdb};
-use octopaint_tree::paint::Painting;
 use octopaint_tree::layers::Document;
+use octopaint_tree::paint::Painting;
 use octopaint_tree::replay::{ReplayObserver, replay_document};
 use octopaint_tree::trace::{EventKind, read_trace};
 
@@ -217,10 +217,7 @@ pub fn placement_of(scale: f64, origin: Option<[f64; 3]>, up: UpChoice, roots: [
 }
 
 pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
-        .collect::<Result<_, _>>()?;
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number"))).collect::<Result<_, _>>()?;
     match v[..] {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
         [_, _, _] => Err("the point must be finite".into()),
@@ -229,10 +226,7 @@ pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
 }
 
 fn parse_crop(s: &str) -> Result<Crop, String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
-        .collect::<Result<_, _>>()?;
+    let v: Vec<f64> = s.split(',').map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number"))).collect::<Result<_, _>>()?;
     if v.len() != 6 {
         return Err(format!("expected 6 numbers X0,Y0,Z0,X1,Y1,Z1, got {}", v.len()));
     }
@@ -416,10 +410,7 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     let crop = args.region;
     if let Some(c) = crop {
         if (0..3).any(|a| c.hi[a] <= 0.0 || c.lo[a] >= size[a]) {
-            return Err(refuse(format!(
-                "--region misses the canvas, which spans [0, {}) x [0, {}) x [0, {})",
-                size[0], size[1], size[2]
-            )));
+            return Err(refuse(format!("--region misses the canvas, which spans [0, {}) x [0, {}) x [0, {})", size[0], size[1], size[2])));
         }
     }
     let layered = parts[0].0.is_some();

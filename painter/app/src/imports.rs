@@ -157,7 +157,11 @@ pub fn vdb(a: &VdbArgs) -> ExitCode {
             "{}: which grid? float grids: {} (name one with --grid){}",
             a.input.display(),
             if floats.is_empty() { "none".to_string() } else { floats.join(", ") },
-            if skipped.is_empty() { String::new() } else { format!("; not read: {}", skipped.iter().map(|k| format!("{} ({})", k.name, k.grid_type)).collect::<Vec<_>>().join(", ")) }
+            if skipped.is_empty() {
+                String::new()
+            } else {
+                format!("; not read: {}", skipped.iter().map(|k| format!("{} ({})", k.name, k.grid_type)).collect::<Vec<_>>().join(", "))
+            }
         ));
     };
     let Some(density) = grids.iter().find(|g| g.name == wanted && matches!(g.voxel_values, Values::Float(_))) else {

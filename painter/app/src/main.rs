@@ -20,12 +20,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use octopaint_tree::paint::Painting;
-use octopaint_tree::pool::CellRecord;
-use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_gpu::{Backend, Precision, Renderer};
 use octopaint_tree::layers::Document;
+use octopaint_tree::paint::Painting;
+use octopaint_tree::pool::CellRecord;
 use octopaint_tree::raycast::{LayerInput, RayInput, RayParams};
+use octopaint_tree::replay::{ReplayObserver, replay};
 use octopaint_tree::trace::{Camera, Event, Light, read_trace};
 
 #[derive(Parser)]
@@ -177,10 +177,7 @@ enum Command {
     New(document::NewArgs),
     /// Replay a trace into a new document: its whole session, undo history
     /// included.
-    Import {
-        trace: PathBuf,
-        doc: PathBuf,
-    },
+    Import { trace: PathBuf, doc: PathBuf },
     /// Paint an OpenVDB fog volume (density, optional colour) into a layer
     /// of a document, resampled at a chosen depth, as one undoable step
     /// (docs/documents.md, "Imports").
@@ -473,10 +470,7 @@ fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, 
         }
     };
     if !stats.renders.is_empty() {
-        eprintln!(
-            "octopaint: {} render event(s) not drawn (--renderer none)",
-            stats.renders.len()
-        );
+        eprintln!("octopaint: {} render event(s) not drawn (--renderer none)", stats.renders.len());
     }
     if !quiet {
         eprintln!(
@@ -518,10 +512,7 @@ fn xr_info() -> ExitCode {
             println!("runtime    {} {}", i.runtime, i.runtime_version);
             println!("headset    {} (vendor {:#x}), tracking: orientation {}, position {}", i.system, i.vendor_id, i.orientation_tracking, i.position_tracking);
             for (k, v) in i.views.iter().enumerate() {
-                println!(
-                    "eye {k}      {}x{} recommended, {}x{} at most, {} sample(s)",
-                    v.recommended[0], v.recommended[1], v.max[0], v.max[1], v.samples
-                );
+                println!("eye {k}      {}x{} recommended, {}x{} at most, {} sample(s)", v.recommended[0], v.recommended[1], v.max[0], v.max[1], v.samples);
             }
             match (&i.vulkan_min, &i.vulkan_max) {
                 (Some(a), Some(b)) => println!("vulkan     XR_KHR_vulkan_enable2, Vulkan {a} to {b}"),
@@ -548,7 +539,9 @@ fn main() -> ExitCode {
         return document::start();
     };
     match command {
-        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision }),
+        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
+            cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
+        }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
@@ -557,9 +550,13 @@ fn main() -> ExitCode {
             let live = document::Live { script, play, hold_painting, frame_log };
             document::vr(&doc, frames, capture, live, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
         }
-        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => {
-            document::window(&doc, &size, precision == PrecisionChoice::F16, screenshot, document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting })
-        }
+        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => document::window(
+            &doc,
+            &size,
+            precision == PrecisionChoice::F16,
+            screenshot,
+            document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting },
+        ),
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::ImportVdb(args) => imports::vdb(&args),
         Command::ImportMesh(args) => imports::mesh(&args),

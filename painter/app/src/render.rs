@@ -234,7 +234,8 @@ fn drawer(a: &Args, layers: &mut [&mut Tree]) -> Result<Draw, String> {
 }
 
 fn write_png(path: &Path, rgb: &[u8], size: [u32; 2]) -> Result<(), String> {
-    octopaint_gpu::image::write_png(path, rgb, size[0], size[1]).map_err(|e| format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e)))
+    octopaint_gpu::image::write_png(path, rgb, size[0], size[1])
+        .map_err(|e| format!("cannot write {}: {}", path.display(), octopaint_tree::trace::io_reason(&e)))
 }
 
 pub fn run(a: &Args) -> ExitCode {
@@ -336,7 +337,12 @@ pub fn run(a: &Args) -> ExitCode {
             let path = gif_path.as_ref().expect("a turntable writes a GIF");
             if !a.quiet {
                 let n = plan.cameras.len();
-                eprintln!("octopaint: {n} frames of {w}x{h} in {seconds:.1} s ({:.0} ms each): {}/frame-*.png and {}", seconds * 1e3 / n as f64, dir.display(), path.display());
+                eprintln!(
+                    "octopaint: {n} frames of {w}x{h} in {seconds:.1} s ({:.0} ms each): {}/frame-*.png and {}",
+                    seconds * 1e3 / n as f64,
+                    dir.display(),
+                    path.display()
+                );
             }
         }
         None if !a.quiet => eprintln!("octopaint: {w}x{h} in {:.0} ms: {}", seconds * 1e3, a.out.display()),

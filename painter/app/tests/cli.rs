@@ -65,13 +65,7 @@ fn an_unwritable_output_folder_is_a_clear_error() {
     let scratch = tempfile::tempdir().unwrap();
     let blocker = scratch.path().join("file");
     std::fs::write(&blocker, b"not a folder").unwrap();
-    let res = octopaint()
-        .arg("replay")
-        .arg(repo().join("traces/single_stamp.jsonl"))
-        .arg("--out")
-        .arg(blocker.join("sub"))
-        .output()
-        .unwrap();
+    let res = octopaint().arg("replay").arg(repo().join("traces/single_stamp.jsonl")).arg("--out").arg(blocker.join("sub")).output().unwrap();
     assert_eq!(res.status.code(), Some(1));
     let stderr = String::from_utf8(res.stderr).unwrap();
     assert!(stderr.contains("cannot write to"), "{stderr}");
@@ -123,14 +117,7 @@ fn bench_realtime_runs_and_writes_its_results() {
 fn bench_realtime_refuses_absurd_settings() {
     let scratch = tempfile::tempdir().unwrap();
     for args in [["--size", "0x10"], ["--size", "99999x10"], ["--size", "wide"], ["--hz", "NaN"], ["--stroke", "99"]] {
-        let res = octopaint()
-            .args(["bench", "realtime"])
-            .arg(repo().join("traces/scene.jsonl"))
-            .args(args)
-            .arg("--out")
-            .arg(scratch.path())
-            .output()
-            .unwrap();
+        let res = octopaint().args(["bench", "realtime"]).arg(repo().join("traces/scene.jsonl")).args(args).arg("--out").arg(scratch.path()).output().unwrap();
         assert_eq!(res.status.code(), Some(1), "{args:?}");
         let stderr = String::from_utf8_lossy(&res.stderr);
         assert!(stderr.starts_with("octopaint: bench realtime: "), "{args:?}: {stderr}");
@@ -306,12 +293,15 @@ fn damaged_documents_are_refused_and_left_alone() {
     let res = octopaint().arg("import").arg(repo().join("traces/undo_redo.jsonl")).arg(&doc).output().unwrap();
     assert!(res.status.success(), "{}", String::from_utf8_lossy(&res.stderr));
     let good = std::fs::read(&doc).unwrap();
-    for (what, bytes) in [("truncated", good[..good.len() / 2].to_vec()), ("flipped", {
-        let mut b = good.clone();
-        let i = b.len() / 3;
-        b[i] ^= 0x10;
-        b
-    })] {
+    for (what, bytes) in [
+        ("truncated", good[..good.len() / 2].to_vec()),
+        ("flipped", {
+            let mut b = good.clone();
+            let i = b.len() / 3;
+            b[i] ^= 0x10;
+            b
+        }),
+    ] {
         std::fs::write(&doc, &bytes).unwrap();
         for cmd in ["info", "recover"] {
             let res = octopaint().arg(cmd).arg(&doc).output().unwrap();

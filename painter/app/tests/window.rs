@@ -166,9 +166,13 @@ fn the_window_paints_a_stroke_from_mouse_input_and_saves_it() {
     // The panel's right edge: the first column, left to right, of the
     // view's blue-tinted background (row 560, above the status line; the
     // panel is neutral grey).
-    let panel_edge = (0..800).find(|&x| i32::from(framed[(560 * 800 + x) * 3 + 2]) > i32::from(framed[(560 * 800 + x) * 3]) + 2).expect("the view's background") as f64;
+    let panel_edge =
+        (0..800).find(|&x| i32::from(framed[(560 * 800 + x) * 3 + 2]) > i32::from(framed[(560 * 800 + x) * 3]) + 2).expect("the view's background") as f64;
     let centre = (panel_edge + 800.0) / 2.0;
-    assert!(panel_edge > 150.0 && (cx - centre).abs() < 60.0 && (cy - 290.0).abs() < 60.0, "the framed stroke centres at ({cx:.0}, {cy:.0}), the view's centre is ({centre:.0}, 290)");
+    assert!(
+        panel_edge > 150.0 && (cx - centre).abs() < 60.0 && (cy - 290.0).abs() < 60.0,
+        "the framed stroke centres at ({cx:.0}, {cy:.0}), the view's centre is ({centre:.0}, 290)"
+    );
 
     // Lighting: the lit stroke is shaded (its pixels differ from the
     // unlit ones, by more than 8 steps in places), the background is not.

@@ -218,10 +218,12 @@ impl App {
     /// button): asked of the stroke thread, taken when it answers.
     pub fn frame_view(&mut self) {
         let (tx, rx) = channel();
-        if self.engine.as_ref().is_some_and(|e| e.ask(move |c| {
-            let _ = tx.send(frame_document(c.document()));
-        })
-        .is_ok()) {
+        if self.engine.as_ref().is_some_and(|e| {
+            e.ask(move |c| {
+                let _ = tx.send(frame_document(c.document()));
+            })
+            .is_ok()
+        }) {
             self.framed = Some(rx);
         }
     }
@@ -275,14 +277,20 @@ impl App {
     fn wants_frame(&self) -> bool {
         let Some(r) = &self.running else { return false };
         let engine_busy = self.engine.as_ref().is_some_and(|e| !e.idle());
-        self.closing.is_some() || engine_busy || !r.frames.settled() || !r.view.settled() || r.egui_wants || self.asking || self.framed.is_some() || self.is_playing()
+        self.closing.is_some()
+            || engine_busy
+            || !r.frames.settled()
+            || !r.view.settled()
+            || r.egui_wants
+            || self.asking
+            || self.framed.is_some()
+            || self.is_playing()
     }
 
     fn start_window(&mut self, event_loop: &ActiveEventLoop) -> Result<Running, String> {
         let [w, h] = self.opts.size;
-        let attrs = Window::default_attributes()
-            .with_title(format!("octopaint: {}", self.opts.doc.display()))
-            .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
+        let attrs =
+            Window::default_attributes().with_title(format!("octopaint: {}", self.opts.doc.display())).with_inner_size(winit::dpi::PhysicalSize::new(w, h));
         let window = Arc::new(event_loop.create_window(attrs).map_err(|e| format!("cannot create a window: {e}"))?);
         let mut desc = wgpu::InstanceDescriptor::new_with_display_handle(Box::new(event_loop.owned_display_handle()));
         desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
@@ -304,9 +312,8 @@ impl App {
         let caps = surface.get_capabilities(&adapter);
         let format = caps.formats.iter().copied().find(|f| !f.is_srgb()).unwrap_or(caps.formats[0]);
         let size = window.inner_size();
-        let mut config = surface
-            .get_default_config(&adapter, size.width.max(1), size.height.max(1))
-            .ok_or("the window's surface is not supported by the adapter")?;
+        let mut config =
+            surface.get_default_config(&adapter, size.width.max(1), size.height.max(1)).ok_or("the window's surface is not supported by the adapter")?;
         config.format = format;
         config.present_mode = wgpu::PresentMode::AutoVsync;
         config.desired_maximum_frame_latency = 2;

@@ -105,7 +105,13 @@ impl App {
             wgpu::CurrentSurfaceTexture::Success(f) | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
             other => {
                 r.surface.configure(&gpu.device, &r.config);
-                return if matches!(other, wgpu::CurrentSurfaceTexture::Lost | wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded) {
+                return if matches!(
+                    other,
+                    wgpu::CurrentSurfaceTexture::Lost
+                        | wgpu::CurrentSurfaceTexture::Outdated
+                        | wgpu::CurrentSurfaceTexture::Timeout
+                        | wgpu::CurrentSurfaceTexture::Occluded
+                ) {
                     Ok(())
                 } else {
                     Err("the window's surface failed".into())
@@ -166,7 +172,10 @@ impl App {
         }
         if let Some(capture) = readback {
             r.want_screenshot = false;
-            let written = capture.rgb(gpu).map_err(|e| e.to_string()).and_then(|rgb| octopaint_gpu::image::write_png(&screenshot_path, &rgb, size[0], size[1]).map_err(|e| e.to_string()));
+            let written = capture
+                .rgb(gpu)
+                .map_err(|e| e.to_string())
+                .and_then(|rgb| octopaint_gpu::image::write_png(&screenshot_path, &rgb, size[0], size[1]).map_err(|e| e.to_string()));
             let msg = match written {
                 Ok(()) => format!("wrote {}", screenshot_path.display()),
                 Err(e) => format!("screenshot failed: {e}"),

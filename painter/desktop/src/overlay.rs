@@ -52,7 +52,14 @@ fn project(camera: &Camera, p: DVec3) -> Option<([f32; 2], f64)> {
 impl Overlay {
     /// The overlay of a `size` view from `camera` with the mouse at
     /// `cursor` and the brush's point `(eye, dir, depth)` under it.
-    pub(crate) fn new(camera: &OrbitCamera, size: [u32; 2], cursor: (f64, f64), brush: &BrushUi, lat: &Lattice, (eye, dir, depth): (DVec3, DVec3, f64)) -> Overlay {
+    pub(crate) fn new(
+        camera: &OrbitCamera,
+        size: [u32; 2],
+        cursor: (f64, f64),
+        brush: &BrushUi,
+        lat: &Lattice,
+        (eye, dir, depth): (DVec3, DVec3, f64),
+    ) -> Overlay {
         let r = View { camera, cursor, brush };
         let rot = r.camera.rotation();
         let z = depth * dir.dot(rot * DVec3::NEG_Z);
@@ -95,7 +102,13 @@ impl Overlay {
     pub(crate) fn draw(&self, ctx: &egui::Context, view: egui::Rect) {
         let painter = ctx.layer_painter(egui::LayerId::new(egui::Order::Foreground, egui::Id::unique("overlay"))).with_clip_rect(view);
         let ppp = ctx.pixels_per_point();
-        let axis_colour = |a: usize, alpha: u8| [egui::Color32::from_rgba_unmultiplied(230, 60, 60, alpha), egui::Color32::from_rgba_unmultiplied(70, 200, 70, alpha), egui::Color32::from_rgba_unmultiplied(70, 120, 240, alpha)][a];
+        let axis_colour = |a: usize, alpha: u8| {
+            [
+                egui::Color32::from_rgba_unmultiplied(230, 60, 60, alpha),
+                egui::Color32::from_rgba_unmultiplied(70, 200, 70, alpha),
+                egui::Color32::from_rgba_unmultiplied(70, 120, 240, alpha),
+            ][a]
+        };
         for (quad, a) in &self.planes {
             let points: Vec<egui::Pos2> = quad.iter().map(|p| egui::pos2(p[0] / ppp, p[1] / ppp)).collect();
             painter.add(egui::Shape::convex_polygon(points, axis_colour(*a, 20), egui::Stroke::new(1.0, axis_colour(*a, 110))));

@@ -92,10 +92,7 @@ pub(crate) fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, 
         let row = ui.horizontal(|ui| {
             // The handle: drag a layer onto another row to move it there
             // (a `move` event to that row's index).
-            let handle = ui
-                .dnd_drag_source(egui::Id::unique(("layer row", k)), k, grip)
-                .response
-                .on_hover_text("drag onto another layer to move it there");
+            let handle = ui.dnd_drag_source(egui::Id::unique(("layer row", k)), k, grip).response.on_hover_text("drag onto another layer to move it there");
             let mut visible = layer.visible;
             if ui.checkbox(&mut visible, "").on_hover_text("visible (drawn, exported)").changed() {
                 actions.push(Action::Layer(LayerOp { visible: Some(visible), ..layer_op(LayerOpKind::Set, Some(&layer.name), None) }));
@@ -329,11 +326,7 @@ mod tests {
 
     /// One frame of the panel with these pointer events; the actions it made.
     fn frame(ctx: &egui::Context, l: &mut LayersUi, s: &StatusInfo, events: Vec<egui::Event>) -> Vec<Action> {
-        let raw = egui::RawInput {
-            screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 600.0))),
-            events,
-            ..Default::default()
-        };
+        let raw = egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 600.0))), events, ..Default::default() };
         let mut actions = Vec::new();
         let _ = ctx.run_ui(raw, |ui| {
             egui::CentralPanel::default().show(ui, |ui| layers_panel(ui, l, s, &mut actions));
@@ -368,11 +361,8 @@ mod tests {
         }
         actions.extend(frame(&ctx, &mut l, &s, pointer(to, Some(false))));
         actions.extend(frame(&ctx, &mut l, &s, vec![]));
-        let moves: Vec<&LayerOp> = actions
-            .iter()
-            .filter_map(|a| if let Action::Layer(op) = a { Some(op) } else { None })
-            .filter(|op| op.op == LayerOpKind::Move)
-            .collect();
+        let moves: Vec<&LayerOp> =
+            actions.iter().filter_map(|a| if let Action::Layer(op) = a { Some(op) } else { None }).filter(|op| op.op == LayerOpKind::Move).collect();
         assert_eq!(moves.len(), 1, "one move");
         assert_eq!((moves[0].layer.as_deref(), moves[0].to), (Some("bottom"), Some(2)));
         // A click on a handle without moving is no move.

@@ -340,12 +340,7 @@ fn layer_bytes(id: u32, l: &Layer) -> Vec<u8> {
 /// A document of layers as bytes (format version 2: `TRCE`, `DOCU`, one
 /// `LAYR` per layer the document or its history holds, `META`), and the
 /// file's CRC.
-pub fn write_layers<'a>(
-    trace_text: impl Into<TraceSection<'a>>,
-    doc: &layers::Document,
-    meta: &str,
-    imports: &Imports,
-) -> std::io::Result<(Vec<u8>, u32)> {
+pub fn write_layers<'a>(trace_text: impl Into<TraceSection<'a>>, doc: &layers::Document, meta: &str, imports: &Imports) -> std::io::Result<(Vec<u8>, u32)> {
     let (layers, ..) = doc.parts();
     let docu = document_bytes(doc);
     let layrs: Vec<Vec<u8>> = layers.map(|(id, l)| layer_bytes(id, l)).collect();
@@ -423,10 +418,7 @@ fn inflate(stored: &[u8], raw_len: u64, tag: &str) -> Result<Vec<u8>, DocError> 
     // The declared size bounds the output (no zip bomb), and the buffer
     // grows as data really arrives (no allocation from a lying header).
     let mut out = Vec::with_capacity(raw_len.min(stored.len() as u64 * 4) as usize);
-    ZlibDecoder::new(stored)
-        .take(raw_len + 1)
-        .read_to_end(&mut out)
-        .map_err(|e| DocError::Corrupt(format!("the {tag} section does not decompress: {e}")))?;
+    ZlibDecoder::new(stored).take(raw_len + 1).read_to_end(&mut out).map_err(|e| DocError::Corrupt(format!("the {tag} section does not decompress: {e}")))?;
     if out.len() as u64 != raw_len {
         return Err(DocError::Corrupt(format!("the {tag} section holds {} bytes, its header says {raw_len}", out.len())));
     }

@@ -76,7 +76,9 @@ pub(crate) fn parse<'a>(jp: &Path, text: &'a str) -> Result<Option<Read<'a>>, Do
     let mut body: Vec<&str> = lines.collect();
     // Only up to the last event that ended something: a stroke in progress
     // at the crash is not a stroke.
-    let ends = |l: &str| l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") || l.contains("\"ev\": \"layer\"") || l.contains("\"ev\":\"layer\"");
+    let ends = |l: &str| {
+        l.contains("\"stroke_end\"") || l.contains("\"undo\"") || l.contains("\"redo\"") || l.contains("\"ev\": \"layer\"") || l.contains("\"ev\":\"layer\"")
+    };
     let keep = body.iter().rposition(|l| ends(l)).map_or(0, |i| i + 1);
     body.truncate(keep);
     Ok(Some(Read { crc, base, body }))

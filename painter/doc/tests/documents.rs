@@ -626,7 +626,10 @@ fn a_failed_journal_append_is_written_whole_by_the_next_flush() {
     assert_eq!(text.lines().filter(|l| l.contains("\"stroke_end\"")).count(), 2, "{text}");
     drop(s);
     let opened = Session::open(&path).unwrap();
-    assert_eq!(opened.recovered, t.events[ends[1] + 1..=ends[3]].iter().filter(|e| matches!(e.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo)).count());
+    assert_eq!(
+        opened.recovered,
+        t.events[ends[1] + 1..=ends[3]].iter().filter(|e| matches!(e.kind, EventKind::StrokeEnd | EventKind::Undo | EventKind::Redo)).count()
+    );
     let upto = Trace { events: t.events[..=ends[3]].to_vec(), ..t.clone() };
     assert_eq!(dump_bytes(&opened.painting().tree), dump_bytes(&replayed(&upto).tree));
 }

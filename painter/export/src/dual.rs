@@ -38,9 +38,17 @@ enum Node {
     Cell(u32),
     /// `level` ≥ 1: a cube of 2^level roots at `at` (in units of its edge)
     /// in padded root coordinates (the canvas's roots are 1..=R).
-    Virtual { level: u8, at: [i32; 3] },
-    Outside { at: [i32; 3] },
-    Void { level: u8, at: [i32; 3] },
+    Virtual {
+        level: u8,
+        at: [i32; 3],
+    },
+    Outside {
+        at: [i32; 3],
+    },
+    Void {
+        level: u8,
+        at: [i32; 3],
+    },
 }
 
 /// Per-leaf data the surface needs.
@@ -91,12 +99,12 @@ struct Walk<'a> {
 /// a): 0 → one axis → two axes → 7, for every order of the axes, with the
 /// sign of that order (the tetrahedron's orientation in a true cube).
 const TETS: [([usize; 4], bool); 6] = [
-    ([0, 1, 3, 7], true),   // x, y, z
-    ([0, 1, 5, 7], false),  // x, z, y
-    ([0, 2, 3, 7], false),  // y, x, z
-    ([0, 2, 6, 7], true),   // y, z, x
-    ([0, 4, 5, 7], true),   // z, x, y
-    ([0, 4, 6, 7], false),  // z, y, x
+    ([0, 1, 3, 7], true),  // x, y, z
+    ([0, 1, 5, 7], false), // x, z, y
+    ([0, 2, 3, 7], false), // y, x, z
+    ([0, 2, 6, 7], true),  // y, z, x
+    ([0, 4, 5, 7], true),  // z, x, y
+    ([0, 4, 6, 7], false), // z, y, x
 ];
 
 /// Reorderings that put one vertex first and keep the orientation (even
@@ -104,14 +112,8 @@ const TETS: [([usize; 4], bool); 6] = [
 const LONE_FIRST: [[usize; 4]; 4] = [[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]];
 
 /// Even permutations (i, j, k, l) for each pair {i, j} of inside vertices.
-const PAIR_FIRST: [([usize; 2], [usize; 4]); 6] = [
-    ([0, 1], [0, 1, 2, 3]),
-    ([0, 2], [0, 2, 3, 1]),
-    ([0, 3], [0, 3, 1, 2]),
-    ([1, 2], [1, 2, 0, 3]),
-    ([1, 3], [1, 3, 2, 0]),
-    ([2, 3], [2, 3, 0, 1]),
-];
+const PAIR_FIRST: [([usize; 2], [usize; 4]); 6] =
+    [([0, 1], [0, 1, 2, 3]), ([0, 2], [0, 2, 3, 1]), ([0, 3], [0, 3, 1, 2]), ([1, 2], [1, 2, 0, 3]), ([1, 3], [1, 3, 2, 0]), ([2, 3], [2, 3, 0, 1])];
 
 fn other_axes(a: usize) -> (usize, usize) {
     match a {
@@ -124,9 +126,7 @@ fn other_axes(a: usize) -> (usize, usize) {
 impl<'a> Walk<'a> {
     fn is_leaf(&self, n: Node) -> bool {
         match n {
-            Node::Cell(c) => {
-                self.tree.first_child[c as usize] == NONE || u32::from(self.tree.depth[c as usize]) >= self.opts.depth_cap
-            }
+            Node::Cell(c) => self.tree.first_child[c as usize] == NONE || u32::from(self.tree.depth[c as usize]) >= self.opts.depth_cap,
             Node::Virtual { .. } => false,
             Node::Outside { .. } | Node::Void { .. } => true,
         }
@@ -186,11 +186,9 @@ impl<'a> Walk<'a> {
             // Empty space around the canvas stands at its nearest point
             // on the canvas's border, so a surface that reaches the border
             // is closed on it rather than half a root outside.
-            Node::Outside { at } | Node::Void { level: 0, at } => Corner {
-                key: (1 << 63) | pack(0, at),
-                centre: self.on_canvas(at.map(|v| (f64::from(v) - 0.5) * rs)),
-                value: Value::EMPTY,
-            },
+            Node::Outside { at } | Node::Void { level: 0, at } => {
+                Corner { key: (1 << 63) | pack(0, at), centre: self.on_canvas(at.map(|v| (f64::from(v) - 0.5) * rs)), value: Value::EMPTY }
+            }
             Node::Void { level, at } => {
                 let size = f64::from(1u32 << level);
                 Corner {
@@ -263,9 +261,7 @@ impl<'a> Walk<'a> {
                 self.edge_proc(nodes, d);
             }
         }
-        let nodes: [Node; 8] = std::array::from_fn(|k| {
-            if k & (1 << a) == 0 { self.sub(n0, k | (1 << a)) } else { self.sub(n1, k & !(1 << a)) }
-        });
+        let nodes: [Node; 8] = std::array::from_fn(|k| if k & (1 << a) == 0 { self.sub(n0, k | (1 << a)) } else { self.sub(n1, k & !(1 << a)) });
         self.vert_proc(nodes);
     }
 

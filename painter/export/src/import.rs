@@ -10,11 +10,11 @@ use glam::DVec3;
 use octopaint_tree::trace::Canvas;
 use octopaint_tree::voxels::{MAX_VOXELS, VoxelSet};
 
+use crate::Placement;
 use crate::mesh_read::TriMesh;
 use crate::values::ColourSpace;
 use crate::vdb_read::{Grid, Values};
 use crate::voxelise::{SolidGrid, check_closed, voxelise};
-use crate::Placement;
 
 /// A file position back on the canvas: `p = origin + unturn(file) / scale`
 /// (the inverse of [`Placement::apply`]).
@@ -335,7 +335,14 @@ pub struct MeshImportReport {
 /// voxel whose centre is inside (ray parity; a mesh with holes or
 /// inconsistent orientation is refused by [`check_closed`]), with the
 /// mesh's colour there and extinction `sigma` per canvas unit.
-pub fn voxels_from_mesh(mesh: &TriMesh, canvas: &Canvas, depth: u32, placement: &Placement, allow_z_up: bool, sigma: f64) -> Result<(VoxelSet, MeshImportReport), String> {
+pub fn voxels_from_mesh(
+    mesh: &TriMesh,
+    canvas: &Canvas,
+    depth: u32,
+    placement: &Placement,
+    allow_z_up: bool,
+    sigma: f64,
+) -> Result<(VoxelSet, MeshImportReport), String> {
     if depth > canvas.max_depth {
         return Err(format!("--depth {depth} is deeper than the canvas's max depth {}", canvas.max_depth));
     }

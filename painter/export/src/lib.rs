@@ -27,8 +27,8 @@ pub mod usd;
 pub mod values;
 pub mod vdb;
 pub mod vdb_read;
-pub mod voxels;
 pub mod voxelise;
+pub mod voxels;
 
 pub use dual::{Mesh, SurfaceOptions, default_iso, surface};
 pub use values::ColourSpace;

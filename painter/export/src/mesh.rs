@@ -16,9 +16,9 @@ use gltf::json;
 use json::validation::Checked::Valid;
 use json::validation::USize64;
 
-use crate::{ExportError, Placement};
 use crate::dual::Mesh;
 use crate::values::ColourSpace;
+use crate::{ExportError, Placement};
 
 /// Area-weighted vertex normals, pointing out of the painted volume.
 pub fn vertex_normals(mesh: &Mesh) -> Vec<DVec3> {
@@ -95,13 +95,8 @@ pub fn glb_bytes_named(meshes: &[(&str, &Mesh)], placement: Placement, generator
 
     let mut root = json::Root::default();
     root.asset.generator = Some(generator.to_string());
-    let buffer = root.push(json::Buffer {
-        byte_length: USize64::from(bin.len()),
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: None,
-        uri: None,
-    });
+    let buffer =
+        root.push(json::Buffer { byte_length: USize64::from(bin.len()), extensions: Default::default(), extras: Default::default(), name: None, uri: None });
     let view = |root: &mut json::Root, offset: usize, length: usize, target: json::buffer::Target| {
         root.push(json::buffer::View {
             buffer,
@@ -190,23 +185,15 @@ pub fn glb_bytes_named(meshes: &[(&str, &Mesh)], placement: Placement, generator
             ..Default::default()
         }));
     }
-    let scene = root.push(json::Scene {
-        extensions: Default::default(),
-        extras: Default::default(),
-        name: None,
-        nodes,
-    });
+    let scene = root.push(json::Scene { extensions: Default::default(), extras: Default::default(), name: None, nodes });
     root.scene = Some(scene);
 
     let mut json_bytes = json::serialize::to_vec(&root).map_err(|e| ExportError::Io(std::io::Error::other(e)))?;
     pad4(&mut json_bytes, b' ');
     let length = 12 + 8 + json_bytes.len() + 8 + bin.len();
     let length = u32::try_from(length).map_err(|_| ExportError::FormatLimit { what: "a glTF binary", bytes: length as u64 })?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length },
-        bin: Some(Cow::Owned(bin)),
-        json: Cow::Owned(json_bytes),
-    };
+    let glb =
+        gltf::binary::Glb { header: gltf::binary::Header { magic: *b"glTF", version: 2, length }, bin: Some(Cow::Owned(bin)), json: Cow::Owned(json_bytes) };
     glb.to_vec().map_err(|e| ExportError::Io(std::io::Error::other(e)))
 }
 

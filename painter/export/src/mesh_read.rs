@@ -61,9 +61,7 @@ pub enum MeshError {
     Malformed(String),
     #[error("{0}")]
     Unsupported(String),
-    #[error(
-        "the mesh has more than {max} triangles (counted {count} so far): simplify it (decimate) or raise the triangle limit"
-    )]
+    #[error("the mesh has more than {max} triangles (counted {count} so far): simplify it (decimate) or raise the triangle limit")]
     TooManyTriangles { count: u64, max: u64 },
     #[error("vertex {vertex} of {what} has a position that is not a finite number ({position:?})")]
     NonFinite { what: String, vertex: u64, position: [f64; 3] },
@@ -71,15 +69,11 @@ pub enum MeshError {
     NoTriangles,
     #[error("the mesh is not closed, so it has no inside to fill: {0}")]
     NotClosed(Box<EdgeDefects>),
-    #[error(
-        "the solid would have more than {max} voxels: use a coarser voxel size or a smaller scale, or raise the voxel limit"
-    )]
+    #[error("the solid would have more than {max} voxels: use a coarser voxel size or a smaller scale, or raise the voxel limit")]
     TooManyVoxels { max: u64 },
     #[error("the voxel grid is invalid: {0}")]
     BadGrid(String),
-    #[error(
-        "the mesh is not closed along the row of voxel centres at y = {y}, z = {z} (an odd number of surface crossings): run the closedness check first"
-    )]
+    #[error("the mesh is not closed along the row of voxel centres at y = {y}, z = {z} (an odd number of surface crossings): run the closedness check first")]
     OddCrossings { y: f64, z: f64 },
 }
 
@@ -312,11 +306,7 @@ fn local_matrix(node: &gltf::Node) -> DMat4 {
             // A zero quaternion is invalid; treat it as no rotation rather
             // than fill the matrix with NaN.
             let q = if q.length_squared() > 0.0 { q.normalize() } else { DQuat::IDENTITY };
-            DMat4::from_scale_rotation_translation(
-                DVec3::from_array(scale.map(f64::from)),
-                q,
-                DVec3::from_array(translation.map(f64::from)),
-            )
+            DMat4::from_scale_rotation_translation(DVec3::from_array(scale.map(f64::from)), q, DVec3::from_array(translation.map(f64::from)))
         }
     }
 }
@@ -336,9 +326,7 @@ fn element_count(prim: &gltf::Primitive) -> Result<usize, MeshError> {
 /// triangles use, in their original order.
 fn read_primitive(out: &mut TriMesh, buffers: &mut Buffers, mesh: &gltf::Mesh, prim: &gltf::Primitive, world: &DMat4) -> Result<(), MeshError> {
     let name = prim_name(mesh, prim);
-    let pos_acc = prim
-        .get(&gltf::Semantic::Positions)
-        .ok_or_else(|| MeshError::Malformed(format!("{name} has no POSITION attribute")))?;
+    let pos_acc = prim.get(&gltf::Semantic::Positions).ok_or_else(|| MeshError::Malformed(format!("{name} has no POSITION attribute")))?;
     if pos_acc.dimensions() != Dimensions::Vec3 {
         return Err(MeshError::Malformed(format!("{name}: POSITION is not a VEC3")));
     }
@@ -452,10 +440,9 @@ impl Buffers<'_> {
         let want = b.length();
         if !self.loaded.contains_key(&b.index()) {
             let data: Vec<u8> = match b.source() {
-                gltf::buffer::Source::Bin => self
-                    .blob
-                    .ok_or_else(|| MeshError::Malformed(format!("buffer {} refers to a binary chunk this file does not have", b.index())))?
-                    .to_vec(),
+                gltf::buffer::Source::Bin => {
+                    self.blob.ok_or_else(|| MeshError::Malformed(format!("buffer {} refers to a binary chunk this file does not have", b.index())))?.to_vec()
+                }
                 gltf::buffer::Source::Uri(uri) => {
                     if let Some(rest) = uri.strip_prefix("data:") {
                         let (_, b64) = rest
@@ -525,11 +512,8 @@ fn accessor_values(acc: &gltf::Accessor, buffers: &mut Buffers, name: &str, what
             let data = buffers.view(&view)?;
             let start = acc.offset();
             if count > 0 {
-                let end = (count - 1)
-                    .checked_mul(stride)
-                    .and_then(|v| v.checked_add(start))
-                    .and_then(|v| v.checked_add(elem))
-                    .ok_or_else(|| bad("is too large"))?;
+                let end =
+                    (count - 1).checked_mul(stride).and_then(|v| v.checked_add(start)).and_then(|v| v.checked_add(elem)).ok_or_else(|| bad("is too large"))?;
                 if end > data.len() {
                     return Err(bad("runs past the end of its buffer view"));
                 }
@@ -731,11 +715,7 @@ fn read_obj(path: &Path, limits: &MeshLimits) -> Result<TriMesh, MeshError> {
         let mut colours = Vec::with_capacity(nv);
         for v in 0..nv {
             positions.push([m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]]);
-            let srgb = if coloured {
-                [m.vertex_color[3 * v], m.vertex_color[3 * v + 1], m.vertex_color[3 * v + 2]]
-            } else {
-                kd.unwrap_or([1.0; 3])
-            };
+            let srgb = if coloured { [m.vertex_color[3 * v], m.vertex_color[3 * v + 1], m.vertex_color[3 * v + 2]] } else { kd.unwrap_or([1.0; 3]) };
             if !srgb.iter().all(|c| c.is_finite()) {
                 return Err(MeshError::Obj(format!("object '{}' has a colour that is not a finite number", model.name)));
             }
@@ -829,9 +809,7 @@ fn prescan_obj(mut r: impl BufRead, path: &Path, limits: &MeshLimits) -> Result<
         }
     }
     if nv_coloured != 0 && nv_coloured != nv {
-        return Err(MeshError::Obj(format!(
-            "{nv_coloured} of its {nv} vertices have colours: give every vertex a colour, or none"
-        )));
+        return Err(MeshError::Obj(format!("{nv_coloured} of its {nv} vertices have colours: give every vertex a colour, or none")));
     }
     Ok(())
 }
@@ -841,18 +819,12 @@ fn prescan_obj(mut r: impl BufRead, path: &Path, limits: &MeshLimits) -> Result<
 /// for a file that cannot be read, tobj's own result otherwise.
 fn load_mtl_checked(path: &Path) -> Result<tobj::MTLLoadResult, MeshError> {
     let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_to_string(&mut text))
-        .map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    std::fs::File::open(path).and_then(|mut f| f.read_to_string(&mut text)).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
     for (n, line) in text.lines().enumerate() {
         let mut w = line.split_whitespace();
         if let Some("Ka" | "Kd" | "Ks" | "Ke") = w.next() {
             if w.count() < 3 {
-                return Err(MeshError::Obj(format!(
-                    "{} line {}: a colour needs three numbers (r g b)",
-                    path.display(),
-                    n + 1
-                )));
+                return Err(MeshError::Obj(format!("{} line {}: a colour needs three numbers (r g b)", path.display(), n + 1)));
             }
         }
     }

@@ -75,11 +75,7 @@ impl Values {
     }
 
     fn from_flat(comps: usize, flat: Vec<f32>) -> Values {
-        if comps == 3 {
-            Values::Vec3(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
-        } else {
-            Values::Float(flat)
-        }
+        if comps == 3 { Values::Vec3(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()) } else { Values::Float(flat) }
     }
 }
 
@@ -147,9 +143,7 @@ pub enum VdbReadError {
     UnsupportedTransform { grid: String, map: String, offset: u64 },
     #[error("unsupported compression{}: {what} (at byte {offset})", in_grid(grid))]
     UnsupportedCompression { grid: Option<String>, offset: u64, what: String },
-    #[error(
-        "grid \"{grid}\" has more active voxels than the limit of {max} (reached at byte {offset})"
-    )]
+    #[error("grid \"{grid}\" has more active voxels than the limit of {max} (reached at byte {offset})")]
     TooManyVoxels { grid: String, max: u64, offset: u64 },
     #[error("grid \"{grid}\" is an instance of grid \"{parent}\", which the file does not hold")]
     MissingInstanceParent { grid: String, parent: String },
@@ -391,11 +385,7 @@ impl<'a> Reader<'a> {
     fn count_voxels(&mut self, n: u64) -> Result<()> {
         self.voxels = self.voxels.saturating_add(n);
         if self.voxels > self.max_voxels {
-            return Err(VdbReadError::TooManyVoxels {
-                grid: self.grid.clone().unwrap_or_default(),
-                max: self.max_voxels,
-                offset: self.pos as u64,
-            });
+            return Err(VdbReadError::TooManyVoxels { grid: self.grid.clone().unwrap_or_default(), max: self.max_voxels, offset: self.pos as u64 });
         }
         Ok(())
     }
@@ -450,11 +440,7 @@ impl<'a> Reader<'a> {
                 (t, s)
             }
             _ => {
-                return Err(VdbReadError::UnsupportedTransform {
-                    grid: self.grid.clone().unwrap_or_default(),
-                    map,
-                    offset: at as u64,
-                });
+                return Err(VdbReadError::UnsupportedTransform { grid: self.grid.clone().unwrap_or_default(), map, offset: at as u64 });
             }
         };
         if !scale.iter().chain(&translate).all(|v| v.is_finite()) || scale.contains(&0.0) {
@@ -577,7 +563,17 @@ impl<'a> Reader<'a> {
     /// The active tiles of a node: value-mask bits on where the child mask
     /// is off. `vals` holds the values at the value mask's on bits.
     #[allow(clippy::too_many_arguments)]
-    fn tiles(&mut self, child: &Mask, value: &Mask, vals: &[f32], origin: [i32; 3], log2: u32, child_total: u32, comps: usize, topo: &mut Topology) -> Result<()> {
+    fn tiles(
+        &mut self,
+        child: &Mask,
+        value: &Mask,
+        vals: &[f32],
+        origin: [i32; 3],
+        log2: u32,
+        child_total: u32,
+        comps: usize,
+        topo: &mut Topology,
+    ) -> Result<()> {
         let edge = 1u32 << child_total;
         for (k, i) in value.iter_on().enumerate() {
             if child.on(i) {
@@ -704,11 +700,7 @@ pub fn read_vdb(bytes: &[u8], limits: &ReadLimits) -> std::result::Result<(Vec<G
     for _ in 0..count {
         r.grid = None;
         let start = r.pos;
-        let d = Descriptor {
-            unique_name: r.string("a grid's name")?,
-            grid_type: r.string("a grid's type")?,
-            parent: r.string("a grid's instance parent")?,
-        };
+        let d = Descriptor { unique_name: r.string("a grid's name")?, grid_type: r.string("a grid's type")?, parent: r.string("a grid's instance parent")? };
         // GridDescriptor::stripSuffix: the name before "\x1e".
         let name = d.unique_name.split('\x1e').next().unwrap_or_default().to_string();
         r.grid = Some(name.clone());
@@ -730,10 +722,7 @@ pub fn read_vdb(bytes: &[u8], limits: &ReadLimits) -> std::result::Result<(Vec<G
         };
         let Some(ty) = ValueType::from_tree_type(&d.grid_type) else {
             let Some(end) = end else {
-                return Err(r.malformed(
-                    start,
-                    format!("grid of type {} in a file without grid offsets: it cannot be skipped", d.grid_type),
-                ));
+                return Err(r.malformed(start, format!("grid of type {} in a file without grid offsets: it cannot be skipped", d.grid_type)));
             };
             skipped.push(Skipped { name, grid_type: d.grid_type.clone() });
             by_name.insert(d.unique_name, None);

@@ -35,8 +35,8 @@
 
 use std::collections::HashMap;
 
-pub use crate::mesh_read::{EdgeDefects, MeshError};
 use crate::mesh_read::TriMesh;
+pub use crate::mesh_read::{EdgeDefects, MeshError};
 
 /// An inside voxel: its (i, j, k) and its linear RGB colour.
 pub type InsideVoxel = ([u32; 3], [f32; 3]);
@@ -204,9 +204,7 @@ pub fn check_closed(mesh: &TriMesh) -> Result<ClosedReport, MeshError> {
 /// Whether a triangle has exactly zero area: all three coordinate-plane
 /// projections have zero signed area (exact).
 fn zero_area([a, b, c]: [[f64; 3]; 3]) -> bool {
-    [(0, 1), (1, 2), (2, 0)]
-        .iter()
-        .all(|&(u, v)| orient2d_sign([a[u], a[v]], [b[u], b[v]], [c[u], c[v]]) == 0)
+    [(0, 1), (1, 2), (2, 0)].iter().all(|&(u, v)| orient2d_sign([a[u], a[v]], [b[u], b[v]], [c[u], c[v]]) == 0)
 }
 
 fn check_indices(mesh: &TriMesh) -> Result<(), MeshError> {
@@ -482,14 +480,7 @@ fn sign(v: f64) -> i8 {
 /// nonoverlapping expansion (Shewchuk's Grow-Expansion), whose most
 /// significant nonzero component has the sign of the sum.
 fn orient2d_exact(a: [f64; 2], b: [f64; 2], c: [f64; 2]) -> i8 {
-    let products = [
-        (a[0], b[1], 1.0),
-        (a[0], c[1], -1.0),
-        (c[0], b[1], -1.0),
-        (a[1], b[0], -1.0),
-        (a[1], c[0], 1.0),
-        (c[1], b[0], 1.0),
-    ];
+    let products = [(a[0], b[1], 1.0), (a[0], c[1], -1.0), (c[0], b[1], -1.0), (a[1], b[0], -1.0), (a[1], c[0], 1.0), (c[1], b[0], 1.0)];
     let mut expansion = [0.0f64; 12];
     let mut len = 0;
     for (x, y, s) in products {

@@ -16,8 +16,8 @@ use std::collections::{BTreeMap, HashSet};
 use glam::DVec3;
 use octopaint_tree::pool::{NONE, Tree};
 
-use crate::{Crop, ExportError, Placement};
 use crate::values::{ColourSpace, Value, cell_value};
+use crate::{Crop, ExportError, Placement};
 
 /// log2 of the edge of each VDB node level, in voxels: leaf 8, internal
 /// 128, internal 4096 (OpenVDB's standard 5-4-3 tree).
@@ -319,10 +319,7 @@ impl VoxelGrid {
         let hi = o.map(|a| (i64::from(a) + (1i64 << k) - 1) as i32);
         self.bbox = Some(match self.bbox {
             None => (o, hi),
-            Some((lo, h)) => (
-                [lo[0].min(o[0]), lo[1].min(o[1]), lo[2].min(o[2])],
-                [h[0].max(hi[0]), h[1].max(hi[1]), h[2].max(hi[2])],
-            ),
+            Some((lo, h)) => ([lo[0].min(o[0]), lo[1].min(o[1]), lo[2].min(o[2])], [h[0].max(hi[0]), h[1].max(hi[1]), h[2].max(hi[2])]),
         });
         let align = |log2: u32, p: [i32; 3]| p.map(|a| a & !((1 << log2) - 1));
         if k >= NODE5_LOG2 {
@@ -345,10 +342,7 @@ impl VoxelGrid {
             });
             return;
         }
-        let leaf = n4.leaves.entry(offset4(o)).or_insert_with(|| Leaf {
-            mask: [0; 8],
-            values: Box::new([Voxel { density: 0.0, colour: [0.0; 3] }; 512]),
-        });
+        let leaf = n4.leaves.entry(offset4(o)).or_insert_with(|| Leaf { mask: [0; 8], values: Box::new([Voxel { density: 0.0, colour: [0.0; 3] }; 512]) });
         sub_cubes(o, k, 0, |p| {
             let i = offset_leaf(p);
             leaf.mask[i / 64] |= 1 << (i % 64);

@@ -189,7 +189,13 @@ fn z_up_turns_the_grid_and_scale_keeps_optical_depth() {
     let tree = &p.tree;
     let e = tree.lat.max_depth - 2;
     let plain = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
-    let turned = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, BIG).unwrap(), ColourSpace::Linear, Placement { scale: 2.0, z_up: true, origin: [0.0; 3] }, &mut |_| {});
+    let turned = VoxelGrid::build(
+        tree,
+        &voxels::plan(tree, Some(e), None, BIG).unwrap(),
+        ColourSpace::Linear,
+        Placement { scale: 2.0, z_up: true, origin: [0.0; 3] },
+        &mut |_| {},
+    );
     assert_eq!(turned.voxel_size, 2.0 * plain.voxel_size);
     assert_eq!(turned.active_voxels, plain.active_voxels);
     let (lo, hi) = plain.bbox.unwrap();
@@ -221,7 +227,8 @@ fn an_origin_far_out_moves_the_indices_by_whole_nodes() {
     let origin = [20000.1, 20000.05, 19999.9];
     let plain = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), crop, BIG).unwrap(), ColourSpace::Linear, Placement::default(), &mut |_| {});
     for z_up in [false, true] {
-        let moved = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), crop, BIG).unwrap(), ColourSpace::Linear, Placement { scale: 1.0, z_up, origin }, &mut |_| {});
+        let moved =
+            VoxelGrid::build(tree, &voxels::plan(tree, Some(e), crop, BIG).unwrap(), ColourSpace::Linear, Placement { scale: 1.0, z_up, origin }, &mut |_| {});
         assert_eq!(moved.active_voxels, plain.active_voxels);
         let h = plain.voxel_size;
         // Indices moved by whole 4096-voxel nodes; the rest is translation,
@@ -380,7 +387,8 @@ fn a_surface_on_the_canvas_border_is_closed_there() {
     let vol = check_closed(&m, "edges");
     assert!(vol > 0.0);
     let canvas = tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size);
-    let near_border = m.positions.iter().filter(|p| (0..3).any(|a| p[a] < 1e-9 || p[a] > canvas[a] - tree.lat.size_canvas[tree.lat.max_depth as usize])).count();
+    let near_border =
+        m.positions.iter().filter(|p| (0..3).any(|a| p[a] < 1e-9 || p[a] > canvas[a] - tree.lat.size_canvas[tree.lat.max_depth as usize])).count();
     assert!(near_border > 0, "the paint reaches the border, so must the surface");
 }
 

@@ -48,13 +48,40 @@ fn signed_volume(m: &TriMesh) -> f64 {
 fn icosphere(levels: u32) -> TriMesh {
     let g = (1.0 + 5f64.sqrt()) / 2.0;
     let mut p: Vec<[f64; 3]> = vec![
-        [-1.0, g, 0.0], [1.0, g, 0.0], [-1.0, -g, 0.0], [1.0, -g, 0.0],
-        [0.0, -1.0, g], [0.0, 1.0, g], [0.0, -1.0, -g], [0.0, 1.0, -g],
-        [g, 0.0, -1.0], [g, 0.0, 1.0], [-g, 0.0, -1.0], [-g, 0.0, 1.0],
+        [-1.0, g, 0.0],
+        [1.0, g, 0.0],
+        [-1.0, -g, 0.0],
+        [1.0, -g, 0.0],
+        [0.0, -1.0, g],
+        [0.0, 1.0, g],
+        [0.0, -1.0, -g],
+        [0.0, 1.0, -g],
+        [g, 0.0, -1.0],
+        [g, 0.0, 1.0],
+        [-g, 0.0, -1.0],
+        [-g, 0.0, 1.0],
     ];
     let mut t: Vec<[u32; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
-        [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     let norm = |v: [f64; 3]| {
         let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -218,7 +245,14 @@ fn gltf_doc(nodes: Vec<NodeSpec>, roots: &[u32]) -> (json::Root, Vec<u8>) {
     let mut root = json::Root::default();
     let mut bin: Vec<u8> = Vec::new();
     let buffer = json::Index::new(0);
-    let add = |root: &mut json::Root, bin: &mut Vec<u8>, bytes: &[u8], count: usize, ct: json::accessor::ComponentType, ty: json::accessor::Type, normalized: bool, min_max: Option<(Vec<f32>, Vec<f32>)>| {
+    let add = |root: &mut json::Root,
+               bin: &mut Vec<u8>,
+               bytes: &[u8],
+               count: usize,
+               ct: json::accessor::ComponentType,
+               ty: json::accessor::Type,
+               normalized: bool,
+               min_max: Option<(Vec<f32>, Vec<f32>)>| {
         while bin.len() % 4 != 0 {
             bin.push(0);
         }
@@ -578,7 +612,9 @@ fn a_torus_keeps_its_hole_empty() {
     assert_eq!(in_hole, 0);
     // The hole's own rows are crossed four times: a voxel at the centre of
     // the hole is out, one in the tube at the same row is in.
-    let at = |x: f64| v.iter().any(|(ijk, _)| (g.centre(0, ijk[0]) - x).abs() < h / 2.0 && g.centre(1, ijk[1]).abs() < h / 2.0 && g.centre(2, ijk[2]).abs() < h / 2.0);
+    let at = |x: f64| {
+        v.iter().any(|(ijk, _)| (g.centre(0, ijk[0]) - x).abs() < h / 2.0 && g.centre(1, ijk[1]).abs() < h / 2.0 && g.centre(2, ijk[2]).abs() < h / 2.0)
+    };
     assert!(!at(0.0) && at(big_r) && at(-big_r));
 }
 
@@ -616,7 +652,16 @@ fn open_flipped_and_non_manifold_meshes_are_refused_with_counts() {
     let d = defects(&tri_mesh(p.clone(), flipped));
     assert_eq!((d.boundary, d.non_manifold, d.inconsistent), (0, 0, 3));
     assert!(d.inconsistent_at.is_some());
-    assert!(check_closed(&tri_mesh(p.clone(), { let mut f = t.clone(); f[0].swap(1, 2); f })).unwrap_err().to_string().contains("3 inconsistently oriented"));
+    assert!(
+        check_closed(&tri_mesh(p.clone(), {
+            let mut f = t.clone();
+            f[0].swap(1, 2);
+            f
+        }))
+        .unwrap_err()
+        .to_string()
+        .contains("3 inconsistently oriented")
+    );
 
     // A fin on an edge: three triangles there, and the fin's own edges open.
     let mut pf = p.clone();
@@ -768,7 +813,13 @@ fn gltf_strips_fans_u16_colours_and_refused_modes() {
         mode: json::mesh::Mode::TriangleFan,
         factor: [1.0; 4],
     };
-    let top = Prim { positions: vec![pf(4), pf(5), pf(7), pf(4), pf(7), pf(6)], colours: Colours::None, indices: None, mode: json::mesh::Mode::Triangles, factor: [1.0; 4] };
+    let top = Prim {
+        positions: vec![pf(4), pf(5), pf(7), pf(4), pf(7), pf(6)],
+        colours: Colours::None,
+        indices: None,
+        mode: json::mesh::Mode::Triangles,
+        factor: [1.0; 4],
+    };
     let (root, bin) = gltf_doc(vec![NodeSpec { mesh: Some(vec![sides, bottom, top]), ..Default::default() }], &[0]);
     let dir = tmp();
     let path = write(dir.path(), "strip.glb", &glb(&root, bin));

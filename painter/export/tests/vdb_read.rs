@@ -9,11 +9,11 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+use octopaint_export::Placement;
 use octopaint_export::values::ColourSpace;
 use octopaint_export::vdb::{write_vdb, write_vdb_named};
 use octopaint_export::vdb_read::{Grid, ReadLimits, Values, VdbReadError, blosc_decompress, read_vdb};
 use octopaint_export::voxels::{self, Leaf, Node4, Node5, Voxel, VoxelGrid};
-use octopaint_export::Placement;
 use octopaint_tree::replay::{ReplayObserver, replay};
 use serde_json::Value;
 
@@ -345,7 +345,12 @@ fn a_root_tile_counts_as_the_voxels_it_covers() {
 #[test]
 fn the_voxel_limit_counts_leaf_voxels() {
     let bytes = openvdb_file("float.vdb");
-    let n = read_vdb(&bytes, &ALL).expect("reads").0.iter().map(|g| g.voxels.len() as u64 + g.tiles.iter().map(|t| u64::from(t.1).pow(3)).sum::<u64>()).sum::<u64>();
+    let n = read_vdb(&bytes, &ALL)
+        .expect("reads")
+        .0
+        .iter()
+        .map(|g| g.voxels.len() as u64 + g.tiles.iter().map(|t| u64::from(t.1).pow(3)).sum::<u64>())
+        .sum::<u64>();
     assert!(read_vdb(&bytes, &ReadLimits { max_voxels: n, tile_cover: true }).is_ok());
     assert!(matches!(read_vdb(&bytes, &ReadLimits { max_voxels: n - 1, tile_cover: true }), Err(VdbReadError::TooManyVoxels { .. })));
 }
@@ -405,15 +410,8 @@ fn blosc_chunks_from_libblosc() {
 // Malformed and hostile files
 
 fn small_files() -> Vec<(&'static str, Vec<u8>)> {
-    let mut g = VoxelGrid {
-        depth: 3,
-        voxel_size: 1.0,
-        root_tiles: BTreeMap::new(),
-        nodes: BTreeMap::new(),
-        translation: [0.0; 3],
-        active_voxels: 0,
-        bbox: None,
-    };
+    let mut g =
+        VoxelGrid { depth: 3, voxel_size: 1.0, root_tiles: BTreeMap::new(), nodes: BTreeMap::new(), translation: [0.0; 3], active_voxels: 0, bbox: None };
     for k in 0..20 {
         put(&mut g, [k * 5, k % 3, k], Voxel { density: k as f32, colour: [0.5; 3] });
     }

@@ -35,8 +35,7 @@ pub enum GpuError {
 #[cfg(windows)]
 const ADAPTER_HELP: &str = "install or update the GPU vendor's driver (NVIDIA, AMD, Intel): it brings Vulkan";
 #[cfg(not(windows))]
-const ADAPTER_HELP: &str =
-    "on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL";
+const ADAPTER_HELP: &str = "on Debian: apt-get install mesa-vulkan-drivers libvulkan1 for Vulkan, libegl1 libegl-mesa0 libgl1-mesa-dri for GL";
 
 /// Seconds of `f` for benchmarks: the median of `runs` runs after a
 /// warm-up of at least one run and 0.3 s. A GPU left idle (while the CPU

@@ -93,7 +93,8 @@ impl ImageDigest {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("digest.wgsl"), source: wgpu::ShaderSource::Wgsl(DIGEST_WGSL.into()) });
+        let module =
+            gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("digest.wgsl"), source: wgpu::ShaderSource::Wgsl(DIGEST_WGSL.into()) });
         let pipeline = gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("image digest"),
             layout: Some(&pipeline_layout),

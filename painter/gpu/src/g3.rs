@@ -35,10 +35,8 @@ pub struct G3Pass {
 
 impl G3Pass {
     pub fn new(gpu: &Gpu, pools: &GpuPools) -> G3Pass {
-        let module = gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("g3.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(g3_source().into()),
-        });
+        let module =
+            gpu.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("g3.wgsl"), source: wgpu::ShaderSource::Wgsl(g3_source().into()) });
         let layout_params = gpu.params_layout("g3 params", wgpu::ShaderStages::COMPUTE, true);
         let layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("g3 pass"),

@@ -48,7 +48,14 @@ pub struct Capture {
 impl Capture {
     /// Encode the copy of array layer `layer` of `texture` (`size`, a
     /// 4-byte `format`) into `enc`.
-    pub fn encode(gpu: &crate::Gpu, enc: &mut wgpu::CommandEncoder, texture: &wgpu::Texture, layer: u32, size: [u32; 2], format: wgpu::TextureFormat) -> Capture {
+    pub fn encode(
+        gpu: &crate::Gpu,
+        enc: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        layer: u32,
+        size: [u32; 2],
+        format: wgpu::TextureFormat,
+    ) -> Capture {
         let row = (size[0] * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("capture"),

@@ -110,11 +110,7 @@ fn storage_layout(gpu: &Gpu, label: &str, read_only: bool) -> wgpu::BindGroupLay
         .map(|binding| wgpu::BindGroupLayoutEntry {
             binding,
             visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Storage { read_only },
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
             count: None,
         })
         .collect();
@@ -164,8 +160,7 @@ impl GpuPools {
         let layout_cells = storage_layout(gpu, "cells pages", true);
         let layout_g3_rw = storage_layout(gpu, "g3 pages (write)", false);
         let layout_g3_ro = storage_layout(gpu, "g3 pages (read)", true);
-        let (group_cells, group_g3_rw, group_g3_ro) =
-            Self::groups(gpu, &[], &[], &dummy_cells, &dummy_g3, &layout_cells, &layout_g3_rw, &layout_g3_ro);
+        let (group_cells, group_g3_rw, group_g3_ro) = Self::groups(gpu, &[], &[], &dummy_cells, &dummy_g3, &layout_cells, &layout_g3_rw, &layout_g3_ro);
         Ok(GpuPools {
             page_shift,
             cells: Vec::new(),
@@ -264,8 +259,7 @@ impl GpuPools {
             }
             gpu.queue.submit([enc.finish()]);
         }
-        let (a, b, c) =
-            Self::groups(gpu, &self.cells, &self.g3, &self.dummy_cells, &self.dummy_g3, &self.layout_cells, &self.layout_g3_rw, &self.layout_g3_ro);
+        let (a, b, c) = Self::groups(gpu, &self.cells, &self.g3, &self.dummy_cells, &self.dummy_g3, &self.layout_cells, &self.layout_g3_rw, &self.layout_g3_ro);
         self.group_cells = a;
         self.group_g3_rw = b;
         self.group_g3_ro = c;

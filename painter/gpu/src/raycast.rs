@@ -208,7 +208,19 @@ impl RayCaster {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut caster = RayCaster { modules, layout, page_shift: pools.page_shift, pipelines: Vec::new(), layout_params, params, layers, pixels: vec![None], slot: 0, readback: None, digest: None };
+        let mut caster = RayCaster {
+            modules,
+            layout,
+            page_shift: pools.page_shift,
+            pipelines: Vec::new(),
+            layout_params,
+            params,
+            layers,
+            pixels: vec![None],
+            slot: 0,
+            readback: None,
+            digest: None,
+        };
         // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
             let _ = caster.pipeline(gpu, precision, 0, false);
@@ -275,7 +287,15 @@ impl RayCaster {
     /// in the pages as `table` says (spec 6.2): one layer at opacity 1 (at
     /// cell 0) through the one-tree `main` (its image, spec 14.6), any other
     /// set through `main_layers`.
-    pub fn encode_layers(&mut self, gpu: &Gpu, pools: &GpuPools, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, table: &LayerTableGpu) -> Result<(), GpuError> {
+    pub fn encode_layers(
+        &mut self,
+        gpu: &Gpu,
+        pools: &GpuPools,
+        enc: &mut wgpu::CommandEncoder,
+        params: &RayParams,
+        precision: Precision,
+        table: &LayerTableGpu,
+    ) -> Result<(), GpuError> {
         let one_tree = table.count[0] == 1 && table.at[0][0] == 0 && f32::from_bits(table.at[0][1]) == 1.0;
         self.encode_words(gpu, pools, enc, params, precision, false, (!one_tree).then_some(table))
     }
@@ -362,7 +382,8 @@ impl RayCaster {
     /// a workgroup come back instead of the image.
     pub fn image_digest(&mut self, gpu: &Gpu, width: u32, height: u32) -> Result<u64, GpuError> {
         let buf = self.cast_pixels()?.clone();
-        let count = u32::try_from(u64::from(width) * u64::from(height)).map_err(|_| GpuError::Readback(format!("an image of {width}x{height} has too many pixels for a digest")))?;
+        let count = u32::try_from(u64::from(width) * u64::from(height))
+            .map_err(|_| GpuError::Readback(format!("an image of {width}x{height} has too many pixels for a digest")))?;
         self.digest.get_or_insert_with(|| ImageDigest::new(gpu)).digest(gpu, &buf, count)
     }
 

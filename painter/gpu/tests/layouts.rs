@@ -66,6 +66,7 @@ fn layer_table_layout_agrees() {
 
 #[test]
 fn the_blit_shader_is_valid_wgsl() {
-    let module = naga::front::wgsl::parse_str(octopaint_gpu::blit::BLIT_WGSL).unwrap_or_else(|e| panic!("{}", e.emit_to_string(octopaint_gpu::blit::BLIT_WGSL)));
+    let module =
+        naga::front::wgsl::parse_str(octopaint_gpu::blit::BLIT_WGSL).unwrap_or_else(|e| panic!("{}", e.emit_to_string(octopaint_gpu::blit::BLIT_WGSL)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty()).validate(&module).unwrap();
 }

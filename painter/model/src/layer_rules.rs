@@ -18,9 +18,7 @@ pub fn name_problem(name: &str) -> Option<String> {
     if !(1..=MAX_NAME_CHARS).contains(&n) {
         return Some(format!("a layer name has 1 to {MAX_NAME_CHARS} characters, this one {n}"));
     }
-    name.chars()
-        .find(|&c| c <= '\u{1f}' || ('\u{7f}'..='\u{9f}').contains(&c))
-        .map(|c| format!("a layer name has no control characters (U+{:04X})", c as u32))
+    name.chars().find(|&c| c <= '\u{1f}' || ('\u{7f}'..='\u{9f}').contains(&c)).map(|c| format!("a layer name has no control characters (U+{:04X})", c as u32))
 }
 
 /// Why a document with these layer `names` and `locked` flags (bottom
@@ -41,9 +39,7 @@ pub fn check_op(names: &[&str], locked: &[bool], op: &LayerOp) -> Option<String>
         return Some(format!("name: a layer named \"{name}\" exists already"));
     }
     match op.op {
-        LayerOpKind::Add | LayerOpKind::Duplicate if names.len() >= MAX_LAYERS => {
-            Some(format!("op: a document holds at most {MAX_LAYERS} layers"))
-        }
+        LayerOpKind::Add | LayerOpKind::Duplicate if names.len() >= MAX_LAYERS => Some(format!("op: a document holds at most {MAX_LAYERS} layers")),
         LayerOpKind::Delete if names.len() == 1 => Some("op: the only layer cannot be deleted".into()),
         LayerOpKind::Move if op.to.unwrap_or(0) >= names.len() => {
             Some(format!("to: {} is not a layer position (0 to {})", op.to.unwrap_or(0), names.len() - 1))
@@ -76,7 +72,13 @@ pub fn placed(n: usize, sel: usize, op: &LayerOp, i: Option<usize>) -> (Vec<Opti
         LayerOpKind::Delete => {
             let i = i_or("delete");
             order.remove(i);
-            let sel = if sel == i { i.saturating_sub(1) } else if sel > i { sel - 1 } else { sel };
+            let sel = if sel == i {
+                i.saturating_sub(1)
+            } else if sel > i {
+                sel - 1
+            } else {
+                sel
+            };
             (order, sel)
         }
         LayerOpKind::Select => (order, i_or("select")),

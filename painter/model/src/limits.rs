@@ -15,4 +15,3 @@ pub const MAX_STAMPS_PER_SEGMENT: f64 = 65536.0;
 pub const LIGHT_INTENSITY_MAX: f64 = 16.0;
 /// Smallest normal f64; smaller magnitudes read as +0 (spec 8.9).
 pub const TINY: f64 = 2.2250738585072014e-308;
-

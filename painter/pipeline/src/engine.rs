@@ -548,7 +548,17 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
             let mut copies = Vec::with_capacity(taken.len());
             for (t, (first, cells)) in taken.into_iter().zip(staged) {
                 version += 1;
-                copies.push(StagedCopy { layer: t.layer, group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t0 });
+                copies.push(StagedCopy {
+                    layer: t.layer,
+                    group: t.group,
+                    first,
+                    cells,
+                    covered_pub: covered,
+                    mask: t.mask,
+                    blocks: t.blocks,
+                    version,
+                    staged_at: t0,
+                });
             }
             let t1 = Instant::now();
             let cells: u64 = copies.iter().map(|c| c.cells.len() as u64).sum();

@@ -133,7 +133,11 @@ impl Frames {
     /// the GPU, and nothing is staged: a frame now would upload nothing.
     pub fn settled(&self) -> bool {
         let l = self.shared.ledger.lock().expect("ledger");
-        l.last_pub > 0 && l.cut() == l.last_pub && self.shared.staged.is_empty() && self.shared.pending.is_empty() && self.shared.lists.lock().expect("lists").is_empty()
+        l.last_pub > 0
+            && l.cut() == l.last_pub
+            && self.shared.staged.is_empty()
+            && self.shared.pending.is_empty()
+            && self.shared.lists.lock().expect("lists").is_empty()
     }
 
     /// One frame's GPU work before the cast: uploads, layer moves, g3.
@@ -248,12 +252,8 @@ impl Frames {
         let t_g3 = Instant::now();
         let layers = match &self.drawn {
             Some(list) if list.version == 2 => {
-                let (bases, opacity): (Vec<u32>, Vec<f32>) = list
-                    .layers
-                    .iter()
-                    .filter(|l| l.visible && l.opacity > 0.0)
-                    .filter_map(|l| layout.range(l.id).map(|(b, _)| (b as u32, l.opacity)))
-                    .unzip();
+                let (bases, opacity): (Vec<u32>, Vec<f32>) =
+                    list.layers.iter().filter(|l| l.visible && l.opacity > 0.0).filter_map(|l| layout.range(l.id).map(|(b, _)| (b as u32, l.opacity))).unzip();
                 Some(LayerTableGpu::new(&bases, &opacity))
             }
             _ => None,
@@ -273,7 +273,13 @@ impl Frames {
 
     /// Encode the cast of what the GPU holds: one tree, or the layers of
     /// `prepared`'s table.
-    pub fn encode_cast(r: &mut Renderer, enc: &mut wgpu::CommandEncoder, params: &RayParams, precision: Precision, prepared: &Prepared) -> Result<(), GpuError> {
+    pub fn encode_cast(
+        r: &mut Renderer,
+        enc: &mut wgpu::CommandEncoder,
+        params: &RayParams,
+        precision: Precision,
+        prepared: &Prepared,
+    ) -> Result<(), GpuError> {
         match &prepared.layers {
             Some(t) => r.ray.encode_layers(&r.gpu, &r.pools, enc, params, precision, t),
             None => r.ray.encode(&r.gpu, &r.pools, enc, params, precision),

@@ -130,10 +130,7 @@ impl Pipeline {
         let render = {
             let shared = engine.shared.clone();
             let hooks = hooks.clone();
-            std::thread::Builder::new()
-                .name("render".into())
-                .spawn(move || render_thread(&shared, frames, &settings, &hooks, renderer))
-                .expect("spawn")
+            std::thread::Builder::new().name("render".into()).spawn(move || render_thread(&shared, frames, &settings, &hooks, renderer)).expect("spawn")
         };
         Ok(Pipeline { engine, render, opening_pubs })
     }

@@ -73,7 +73,11 @@ pub fn hold_while(path: PathBuf, gate: Arc<Gate>) -> Arc<AtomicBool> {
         .name("hold".into())
         .spawn(move || {
             while !flag.load(Ordering::Acquire) {
-                if path.exists() { gate.close() } else { gate.open() }
+                if path.exists() {
+                    gate.close()
+                } else {
+                    gate.open()
+                }
                 std::thread::sleep(Duration::from_millis(10));
             }
             gate.open();

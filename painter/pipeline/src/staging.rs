@@ -91,12 +91,7 @@ impl PendingSet {
             let (g, b) = (key(layer, group_of(b)), key(layer, b));
             inner.next_stamp += 1;
             let stamp = inner.next_stamp;
-            let e = inner.groups.entry(g).or_insert_with(|| PendingGroup {
-                newest_pub: 0,
-                mask: NeighbourMask::default(),
-                blocks: Vec::new(),
-                stamp,
-            });
+            let e = inner.groups.entry(g).or_insert_with(|| PendingGroup { newest_pub: 0, mask: NeighbourMask::default(), blocks: Vec::new(), stamp });
             e.newest_pub = e.newest_pub.max(pub_no);
             e.mask.union(mask);
             if !e.blocks.contains(&b) {

@@ -256,7 +256,14 @@ impl<L: PartialEq> View<L> {
         self.stats.count(now, interval.map(|(ms, _)| ms), scale, still, cast);
         if let Some((_, t0)) = self.log.as_ref() {
             let ms = interval.map_or(0.0, |(ms, _)| ms);
-            self.line = Some(format!("{:.1},{ms:.2},{scale:.4},{},{},{},{mirror},{}", (now - *t0).as_secs_f64() * 1e3, size[0], size[1], u8::from(still), u8::from(cast)));
+            self.line = Some(format!(
+                "{:.1},{ms:.2},{scale:.4},{},{},{},{mirror},{}",
+                (now - *t0).as_secs_f64() * 1e3,
+                size[0],
+                size[1],
+                u8::from(still),
+                u8::from(cast)
+            ));
         }
         Planned { scale, size, still, cast }
     }

@@ -24,11 +24,13 @@ fn trace(name: &str) -> Trace {
 }
 
 fn camera(t: &Trace) -> Camera {
-    let mut c = t
-        .events
-        .iter()
-        .find_map(|e| if let EventKind::Camera(c) = &e.kind { Some(*c) } else { None })
-        .unwrap_or(Camera { eye: [0.5, 0.5, 2.0], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.4, -0.4], size: [64, 48], background: [0.0; 3] });
+    let mut c = t.events.iter().find_map(|e| if let EventKind::Camera(c) = &e.kind { Some(*c) } else { None }).unwrap_or(Camera {
+        eye: [0.5, 0.5, 2.0],
+        q: [0.0, 0.0, 0.0, 1.0],
+        fov: [-0.5, 0.5, 0.4, -0.4],
+        size: [64, 48],
+        background: [0.0; 3],
+    });
     c.size = [64, 48];
     c
 }
@@ -120,19 +122,28 @@ fn the_final_state_equals_the_replay() {
 #[test]
 fn every_strategy_paints_the_same_tree() {
     for (label, tweak) in [
-        ("aggressive", Box::new(|s: &mut Settings| s.strategy = Strategy { skip_invalid: false, aggressive_units: Some(3), grouped: false }) as Box<dyn Fn(&mut Settings)>),
+        (
+            "aggressive",
+            Box::new(|s: &mut Settings| s.strategy = Strategy { skip_invalid: false, aggressive_units: Some(3), grouped: false }) as Box<dyn Fn(&mut Settings)>,
+        ),
         ("grouped", Box::new(|s: &mut Settings| s.strategy = Strategy { grouped: true, ..Strategy::default() })),
         ("whole pool", Box::new(|s: &mut Settings| s.block = BlockSize::WholePool)),
-        ("big blocks, coarse mask", Box::new(|s: &mut Settings| {
-            s.block = BlockSize::Cells(1 << 19);
-            s.mask = MaskSize::Grid(4, 2);
-        })),
+        (
+            "big blocks, coarse mask",
+            Box::new(|s: &mut Settings| {
+                s.block = BlockSize::Cells(1 << 19);
+                s.mask = MaskSize::Grid(4, 2);
+            }),
+        ),
         ("no mask", Box::new(|s: &mut Settings| s.mask = MaskSize::None)),
-        ("one block a frame, one buffer, one unit a step", Box::new(|s: &mut Settings| {
-            s.blocks_per_frame = 1;
-            s.staging_buffers = 1;
-            s.strategy = Strategy { skip_invalid: true, aggressive_units: Some(1), grouped: false };
-        })),
+        (
+            "one block a frame, one buffer, one unit a step",
+            Box::new(|s: &mut Settings| {
+                s.blocks_per_frame = 1;
+                s.staging_buffers = 1;
+                s.strategy = Strategy { skip_invalid: true, aggressive_units: Some(1), grouped: false };
+            }),
+        ),
     ] {
         eprintln!("{label}");
         run_and_check("edges", |s| tweak(s));

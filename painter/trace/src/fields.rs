@@ -6,8 +6,8 @@ use serde_json::Value;
 
 use octopaint_model::layer_rules::{MAX_LAYERS, name_problem};
 use octopaint_model::{
-    Brush, Camera, Canvas, LIGHT_INTENSITY_MAX, LayerOp, LayerOpKind, Light, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT, Mirror, Mode,
-    Sample, Shape, TINY,
+    Brush, Camera, Canvas, LIGHT_INTENSITY_MAX, LayerOp, LayerOpKind, Light, MAX_CAPACITY, MAX_DEPTH_LIMIT, MAX_IMAGE_SIZE, MAX_ROOTS, MAX_STAMPS_PER_SEGMENT,
+    Mirror, Mode, Sample, Shape, TINY,
 };
 
 use crate::error::{ErrorKind, TraceError};
@@ -173,12 +173,7 @@ pub fn parse_canvas(line: usize, obj: &Value) -> R<Canvas> {
     let padded = n_roots.div_ceil(8) * 8;
     let capacity = int(line, "canvas.capacity", require(line, obj, "capacity", "canvas.")?, 8, MAX_CAPACITY)?;
     if (capacity as u64) < padded {
-        return Err(fail(
-            line,
-            "canvas.capacity",
-            ErrorKind::Budget,
-            format!("{capacity} is below the {padded} cells the roots need"),
-        ));
+        return Err(fail(line, "canvas.capacity", ErrorKind::Budget, format!("{capacity} is below the {padded} cells the roots need")));
     }
     Ok(Canvas { roots, max_depth: max_depth as u32, root_size, capacity: capacity as u32 })
 }

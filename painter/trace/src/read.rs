@@ -10,7 +10,10 @@ use octopaint_model::layer_rules::Model;
 use octopaint_model::{Brush, Canvas, Event, EventKind, Import, LayerOpKind, Meta, Sample, Trace, VoxelSet};
 
 use crate::error::{ErrorKind, TraceError};
-use crate::fields::{fail, finite, name, parse_brush, parse_import_fields, parse_camera, parse_canvas, parse_layer, parse_light, parse_mirror, parse_sample, require, segment_too_long, shown};
+use crate::fields::{
+    fail, finite, name, parse_brush, parse_camera, parse_canvas, parse_import_fields, parse_layer, parse_light, parse_mirror, parse_sample, require,
+    segment_too_long, shown,
+};
 
 /// Deepest bracket nesting a trace line may have; below serde_json's own
 /// limit (128), so the two readers refuse deep lines by the same rule.
@@ -368,8 +371,7 @@ fn parse_bytes_with(data: &[u8], resolve: Option<Resolve<'_>>) -> R<Trace> {
 
 /// Read and parse a trace file.
 pub fn read_trace(path: &std::path::Path) -> R<Trace> {
-    let data = std::fs::read(path)
-        .map_err(|e| TraceError::new(0, ErrorKind::Io, format!("cannot read {}: {}", path.display(), io_reason(&e))))?;
+    let data = std::fs::read(path).map_err(|e| TraceError::new(0, ErrorKind::Io, format!("cannot read {}: {}", path.display(), io_reason(&e))))?;
     let folder = path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
     let resolve = folder_resolver(if folder.as_os_str().is_empty() { std::path::Path::new(".") } else { &folder });
     parse_bytes_with(&data, Some(&resolve))
@@ -395,8 +397,7 @@ mod tests {
     #[test]
     fn every_malformed_trace_is_refused_on_its_line_with_its_kind() {
         let dir = repo("traces/malformed");
-        let expected: serde_json::Map<String, Value> =
-            serde_json::from_slice(&std::fs::read(dir.join("expected.json")).unwrap()).unwrap();
+        let expected: serde_json::Map<String, Value> = serde_json::from_slice(&std::fs::read(dir.join("expected.json")).unwrap()).unwrap();
         assert!(expected.len() >= 50);
         for (file, want) in expected {
             let got = read_trace(&dir.join(&file)).expect_err(&file);

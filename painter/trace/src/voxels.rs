@@ -40,7 +40,13 @@ fn le_u16(bytes: &[u8], at: usize) -> Option<u16> {
 /// One entry of a voxel set: checked to be stored (not compressed), with
 /// its dtype, rank (and a last dimension of 3 for rank 2), C order, and at
 /// most MAX_VOXELS rows; its shape and values.
-fn entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, bytes: &[u8], name: &str, dtype: &str, rank: usize) -> Result<(Vec<u64>, Vec<T>), String> {
+fn entry<T: npyz::Deserialize>(
+    zip: &mut zip::ZipArchive<Cursor<&[u8]>>,
+    bytes: &[u8],
+    name: &str,
+    dtype: &str,
+    rank: usize,
+) -> Result<(Vec<u64>, Vec<T>), String> {
     let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| match e {
         zip::result::ZipError::FileNotFound => format!("the entry {name}.npy is missing"),
         e => format!("{name}.npy: {e}"),

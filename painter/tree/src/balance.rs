@@ -197,11 +197,7 @@ impl Tree {
     #[inline]
     pub fn internal_same_depth_neighbour(&self, c: u32, f: usize) -> u32 {
         let nb = self.neighbour(c, f);
-        if nb != NONE && self.depth[nb as usize] == self.depth[c as usize] && self.first_child[nb as usize] != NONE {
-            nb
-        } else {
-            NONE
-        }
+        if nb != NONE && self.depth[nb as usize] == self.depth[c as usize] && self.first_child[nb as usize] != NONE { nb } else { NONE }
     }
 
     /// Collapsing `p`'s children keeps 2:1 balance (spec 4.3): every child
@@ -257,7 +253,9 @@ mod tests {
             let mut tree = Tree::new(&Canvas { roots, max_depth: 9, root_size: 1.0, capacity: 1 << 22 });
             let mut checked = 0;
             for _ in 0..12 {
-                let leaves: Vec<u32> = (0..tree.n_used()).filter(|&c| tree.depth[c as usize] != crate::pool::FREE && tree.is_leaf(c) && u32::from(tree.depth[c as usize]) < 8).collect();
+                let leaves: Vec<u32> = (0..tree.n_used())
+                    .filter(|&c| tree.depth[c as usize] != crate::pool::FREE && tree.is_leaf(c) && u32::from(tree.depth[c as usize]) < 8)
+                    .collect();
                 let mut cand = Vec::new();
                 for _ in 0..(1 + leaves.len() / 6).min(300) {
                     let l = leaves[next(leaves.len() as u32) as usize];

@@ -47,11 +47,7 @@ pub fn quat_to_rows(q: [f64; 4]) -> [[f64; 3]; 3] {
 /// + R[2][i]·δ2`, summed left to right as the spec writes it.
 pub fn quat_to_matrix(q: [f64; 4]) -> DMat3 {
     let r = quat_to_rows(q);
-    DMat3::from_cols(
-        DVec3::new(r[0][0], r[1][0], r[2][0]),
-        DVec3::new(r[0][1], r[1][1], r[2][1]),
-        DVec3::new(r[0][2], r[1][2], r[2][2]),
-    )
+    DMat3::from_cols(DVec3::new(r[0][0], r[1][0], r[2][0]), DVec3::new(r[0][1], r[1][1], r[2][1]), DVec3::new(r[0][2], r[1][2], r[2][2]))
 }
 
 fn qnorm(q: [f64; 4]) -> f64 {
@@ -348,16 +344,7 @@ pub fn noise_factor(perm: &[u16; 512], brush: &Brush, x: DVec3) -> f64 {
 /// `colour` the brush colour K of the primitive that gave the stroke
 /// maximum `a`. Returns unrounded (rgb, sigma). `a == 0` keeps the cell.
 #[inline]
-pub fn blend(
-    mode: Mode,
-    before_rgb: [f64; 3],
-    bs: f64,
-    colour: [f64; 3],
-    sigma_b: f64,
-    alpha: f64,
-    a: f64,
-    mix_ratio: f64,
-) -> ([f64; 3], f64) {
+pub fn blend(mode: Mode, before_rgb: [f64; 3], bs: f64, colour: [f64; 3], sigma_b: f64, alpha: f64, a: f64, mix_ratio: f64) -> ([f64; 3], f64) {
     if a == 0.0 {
         return (before_rgb, bs);
     }

@@ -92,14 +92,7 @@ impl Tree {
     /// A tree from its pools (a saved document), refused unless it is a
     /// valid tree for `canvas` (every check of [`check_tree`] and the
     /// allocator's). The error names the first problem.
-    pub fn from_pools(
-        canvas: &Canvas,
-        parent: Vec<u32>,
-        first_child: Vec<u32>,
-        depth: Vec<u8>,
-        rgb: Vec<[u8; 3]>,
-        sigma: Vec<f32>,
-    ) -> Result<Tree, String> {
+    pub fn from_pools(canvas: &Canvas, parent: Vec<u32>, first_child: Vec<u32>, depth: Vec<u8>, rgb: Vec<[u8; 3]>, sigma: Vec<f32>) -> Result<Tree, String> {
         let mut t = Tree::new(canvas);
         let n = parent.len();
         if [first_child.len(), depth.len(), rgb.len(), sigma.len()].iter().any(|&l| l != n) {

@@ -40,9 +40,7 @@ pub fn clean(tree: &mut Tree, touched: impl IntoIterator<Item = u32>) -> usize {
         par::sort_dedup(&mut work);
         // Decided in parallel (reads only), collapsed in order.
         let view = &*tree;
-        let done: Vec<u32> = par::filter(&work, |&p| {
-            view.depth[p as usize] != FREE && view.first_child[p as usize] != NONE && view.collapsible(p)
-        });
+        let done: Vec<u32> = par::filter(&work, |&p| view.depth[p as usize] != FREE && view.first_child[p as usize] != NONE && view.collapsible(p));
         if done.is_empty() {
             return collapses;
         }

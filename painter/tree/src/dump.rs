@@ -21,7 +21,12 @@ use crate::pool::Tree;
 /// One entry of a dump: `name.npy` with dtype `dtype` (numpy's descr,
 /// e.g. `<u4`) and a shape whose given dimensions (None: any) it must
 /// have; its shape and values in C order.
-fn read_entry<T: npyz::Deserialize>(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str, dtype: &str, shape: &[Option<u64>]) -> Result<(Vec<u64>, Vec<T>), String> {
+fn read_entry<T: npyz::Deserialize>(
+    zip: &mut zip::ZipArchive<Cursor<&[u8]>>,
+    name: &str,
+    dtype: &str,
+    shape: &[Option<u64>],
+) -> Result<(Vec<u64>, Vec<T>), String> {
     let mut data = Vec::new();
     let mut f = zip.by_name(&format!("{name}.npy")).map_err(|e| format!("{name}.npy: {e}"))?;
     std::io::Read::read_to_end(&mut f, &mut data).map_err(|e| format!("{name}.npy: {e}"))?;
@@ -254,5 +259,4 @@ mod tests {
         let e = with("root_size", Some(Values::F64(&nan)), vec![]);
         assert!(e.contains("the dump's canvas") && e.contains("root_size"), "{e}");
     }
-
 }

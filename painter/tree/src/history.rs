@@ -676,12 +676,12 @@ mod tests {
     fn a_step_keeps_every_change_in_its_cheapest_form() {
         let leaf = |rgb, sigma| rec(0, NONE, 3, rgb, sigma);
         let cases = [
-            (8, leaf([1, 2, 3], 0.5), leaf([4, 5, 6], 0.75)),                    // value: 23 bytes
-            (9, CellRecord::FREE, leaf([7, 8, 9], 1.0)),                         // born: 20
-            (10, leaf([1, 1, 1], 2.0), CellRecord::FREE),                        // freed: 20
-            (11, leaf([1, 1, 1], 2.0), rec(0, 16, 3, [1, 1, 1], 2.0)),           // refined: 36
-            (12, rec(0, 16, 3, [0; 3], 0.0), rec(0, 16, 3, [0; 3], -0.0)),       // internal: 36
-            (13, leaf([1, 1, 1], 2.0), rec(5, NONE, 3, [1, 1, 1], 2.0)),         // reparented: 36
+            (8, leaf([1, 2, 3], 0.5), leaf([4, 5, 6], 0.75)),              // value: 23 bytes
+            (9, CellRecord::FREE, leaf([7, 8, 9], 1.0)),                   // born: 20
+            (10, leaf([1, 1, 1], 2.0), CellRecord::FREE),                  // freed: 20
+            (11, leaf([1, 1, 1], 2.0), rec(0, 16, 3, [1, 1, 1], 2.0)),     // refined: 36
+            (12, rec(0, 16, 3, [0; 3], 0.0), rec(0, 16, 3, [0; 3], -0.0)), // internal: 36
+            (13, leaf([1, 1, 1], 2.0), rec(5, NONE, 3, [1, 1, 1], 2.0)),   // reparented: 36
         ];
         let mut step = UndoStep::new(16, 24);
         for (c, b, a) in cases {
@@ -713,9 +713,9 @@ mod tests {
         ];
         pushes.extend((29..34).map(|c| (c, leaf(6)))); // the run holds 8 entries now
         pushes.extend([
-            (43, leaf(7)), // 9 past its end: a second run
-            (44, leaf(8)), // right at its end
-            (20, leaf(9)), // a free place in the first run: the list (runs grow at their end only)
+            (43, leaf(7)),  // 9 past its end: a second run
+            (44, leaf(8)),  // right at its end
+            (20, leaf(9)),  // a free place in the first run: the list (runs grow at their end only)
             (39, leaf(10)), // before the last run: the list
             (60, leaf(11)), // a third run would make runs of fewer than 8 entries: the list
         ]);

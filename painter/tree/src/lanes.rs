@@ -104,7 +104,16 @@ pub fn unit_coverage(cap: &Capsule, prim: &Prim, hardness: f64, xs: &[DVec3; LAN
 /// stamp (its noise factor stays scalar) and where the kernels do not run.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> Option<UnitCoverage> {
+pub fn unit_stamp(
+    st: &Stamp,
+    shape: Shape,
+    aspect: [f64; 3],
+    geo: &StampReach,
+    prim: &Prim,
+    hardness: f64,
+    xs: &[DVec3; LANES],
+    h: f64,
+) -> Option<UnitCoverage> {
     if shape == Shape::Noise || shape == Shape::Sphere {
         return None;
     }
@@ -150,7 +159,15 @@ pub fn unit_maximum(prims: &[Prim], hardness: f64, seg: &Capsule, seg_is_last: b
 /// lane turning NaN (and folding no more) at a negative or NaN bound. A
 /// lane whose `lo0` is NaN is left as it is.
 #[inline]
-pub fn unit_settle_bounds(caps: &[(u32, Prim)], xs: &[DVec3; LANES], hs: &[f64; LANES], from: &[u32; LANES], lo0: &[f64; LANES], hi0: &[f64; LANES], hardness: f64) -> Option<([f64; LANES], [f64; LANES])> {
+pub fn unit_settle_bounds(
+    caps: &[(u32, Prim)],
+    xs: &[DVec3; LANES],
+    hs: &[f64; LANES],
+    from: &[u32; LANES],
+    lo0: &[f64; LANES],
+    hi0: &[f64; LANES],
+    hardness: f64,
+) -> Option<([f64; LANES], [f64; LANES])> {
     kernel!(unit_settle_bounds(caps, xs, hs, from, lo0, hi0, hardness))
 }
 
@@ -323,7 +340,6 @@ mod avx {
         }
     }
 
-
     /// `Capsule::project` of 8 points.
     struct Projection {
         dist: V,
@@ -478,7 +494,16 @@ mod avx {
 
     #[target_feature(enable = "avx")]
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn unit_stamp(st: &Stamp, shape: Shape, aspect: [f64; 3], geo: &StampReach, prim: &Prim, hardness: f64, xs: &[DVec3; LANES], h: f64) -> UnitCoverage {
+    pub(super) fn unit_stamp(
+        st: &Stamp,
+        shape: Shape,
+        aspect: [f64; 3],
+        geo: &StampReach,
+        prim: &Prim,
+        hardness: f64,
+        xs: &[DVec3; LANES],
+        h: f64,
+    ) -> UnitCoverage {
         let pts = points(xs);
         let r = st.r;
         let (arx, ary, arz) = (aspect[0] * r, aspect[1] * r, aspect[2] * r);
@@ -601,7 +626,15 @@ mod avx {
     }
 
     #[target_feature(enable = "avx")]
-    pub(super) fn unit_settle_bounds(caps: &[(u32, Prim)], xs: &[DVec3; LANES], hs: &[f64; LANES], from: &[u32; LANES], lo0: &[f64; LANES], hi0: &[f64; LANES], hardness: f64) -> ([f64; LANES], [f64; LANES]) {
+    pub(super) fn unit_settle_bounds(
+        caps: &[(u32, Prim)],
+        xs: &[DVec3; LANES],
+        hs: &[f64; LANES],
+        from: &[u32; LANES],
+        lo0: &[f64; LANES],
+        hi0: &[f64; LANES],
+        hardness: f64,
+    ) -> ([f64; LANES], [f64; LANES]) {
         let pts = points(xs);
         let h = load(hs);
         let from = load(&from.map(f64::from));
@@ -744,7 +777,13 @@ mod tests {
             let aspect = [0.3 + unit(&mut seed), 0.3 + unit(&mut seed), 0.3 + unit(&mut seed)];
             let q = [unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5, unit(&mut seed) - 0.5];
             let r = 0.05 + unit(&mut seed) * 3.0;
-            let st = Stamp { c: jitter(&mut seed) * 50.0, r, f: [1.0, 0.85, unit(&mut seed), 0.0][(unit(&mut seed) * 4.0) as usize], rot: crate::brush::quat_to_matrix(q), mirror: 0 };
+            let st = Stamp {
+                c: jitter(&mut seed) * 50.0,
+                r,
+                f: [1.0, 0.85, unit(&mut seed), 0.0][(unit(&mut seed) * 4.0) as usize],
+                rot: crate::brush::quat_to_matrix(q),
+                mirror: 0,
+            };
             let (lo, hi) = st.bounds(crate::brush::stamp_extent(shape, aspect));
             let prim = Prim { geo: Geometry::Stamp(st), colour: [1.0; 3], lo, hi };
             let geo = StampReach::new(aspect);
@@ -757,14 +796,31 @@ mod tests {
                 let Some(u) = unit_stamp(&st, shape, aspect, &geo, &prim, hardness, &xs, h) else { return assert!(!available()) };
                 for (l, &x) in xs.iter().enumerate() {
                     let a = if prim.holds(x) { crate::brush::coverage_profile(st.gauge(shape, aspect, x), hardness) * st.f } else { 0.0 };
-                    assert_eq!((u.reach >> l & 1 == 1, u.a[l].to_bits(), u.r[l]), (st.reach(shape, aspect, &geo, x, h), a.to_bits(), r), "{shape:?} lane {l} at {x:?}: {} against {a}", u.a[l]);
+                    assert_eq!(
+                        (u.reach >> l & 1 == 1, u.a[l].to_bits(), u.r[l]),
+                        (st.reach(shape, aspect, &geo, x, h), a.to_bits(), r),
+                        "{shape:?} lane {l} at {x:?}: {} against {a}",
+                        u.a[l]
+                    );
                     compared += 1;
                     covered += usize::from(a > 0.0);
                 }
             }
         }
         assert!(compared > 100_000 && covered > 10_000, "{compared} lanes, {covered} covered");
-        assert!(unit_stamp(&Stamp { c: DVec3::ZERO, r: 1.0, f: 1.0, rot: glam::DMat3::IDENTITY, mirror: 0 }, Shape::Noise, [1.0; 3], &StampReach::new([1.0; 3]), &capsules(&mut seed, 1)[0], 0.5, &[DVec3::ZERO; LANES], 1.0).is_none());
+        assert!(
+            unit_stamp(
+                &Stamp { c: DVec3::ZERO, r: 1.0, f: 1.0, rot: glam::DMat3::IDENTITY, mirror: 0 },
+                Shape::Noise,
+                [1.0; 3],
+                &StampReach::new([1.0; 3]),
+                &capsules(&mut seed, 1)[0],
+                0.5,
+                &[DVec3::ZERO; LANES],
+                1.0
+            )
+            .is_none()
+        );
     }
 
     /// The stamps' stroke maximum at a unit's children is the scalar one:
@@ -902,7 +958,8 @@ mod tests {
             let hi0: [f64; LANES] = std::array::from_fn(|k| if lo0[k] > 0.0 { lo0[k] + unit(&mut seed) * 0.3 } else { 0.0 });
             let Some((lo, hi)) = unit_settle_bounds(&caps, &xs, &hs, &from, &lo0, &hi0, hardness) else { return assert!(!available()) };
             for l in 0..LANES {
-                let (a_lo, a_hi) = if lo0[l].is_nan() { (lo0[l], hi0[l]) } else { crate::paint::settle_bounds(&caps, xs[l], hs[l], from[l], lo0[l], hi0[l], hardness) };
+                let (a_lo, a_hi) =
+                    if lo0[l].is_nan() { (lo0[l], hi0[l]) } else { crate::paint::settle_bounds(&caps, xs[l], hs[l], from[l], lo0[l], hi0[l], hardness) };
                 folded += caps.iter().filter(|(i, p)| *i >= from[l] && p.overlaps(xs[l] - hs[l], xs[l] + hs[l])).count();
                 // Bit for bit, but for the sign of a zero (the settled test
                 // only compares the bounds, and a zero maximum blends to the

@@ -6,11 +6,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::dump::write_dump;
-use octopaint_platform::durable;
 use crate::layers::Document;
 use crate::paint::Painting;
 use crate::pool::{FREE, Tree};
 use crate::trace::{Brush, Camera, Event, EventKind, Light, Mirror, Trace};
+use octopaint_platform::durable;
 
 #[derive(Debug, Default)]
 pub struct ReplayStats {
@@ -36,7 +36,14 @@ pub trait ReplayObserver {
     /// `light` (None: unlit, spec 6.1; several layers: spec 6.2), and write
     /// `<name>.png` into `out_dir` (nothing when it is None). Returns the
     /// path written, or None when this observer does not render.
-    fn render(&mut self, _name: &str, _camera: &Camera, _light: Option<&Light>, _doc: &mut Document, _out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
+    fn render(
+        &mut self,
+        _name: &str,
+        _camera: &Camera,
+        _light: Option<&Light>,
+        _doc: &mut Document,
+        _out_dir: Option<&Path>,
+    ) -> std::io::Result<Option<PathBuf>> {
         Ok(None)
     }
     /// The g3 table a snapshot of a version 1 trace dumps; None: the CPU
@@ -58,11 +65,7 @@ pub fn replay(trace: &Trace, out_dir: Option<&Path>, obs: &mut dyn ReplayObserve
 }
 
 /// [`replay`], returning the whole document (spec 14).
-pub fn replay_document(
-    trace: &Trace,
-    out_dir: Option<&Path>,
-    obs: &mut dyn ReplayObserver,
-) -> std::io::Result<(ReplayStats, Document)> {
+pub fn replay_document(trace: &Trace, out_dir: Option<&Path>, obs: &mut dyn ReplayObserver) -> std::io::Result<(ReplayStats, Document)> {
     replay_document_within(trace, out_dir, obs, None)
 }
 
@@ -227,19 +230,32 @@ mod tests {
     #[test]
     fn snapshots_written_from_the_pools_are_the_trees_dumps() {
         let trace = concat!(
-            r#"{"format": "ddo-trace", "version": 1, "canvas": {"roots": [2, 1, 1], "max_depth": 7, "root_size": 1.0, "capacity": 65536}}"#, "\n",
-            r#"{"ev": "brush", "t": 0.1, "shape": "sphere", "mode": "paint", "radius": 0.2, "color": [0.9, 0.3, 0.1], "opacity": 0.9, "hardness": 0.6}"#, "\n",
-            r#"{"ev": "stroke_begin", "t": 0.2}"#, "\n",
-            r#"{"ev": "sample", "t": 0.2, "p": [0.5, 0.5, 0.5]}"#, "\n",
-            r#"{"ev": "sample", "t": 0.3, "p": [1.2, 0.4, 0.5]}"#, "\n",
-            r#"{"ev": "stroke_end", "t": 0.4}"#, "\n",
-            r#"{"ev": "snapshot", "t": 0.5, "name": "first"}"#, "\n",
-            r#"{"ev": "brush", "t": 0.6, "shape": "box", "mode": "recolor", "radius": 0.15, "color": [0.1, 0.8, 0.2], "opacity": 0.7, "hardness": 0.5}"#, "\n",
-            r#"{"ev": "stroke_begin", "t": 0.7}"#, "\n",
-            r#"{"ev": "sample", "t": 0.7, "p": [0.6, 0.5, 0.5]}"#, "\n",
-            r#"{"ev": "sample", "t": 0.8, "p": [1.0, 0.6, 0.4]}"#, "\n",
-            r#"{"ev": "stroke_end", "t": 0.9}"#, "\n",
-            r#"{"ev": "snapshot", "t": 1.0, "name": "last"}"#, "\n",
+            r#"{"format": "ddo-trace", "version": 1, "canvas": {"roots": [2, 1, 1], "max_depth": 7, "root_size": 1.0, "capacity": 65536}}"#,
+            "\n",
+            r#"{"ev": "brush", "t": 0.1, "shape": "sphere", "mode": "paint", "radius": 0.2, "color": [0.9, 0.3, 0.1], "opacity": 0.9, "hardness": 0.6}"#,
+            "\n",
+            r#"{"ev": "stroke_begin", "t": 0.2}"#,
+            "\n",
+            r#"{"ev": "sample", "t": 0.2, "p": [0.5, 0.5, 0.5]}"#,
+            "\n",
+            r#"{"ev": "sample", "t": 0.3, "p": [1.2, 0.4, 0.5]}"#,
+            "\n",
+            r#"{"ev": "stroke_end", "t": 0.4}"#,
+            "\n",
+            r#"{"ev": "snapshot", "t": 0.5, "name": "first"}"#,
+            "\n",
+            r#"{"ev": "brush", "t": 0.6, "shape": "box", "mode": "recolor", "radius": 0.15, "color": [0.1, 0.8, 0.2], "opacity": 0.7, "hardness": 0.5}"#,
+            "\n",
+            r#"{"ev": "stroke_begin", "t": 0.7}"#,
+            "\n",
+            r#"{"ev": "sample", "t": 0.7, "p": [0.6, 0.5, 0.5]}"#,
+            "\n",
+            r#"{"ev": "sample", "t": 0.8, "p": [1.0, 0.6, 0.4]}"#,
+            "\n",
+            r#"{"ev": "stroke_end", "t": 0.9}"#,
+            "\n",
+            r#"{"ev": "snapshot", "t": 1.0, "name": "last"}"#,
+            "\n",
         );
         let trace = crate::trace::parse_trace_bytes(trace.as_bytes()).unwrap();
         let first: Vec<_> = trace.events.iter().take_while(|e| !matches!(e.kind, EventKind::Snapshot(_))).cloned().collect();

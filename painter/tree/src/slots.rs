@@ -172,7 +172,8 @@ mod tests {
         assert_eq!(m.get(16 * PAGE as u32 + 3), 99);
         assert_eq!(m.get(16 * PAGE as u32 + 16), NONE);
         assert_eq!(m.get(41 * PAGE as u32), NONE);
-        let given: Vec<u32> = (0..8).map(|k| 16 * PAGE as u32 + 8 + k).chain([16 * PAGE as u32 + 3]).chain((0..8).map(|k| 40 * PAGE as u32 + 1016 + k)).collect();
+        let given: Vec<u32> =
+            (0..8).map(|k| 16 * PAGE as u32 + 8 + k).chain([16 * PAGE as u32 + 3]).chain((0..8).map(|k| 40 * PAGE as u32 + 1016 + k)).collect();
         m.clear(given.into_iter());
         for &c in &cells {
             assert_eq!(m.get(c), NONE);

@@ -157,8 +157,8 @@ impl StrokePath {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trace::Mode;
     use crate::brush::Stamp;
+    use crate::trace::Mode;
 
     #[test]
     fn stamps_are_spaced_along_the_path_with_carry() {
@@ -192,7 +192,12 @@ mod tests {
         }
         let stamps: Vec<Stamp> = out.iter().map(|p| if let Geometry::Stamp(s) = p.geo { s } else { panic!() }).collect();
         let r = quat_to_matrix(q);
-        for (s, (mask, c)) in stamps.iter().zip([(0, [0.3, 0.1, 0.6]), (1, [2.0 * 0.5 - 0.3, 0.1, 0.6]), (4, [0.3, 0.1, 2.0 * 0.5 - 0.6]), (5, [2.0 * 0.5 - 0.3, 0.1, 2.0 * 0.5 - 0.6])]) {
+        for (s, (mask, c)) in stamps.iter().zip([
+            (0, [0.3, 0.1, 0.6]),
+            (1, [2.0 * 0.5 - 0.3, 0.1, 0.6]),
+            (4, [0.3, 0.1, 2.0 * 0.5 - 0.6]),
+            (5, [2.0 * 0.5 - 0.3, 0.1, 2.0 * 0.5 - 0.6]),
+        ]) {
             assert_eq!((s.mirror, s.c.to_array()), (mask, c));
             let flip = DVec3::from_array([0, 1, 2].map(|a| if mask >> a & 1 == 1 { -1.0 } else { 1.0 }));
             assert_eq!(s.rot, glam::DMat3::from_cols(r.x_axis * flip, r.y_axis * flip, r.z_axis * flip));

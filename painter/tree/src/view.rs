@@ -136,7 +136,13 @@ pub fn length(x: f64) -> String {
         (x * 1e6, "µm")
     };
     // Three significant digits.
-    let digits = if v.abs() >= 100.0 { 0 } else if v.abs() >= 10.0 { 1 } else { 2 };
+    let digits = if v.abs() >= 100.0 {
+        0
+    } else if v.abs() >= 10.0 {
+        1
+    } else {
+        2
+    };
     format!("{v:.digits$} {unit}")
 }
 

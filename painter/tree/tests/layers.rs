@@ -60,7 +60,11 @@ fn merge_down_holds_both_layers_composited_at_every_point() {
                 let (ca, cb) = (a.leaf_at(p).unwrap() as usize, b.leaf_at(p).unwrap() as usize);
                 let (wa, wb) = (f64::from(a.sigma[ca]), f64::from(0.6f32) * f64::from(b.sigma[cb]));
                 let w = wa + wb;
-                let rgb = if w > 0.0 { [0, 1, 2].map(|k| ((wa * f64::from(a.rgb[ca][k]) + wb * f64::from(b.rgb[cb][k])) / w + 0.5).floor() as u8) } else { a.rgb[ca] };
+                let rgb = if w > 0.0 {
+                    [0, 1, 2].map(|k| ((wa * f64::from(a.rgb[ca][k]) + wb * f64::from(b.rgb[cb][k])) / w + 0.5).floor() as u8)
+                } else {
+                    a.rgb[ca]
+                };
                 (w as f32, rgb)
             })
             .collect()

@@ -71,27 +71,20 @@ fn brush(root_size: f64) -> impl Strategy<Value = Brush> {
 fn sample(extent: [f64; 3]) -> impl Strategy<Value = Sample> {
     (prop::array::uniform3(-0.1f64..1.1), 0.0f64..=1.0, prop::array::uniform4(-1.0f64..1.0)).prop_map(move |(u, pressure, q)| {
         let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-        Sample {
-            p: [u[0] * extent[0], u[1] * extent[1], u[2] * extent[2]],
-            pressure,
-            q: if n < 1e-3 { [0.0, 0.0, 0.0, 1.0] } else { q },
-        }
+        Sample { p: [u[0] * extent[0], u[1] * extent[1], u[2] * extent[2]], pressure, q: if n < 1e-3 { [0.0, 0.0, 0.0, 1.0] } else { q } }
     })
 }
 
 fn session() -> impl Strategy<Value = Session> {
-    (prop::array::uniform3(1u32..3), 3u32..7, prop_oneof![Just(1.0), Just(0.37), Just(1000.0)], prop_oneof![Just(1u32 << 20), 600u32..5000])
-        .prop_flat_map(|(roots, max_depth, root_size, capacity)| {
+    (prop::array::uniform3(1u32..3), 3u32..7, prop_oneof![Just(1.0), Just(0.37), Just(1000.0)], prop_oneof![Just(1u32 << 20), 600u32..5000]).prop_flat_map(
+        |(roots, max_depth, root_size, capacity)| {
             let capacity = capacity.max(roots.iter().product::<u32>().div_ceil(8) * 8);
             let extent = roots.map(|r| f64::from(r) * root_size);
-            let stroke = (brush(root_size), prop::collection::vec(sample(extent), 1..6))
-                .prop_map(|(brush, samples)| Op::Stroke(StrokeSpec { brush, samples }));
+            let stroke = (brush(root_size), prop::collection::vec(sample(extent), 1..6)).prop_map(|(brush, samples)| Op::Stroke(StrokeSpec { brush, samples }));
             let op = prop_oneof![6 => stroke, 1 => Just(Op::Undo), 1 => Just(Op::Redo)];
-            prop::collection::vec(op, 1..6).prop_map(move |ops| Session {
-                canvas: Canvas { roots, max_depth, root_size, capacity },
-                ops,
-            })
-        })
+            prop::collection::vec(op, 1..6).prop_map(move |ops| Session { canvas: Canvas { roots, max_depth, root_size, capacity }, ops })
+        },
+    )
 }
 
 /// Every cell whose g3 or record changed since `before` is covered by the
@@ -160,16 +153,8 @@ fn check_values(pre: &Tree, post: &Tree, s: &StrokeSpec) -> Result<(), TestCaseE
             a = 0.0;
         }
         let bi = before as usize;
-        let (rgb, sigma) = blend(
-            b.mode,
-            pre.rgb[bi].map(|v| f64::from(v) / 255.0),
-            f64::from(pre.sigma[bi]),
-            prims[k].colour,
-            sigma_b,
-            b.opacity,
-            a,
-            b.mix_ratio,
-        );
+        let (rgb, sigma) =
+            blend(b.mode, pre.rgb[bi].map(|v| f64::from(v) / 255.0), f64::from(pre.sigma[bi]), prims[k].colour, sigma_b, b.opacity, a, b.mix_ratio);
         prop_assert_eq!(post.rgb[c as usize], quantize_rgb(rgb), "rgb of leaf {}", c);
         prop_assert_eq!(post.sigma[c as usize].to_bits(), quantize_sigma(sigma).to_bits(), "sigma of leaf {}", c);
     }

@@ -4,7 +4,8 @@
 //! view, the headset on its head-locked panel) and chooses their size.
 
 /// The axes' colours: x red, y green, z blue.
-pub const AXIS_COLOURS: [egui::Color32; 3] = [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
+pub const AXIS_COLOURS: [egui::Color32; 3] =
+    [egui::Color32::from_rgb(230, 60, 60), egui::Color32::from_rgb(70, 200, 70), egui::Color32::from_rgb(70, 120, 240)];
 
 /// The canvas axes x, y, z as the viewer sees them (`axes`: each one's
 /// direction on the screen, y down, and whether it points away; see

@@ -86,7 +86,12 @@ pub fn prepare(
                                     let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
                                     ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
                                     if k == p.colour {
-                                        ui.painter().rect_stroke(rect.expand(2.0), 2.0, egui::Stroke::new(2.0, egui::Color32::WHITE), egui::StrokeKind::Outside);
+                                        ui.painter().rect_stroke(
+                                            rect.expand(2.0),
+                                            2.0,
+                                            egui::Stroke::new(2.0, egui::Color32::WHITE),
+                                            egui::StrokeKind::Outside,
+                                        );
                                     }
                                 }
                             });

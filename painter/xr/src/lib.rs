@@ -12,10 +12,10 @@ use openxr as xr;
 
 mod frame;
 pub mod hud;
-pub mod platform;
 pub mod input;
 pub mod paint;
 pub mod placement;
+pub mod platform;
 pub mod session;
 mod setup;
 
@@ -96,7 +96,13 @@ fn version(v: xr::Version) -> String {
 
 /// An instance for the painter with `extensions`.
 pub(crate) fn create_instance(entry: &xr::Entry, extensions: &xr::ExtensionSet) -> Result<xr::Instance, XrError> {
-    let app = xr::ApplicationInfo { application_name: "octopaint", application_version: 1, engine_name: "octopaint", engine_version: 1, api_version: xr::Version::new(1, 0, 0) };
+    let app = xr::ApplicationInfo {
+        application_name: "octopaint",
+        application_version: 1,
+        engine_name: "octopaint",
+        engine_version: 1,
+        api_version: xr::Version::new(1, 0, 0),
+    };
     call("creating an instance", entry.create_instance(&app, extensions, &[], &()))
 }
 
@@ -113,30 +119,24 @@ pub fn probe() -> Result<XrInfo, XrError> {
     let props = call("reading the runtime's properties", instance.properties())?;
     let system = call("finding the headset", instance.system(xr::FormFactor::HEAD_MOUNTED_DISPLAY))?;
     let sp = call("reading the headset's properties", instance.system_properties(system))?;
-    let views = call(
-        "reading the stereo views",
-        instance.enumerate_view_configuration_views(system, xr::ViewConfigurationType::PRIMARY_STEREO),
-    )?
-    .into_iter()
-    .map(|v| ViewInfo {
-        recommended: [v.recommended_image_rect_width, v.recommended_image_rect_height],
-        max: [v.max_image_rect_width, v.max_image_rect_height],
-        samples: v.recommended_swapchain_sample_count,
-    })
-    .collect();
+    let views = call("reading the stereo views", instance.enumerate_view_configuration_views(system, xr::ViewConfigurationType::PRIMARY_STEREO))?
+        .into_iter()
+        .map(|v| ViewInfo {
+            recommended: [v.recommended_image_rect_width, v.recommended_image_rect_height],
+            max: [v.max_image_rect_width, v.max_image_rect_height],
+            samples: v.recommended_swapchain_sample_count,
+        })
+        .collect();
     let (vulkan_min, vulkan_max) = if available.khr_vulkan_enable2 {
         let r = call("reading the Vulkan requirements", instance.graphics_requirements::<xr::Vulkan>(system))?;
         (Some(version(r.min_api_version_supported)), Some(version(r.max_api_version_supported)))
     } else {
         (None, None)
     };
-    let blend_modes = call(
-        "reading the blend modes",
-        instance.enumerate_environment_blend_modes(system, xr::ViewConfigurationType::PRIMARY_STEREO),
-    )?
-    .into_iter()
-    .map(|m| format!("{m:?}"))
-    .collect();
+    let blend_modes = call("reading the blend modes", instance.enumerate_environment_blend_modes(system, xr::ViewConfigurationType::PRIMARY_STEREO))?
+        .into_iter()
+        .map(|m| format!("{m:?}"))
+        .collect();
     Ok(XrInfo {
         runtime: props.runtime_name,
         runtime_version: version(props.runtime_version),

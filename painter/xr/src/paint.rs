@@ -29,16 +29,8 @@ pub struct Live<'a> {
 }
 
 /// Colours of the palette (sRGB).
-pub const PALETTE: [[f64; 3]; 8] = [
-    [0.92, 0.45, 0.15],
-    [0.85, 0.15, 0.15],
-    [0.95, 0.85, 0.25],
-    [0.25, 0.65, 0.3],
-    [0.2, 0.45, 0.9],
-    [0.55, 0.3, 0.75],
-    [0.95, 0.95, 0.95],
-    [0.08, 0.08, 0.1],
-];
+pub const PALETTE: [[f64; 3]; 8] =
+    [[0.92, 0.45, 0.15], [0.85, 0.15, 0.15], [0.95, 0.85, 0.25], [0.25, 0.65, 0.3], [0.2, 0.45, 0.9], [0.55, 0.3, 0.75], [0.95, 0.95, 0.95], [0.08, 0.08, 0.1]];
 
 /// What the controllers are doing to the painting and the canvas.
 pub struct Painter {
@@ -88,9 +80,18 @@ pub const VIEWS: [(bool, bool); 4] = [(true, false), (true, true), (false, true)
 enum Grab {
     None,
     /// One hand: its pose and the placement when the grab began.
-    One { hand: usize, p0: DVec3, q0: DQuat, start: Placement },
+    One {
+        hand: usize,
+        p0: DVec3,
+        q0: DQuat,
+        start: Placement,
+    },
     /// Both hands: their positions and the placement when it began.
-    Two { a0: DVec3, b0: DVec3, start: Placement },
+    Two {
+        a0: DVec3,
+        b0: DVec3,
+        start: Placement,
+    },
 }
 
 impl Default for Painter {
@@ -316,7 +317,13 @@ impl Painter {
             op.layer = Some(s.layers[j].name.clone());
             self.apply(doc, Job::Event(EventKind::Layer(op)));
         }
-        let step = if right { 0.1 } else if left { -0.1 } else { 0.0 };
+        let step = if right {
+            0.1
+        } else if left {
+            -0.1
+        } else {
+            0.0
+        };
         if step != 0.0 {
             // In tenths, so that steps land on 0.1, 0.2, ... exactly as read.
             let tenths = ((f64::from(opacity) * 10.0).round() + step * 10.0).clamp(0.0, 10.0);

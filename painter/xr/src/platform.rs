@@ -3,8 +3,7 @@
 
 /// Where the OpenXR loader comes from.
 #[cfg(windows)]
-pub const LOADER_HELP: &str =
-    "openxr_loader.dll, which the Windows package ships beside octopaint.exe: unpack the whole zip, or put the Khronos loader DLL next to the executable or on the PATH";
+pub const LOADER_HELP: &str = "openxr_loader.dll, which the Windows package ships beside octopaint.exe: unpack the whole zip, or put the Khronos loader DLL next to the executable or on the PATH";
 #[cfg(target_os = "macos")]
 pub const LOADER_HELP: &str = NO_VR_HERE;
 #[cfg(not(any(windows, target_os = "macos")))]
@@ -18,7 +17,8 @@ pub const RUNTIME_HELP: &str = "install and start one: Monado's monado-service, 
 
 /// Said after "the runtime has no XR_KHR_vulkan_enable2".
 #[cfg(windows)]
-pub const NO_VULKAN_BINDING_HELP: &str = " (Windows Mixed Reality's own runtime offers Direct3D only: run its headsets through SteamVR, set as the OpenXR runtime)";
+pub const NO_VULKAN_BINDING_HELP: &str =
+    " (Windows Mixed Reality's own runtime offers Direct3D only: run its headsets through SteamVR, set as the OpenXR runtime)";
 #[cfg(not(windows))]
 pub const NO_VULKAN_BINDING_HELP: &str = "";
 

@@ -307,7 +307,17 @@ impl Loop<'_> {
         xr_call("waiting for the image", self.eyes.swapchain.wait_image(xr::Duration::INFINITE))?;
         let capture = self.opts.capture.is_some() && self.opts.frames.is_some_and(|n| report.frames + 1 == n);
         let placement = self.placement.expect("placed by the input");
-        let scene = Scene { views: &views, hands: &hands, painter: &self.painter, placement: &placement, status: &self.status, busy, doing, prepared: &prepared, capture };
+        let scene = Scene {
+            views: &views,
+            hands: &hands,
+            painter: &self.painter,
+            placement: &placement,
+            status: &self.status,
+            busy,
+            doing,
+            prepared: &prepared,
+            capture,
+        };
         let drawn = self.drawer.draw(&mut self.renderer, &self.eyes, image, &scene)?;
         self.frames.ended(Instant::now());
         self.gpu_sum_ms += drawn.gpu_ms;

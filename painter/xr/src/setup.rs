@@ -54,7 +54,10 @@ pub(crate) fn open(precision: Precision) -> Result<Opened, XrError> {
     let reqs = xr_call("reading the Vulkan requirements", xr_instance.graphics_requirements::<xr::Vulkan>(system))?;
     let want = xr::Version::new(1, 1, 0);
     if want < reqs.min_api_version_supported || want.major() > reqs.max_api_version_supported.major() {
-        return Err(XrError::Setup(format!("the runtime needs Vulkan {} to {}, the painter uses 1.1", reqs.min_api_version_supported, reqs.max_api_version_supported)));
+        return Err(XrError::Setup(format!(
+            "the runtime needs Vulkan {} to {}, the painter uses 1.1",
+            reqs.min_api_version_supported, reqs.max_api_version_supported
+        )));
     }
 
     // SAFETY (this block): Vulkan objects are created by the runtime from
@@ -97,9 +100,10 @@ pub(crate) fn open(precision: Precision) -> Result<Opened, XrError> {
             None,
         )
         .map_err(|e| other("adopting the Vulkan instance", e))?;
-        let phys = vk::PhysicalDevice::from_raw(
-            xr_call("finding the headset's GPU", xr_instance.vulkan_graphics_device(system, ash_instance.handle().as_raw() as _))? as _,
-        );
+        let phys = vk::PhysicalDevice::from_raw(xr_call(
+            "finding the headset's GPU",
+            xr_instance.vulkan_graphics_device(system, ash_instance.handle().as_raw() as _),
+        )? as _);
         let exposed = hal_instance.expose_adapter(phys).ok_or_else(|| XrError::Setup("the headset's GPU cannot run wgpu".into()))?;
         let mut features = wgpu::Features::empty();
         if precision == Precision::F16 {
@@ -124,7 +128,12 @@ pub(crate) fn open(precision: Precision) -> Result<Opened, XrError> {
         #[allow(clippy::missing_transmute_annotations)]
         let raw_device = xr_call(
             "creating the Vulkan device",
-            xr_instance.create_vulkan_device(system, std::mem::transmute(vk_entry.static_fn().get_instance_proc_addr), phys.as_raw() as _, &create as *const _ as *const _),
+            xr_instance.create_vulkan_device(
+                system,
+                std::mem::transmute(vk_entry.static_fn().get_instance_proc_addr),
+                phys.as_raw() as _,
+                &create as *const _ as *const _,
+            ),
         )?
         .map_err(|e| other("creating the Vulkan device", vk::Result::from_raw(e)))?;
         let ash_device = ash::Device::load(ash_instance.fp_v1_0(), vk::Device::from_raw(raw_device as _));
@@ -143,7 +152,10 @@ pub(crate) fn open(precision: Precision) -> Result<Opened, XrError> {
         let instance = wgpu::Instance::from_hal::<hal::api::Vulkan>(hal_instance);
         let adapter = instance.create_adapter_from_hal(exposed);
         let (device, queue) = adapter
-            .create_device_from_hal(open, &wgpu::DeviceDescriptor { label: Some("octopaint vr"), required_features: features, required_limits: limits.clone(), ..Default::default() })
+            .create_device_from_hal(
+                open,
+                &wgpu::DeviceDescriptor { label: Some("octopaint vr"), required_features: features, required_limits: limits.clone(), ..Default::default() },
+            )
             .map_err(|e| other("opening the wgpu device", e))?;
         let f16 = features.contains(wgpu::Features::SHADER_F16);
         (Gpu { device, queue, info: adapter.get_info(), limits, f16 }, session_info)

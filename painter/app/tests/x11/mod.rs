@@ -202,4 +202,3 @@ pub fn on_display(display: &str, runtime: &std::path::Path) -> Command {
     c.env("DISPLAY", display).env("XDG_RUNTIME_DIR", runtime).env_remove("WAYLAND_DISPLAY").stderr(Stdio::piped());
     c
 }
-

@@ -33,8 +33,8 @@ use octopaint_tree::trace_write::{event_line, header_line};
 use crate::{DocError, io};
 
 mod import;
-use crate::journal::{self, journal_path};
 use crate::format::{self, Content, Document, Imports};
+use crate::journal::{self, journal_path};
 use crate::trace_log::TraceLog;
 
 /// Undo history kept by default (the history beyond it is forgotten,

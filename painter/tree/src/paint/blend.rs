@@ -121,14 +121,14 @@ mod tests {
                             let bs = f64::from(before_sigma);
                             let (rgb, sigma) = st.blended(before_rgb, bs, colour, a);
                             let (g_rgb, g_sigma) = blend(mode, before, bs, colour, st.sigma_b, st.alpha, a, brush.mix_ratio);
-                            assert_eq!((rgb.map(f64::to_bits), sigma.to_bits()), (g_rgb.map(f64::to_bits), g_sigma.to_bits()), "{mode:?} {before_rgb:?} {before_sigma} {a}");
+                            assert_eq!(
+                                (rgb.map(f64::to_bits), sigma.to_bits()),
+                                (g_rgb.map(f64::to_bits), g_sigma.to_bits()),
+                                "{mode:?} {before_rgb:?} {before_sigma} {a}"
+                            );
                         }
                         let (fast, general) = (st.stored(before_rgb, before_sigma, colour, a), st.stored_general(before_rgb, before_sigma, colour, a));
-                        assert_eq!(
-                            (fast.0, fast.1.to_bits()),
-                            (general.0, general.1.to_bits()),
-                            "{mode:?} {before_rgb:?} {before_sigma} {colour:?} {a}"
-                        );
+                        assert_eq!((fast.0, fast.1.to_bits()), (general.0, general.1.to_bits()), "{mode:?} {before_rgb:?} {before_sigma} {colour:?} {a}");
                     }
                 }
             }

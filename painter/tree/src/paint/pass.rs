@@ -140,7 +140,15 @@ impl Painting {
             }
             [prim @ Prim { geo: Geometry::Stamp(s), .. }] => {
                 let (b, prim) = (&st.brush, *prim);
-                let walk = StampWalk { s: *s, prim, shape: b.shape, aspect: b.aspect, reach: st.stamp_reach, hardness: b.hardness, noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)) };
+                let walk = StampWalk {
+                    s: *s,
+                    prim,
+                    shape: b.shape,
+                    aspect: b.aspect,
+                    reach: st.stamp_reach,
+                    hardness: b.hardness,
+                    noise: (b.shape == Shape::Noise).then(|| (st.perm.clone(), *b)),
+                };
                 self.spare_stack = self.paint_pass_walk(&walk, &prim, stack, &mut candidates);
                 candidates
             }
@@ -187,13 +195,7 @@ impl Painting {
     /// 3. In the runs' order, serially: the first-touched leaves get their
     ///    slots and are written (journalled in the serial order), the dirty
     ///    blocks are marked, and the candidates are joined.
-    fn paint_pass_walk<W: Walk>(
-        &mut self,
-        walk: &W,
-        prim: &Prim,
-        mut stack: Vec<(u32, [u32; 3])>,
-        candidates: &mut Vec<u32>,
-    ) -> Vec<(u32, [u32; 3])> {
+    fn paint_pass_walk<W: Walk>(&mut self, walk: &W, prim: &Prim, mut stack: Vec<(u32, [u32; 3])>, candidates: &mut Vec<u32>) -> Vec<(u32, [u32; 3])> {
         let threads = rayon::current_num_threads();
         let lat = &self.tree.lat;
         let worth = threads > 1 && {

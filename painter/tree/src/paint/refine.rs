@@ -108,11 +108,7 @@ impl Painting {
             return None;
         }
         let st = self.stroke.as_ref().expect("stroke");
-        let next = if st.settles {
-            self.unsettled(next)
-        } else {
-            next.into_iter().map(|(c, _, _)| c).collect()
-        };
+        let next = if st.settles { self.unsettled(next) } else { next.into_iter().map(|(c, _, _)| c).collect() };
         Some((consumed, next))
     }
 
@@ -185,7 +181,8 @@ impl Painting {
                     let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
                     let (a, k) = lanes::unit_stamp_maximum(&near, b.shape, b.aspect, b.hardness, &xs).expect("lanes available");
                     let h = lat.reach_radius[d as usize];
-                    let seg = seg_stamp.map(|(s, prim)| lanes::unit_stamp(&s, b.shape, b.aspect, &st.stamp_reach, &prim, b.hardness, &xs, h).expect("lanes available"));
+                    let seg = seg_stamp
+                        .map(|(s, prim)| lanes::unit_stamp(&s, b.shape, b.aspect, &st.stamp_reach, &prim, b.hardness, &xs, h).expect("lanes available"));
                     for (l, o) in out.iter_mut().enumerate() {
                         *o = nc.decide((u[l].0, xs[l], d), before, (a[l], k[l] as usize), seg.as_ref().map(|u| (u.reach >> l & 1 == 1, u.r[l])));
                     }

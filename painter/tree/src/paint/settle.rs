@@ -18,12 +18,7 @@ use crate::stroke::{Geometry, Prim};
 /// their indices in the stroke, ascending.
 fn capsules_near(prims: &[Prim], balls: impl Iterator<Item = (DVec3, f64)>) -> Vec<(u32, Prim)> {
     let (lo, hi) = balls.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), (x, h)| (lo.min(x - h), hi.max(x + h)));
-    prims
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| matches!(p.geo, Geometry::Capsule(_)) && p.overlaps(lo, hi))
-        .map(|(i, p)| (i as u32, *p))
-        .collect()
+    prims.iter().enumerate().filter(|(_, p)| matches!(p.geo, Geometry::Capsule(_)) && p.overlaps(lo, hi)).map(|(i, p)| (i as u32, *p)).collect()
 }
 
 /// The settled test's bounds `[a_lo, a_hi]` of a ball of radius `h` about

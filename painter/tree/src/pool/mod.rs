@@ -66,11 +66,7 @@ impl CellRecord {
 
     /// Equal bit for bit (sigma compared by bits, so -0.0 != 0.0).
     pub fn same_bits(&self, o: &CellRecord) -> bool {
-        self.parent == o.parent
-            && self.first_child == o.first_child
-            && self.depth == o.depth
-            && self.rgb == o.rgb
-            && self.sigma.to_bits() == o.sigma.to_bits()
+        self.parent == o.parent && self.first_child == o.first_child && self.depth == o.depth && self.rgb == o.rgb && self.sigma.to_bits() == o.sigma.to_bits()
     }
 }
 
@@ -88,10 +84,9 @@ impl Refusal {
     /// (spec 2.4; `line` the event's line, `tree` the refusing tree).
     pub fn warning(self, line: usize, tree: &Tree) -> String {
         match self {
-            Refusal::Capacity => format!(
-                "line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached",
-                tree.capacity
-            ),
+            Refusal::Capacity => {
+                format!("line {line}: the cell budget of {} cells is exhausted: refinement refused, painting goes on at the resolution reached", tree.capacity)
+            }
             Refusal::Memory => format!(
                 "line {line}: the machine has no memory for more than {} cells: refinement refused, painting goes on at the resolution reached",
                 tree.n_used()
@@ -213,13 +208,7 @@ impl Tree {
         if i >= self.parent.len() {
             return CellRecord::FREE;
         }
-        CellRecord {
-            parent: self.parent[i],
-            first_child: self.first_child[i],
-            depth: self.depth[i],
-            rgb: self.rgb[i],
-            sigma: self.sigma[i],
-        }
+        CellRecord { parent: self.parent[i], first_child: self.first_child[i], depth: self.depth[i], rgb: self.rgb[i], sigma: self.sigma[i] }
     }
 
     /// Units still available under the budget (spec 2.4).
@@ -500,20 +489,14 @@ impl Tree {
 
     /// Rebuild the free-unit list from the depth pool (after undo/redo).
     pub(crate) fn rebuild_free_units(&mut self) {
-        self.free_units = (self.lat.padded..self.n_used())
-            .step_by(UNIT as usize)
-            .filter(|&u| self.depth[u as usize] == FREE)
-            .collect();
+        self.free_units = (self.lat.padded..self.n_used()).step_by(UNIT as usize).filter(|&u| self.depth[u as usize] == FREE).collect();
     }
 
     /// Allocator invariants (tests): the free list is exactly the free
     /// units, no unit is partly free, and the last unit is in use.
     pub fn check_allocator(&self) -> Vec<String> {
         let mut problems = Vec::new();
-        let expect: BTreeSet<u32> = (self.lat.padded..self.n_used())
-            .step_by(UNIT as usize)
-            .filter(|&u| self.depth[u as usize] == FREE)
-            .collect();
+        let expect: BTreeSet<u32> = (self.lat.padded..self.n_used()).step_by(UNIT as usize).filter(|&u| self.depth[u as usize] == FREE).collect();
         if expect != self.free_units {
             problems.push("free-unit list differs from the free units in the pools".to_string());
         }
@@ -534,11 +517,7 @@ impl Tree {
 
     /// Bytes allocated by the pools (capacity of the vectors, not length).
     pub fn pool_bytes_allocated(&self) -> usize {
-        self.parent.capacity() * 4
-            + self.first_child.capacity() * 4
-            + self.depth.capacity()
-            + self.rgb.capacity() * 3
-            + self.sigma.capacity() * 4
+        self.parent.capacity() * 4 + self.first_child.capacity() * 4 + self.depth.capacity() + self.rgb.capacity() * 3 + self.sigma.capacity() * 4
     }
 }
 

@@ -64,11 +64,8 @@ pub fn replay_on(threads: usize, trace: &Path) -> Outcome {
     let out = tempfile::tempdir().expect("temp dir");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
     let (stats, doc) = pool.install(|| replay_document(&t, Some(out.path()), &mut ())).expect("replay");
-    let mut files: Vec<(String, Vec<u8>)> = stats
-        .written
-        .iter()
-        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(p).expect("dump")))
-        .collect();
+    let mut files: Vec<(String, Vec<u8>)> =
+        stats.written.iter().map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), std::fs::read(p).expect("dump"))).collect();
     files.sort();
     Outcome { files, document: doc.dump_bytes(), history: document_history(&doc), warnings: stats.warnings }
 }
@@ -76,11 +73,8 @@ pub fn replay_on(threads: usize, trace: &Path) -> Outcome {
 /// The checked-in traces, sorted.
 pub fn traces() -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../traces");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .expect("traces/")
-        .map(|e| e.expect("entry").path())
-        .filter(|p| p.extension().is_some_and(|e| e == "jsonl"))
-        .collect();
+    let mut v: Vec<PathBuf> =
+        std::fs::read_dir(&dir).expect("traces/").map(|e| e.expect("entry").path()).filter(|p| p.extension().is_some_and(|e| e == "jsonl")).collect();
     v.sort();
     v
 }
