@@ -4,15 +4,18 @@
 //! layers go) are octopaint-model's `layer_rules`, which the trace reader
 //! follows too. Reference twin: reference/octopaint_ref/layers.py.
 
+mod operations;
+
+pub use operations::merge_trees;
+
 use std::collections::BTreeMap;
 use std::io::Cursor;
 
-use crate::clean::clean;
 use crate::dump::{NpyArray, TREE_ARRAYS, Values, layer_arrays, write_npz};
 use crate::g3::g3_table;
 use crate::paint::Painting;
-use crate::pool::{FREE, NONE, Tree};
-use crate::trace::{Brush, Canvas, LayerOp, LayerOpKind, Sample};
+use crate::pool::Tree;
+use crate::trace::{Brush, Canvas, Sample};
 
 pub use octopaint_model::layer_rules::{FIRST_NAME, MAX_LAYERS, MAX_NAME_CHARS, Model, NAME_BYTES, check_op, name_problem, placed};
 
@@ -460,145 +463,6 @@ impl Document {
         Ok(Document { canvas: *canvas, arena, order, selected, next_id, done, undone, painting_on: None, warnings: Vec::new() })
     }
 
-    // --------------------------------------------------------------- undo
-
-    fn settings(&self) -> Settings {
-        let rows = self
-            .order
-            .iter()
-            .map(|&id| {
-                let l = &self.arena[&id];
-                Row { id, name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }
-            })
-            .collect();
-        Settings { rows, selected: self.selected }
-    }
-
-    fn restore(&mut self, s: &Settings) {
-        self.order = s.rows.iter().map(|r| r.id).collect();
-        for r in &s.rows {
-            let l = self.arena.get_mut(&r.id).expect("a step's layers stay in the arena");
-            l.name.clone_from(&r.name);
-            l.visible = r.visible;
-            l.opacity = r.opacity;
-            l.locked = r.locked;
-        }
-        self.selected = s.selected;
-    }
-
-    /// Undo the last step (spec 14.3); false when there is none.
-    pub fn undo(&mut self) -> bool {
-        let Some(step) = self.done.pop() else { return false };
-        match &step {
-            Step::Stroke(id) => {
-                self.arena.get_mut(id).expect("listed").painting.undo();
-            }
-            Step::Layers(b) => self.restore(&b.0),
-        }
-        self.undone.push(step);
-        true
-    }
-
-    /// Redo the last undone step; false when there is none.
-    pub fn redo(&mut self) -> bool {
-        let Some(step) = self.undone.pop() else { return false };
-        match &step {
-            Step::Stroke(id) => {
-                self.arena.get_mut(id).expect("listed").painting.redo();
-            }
-            Step::Layers(b) => self.restore(&b.1),
-        }
-        self.done.push(step);
-        true
-    }
-
-    // --------------------------------------------------------- operations
-
-    /// Run one `layer` event; false (with a warning) when the document
-    /// cannot take it now (spec 14.2: refused by the budget, or out of step
-    /// with the reader's model after such a refusal).
-    pub fn apply(&mut self, op: &LayerOp, line: usize) -> bool {
-        let names: Vec<&str> = self.layers().map(|l| l.name.as_str()).collect();
-        let locked: Vec<bool> = self.layers().map(|l| l.locked).collect();
-        if let Some(why) = check_op(&names, &locked, op) {
-            self.warnings.push(format!("line {line}: {why}; it is skipped"));
-            return false;
-        }
-        let i = op.layer.as_ref().map(|l| names.iter().position(|n| n == l).expect("checked"));
-        drop(names);
-        if op.op == LayerOpKind::Select {
-            self.selected = i.expect("select names a layer");
-            return true;
-        }
-        let capacity = u64::from(self.canvas.capacity);
-        let made: Option<Layer> = match op.op {
-            LayerOpKind::Add => {
-                let l = Layer::new(op.name.as_deref().expect("add has a name"), Painting::new(&self.canvas));
-                (u64::from(l.tree().n_used()) <= capacity - self.used()).then_some(l)
-            }
-            LayerOpKind::Duplicate => {
-                let src = self.layer(i.expect("names a layer"));
-                let mut tree = src.tree().clone();
-                tree.capacity = self.canvas.capacity;
-                let mut l = Layer::new(op.name.as_deref().expect("duplicate has a name"), Painting::from_parts(tree, Default::default()));
-                l.visible = src.visible;
-                l.opacity = src.opacity;
-                (u64::from(l.tree().n_used()) <= capacity - self.used()).then_some(l)
-            }
-            LayerOpKind::MergeDown => {
-                let i = i.expect("names a layer");
-                let (lo, up) = (self.order[i - 1], self.order[i]);
-                let limit = capacity - self.used_but(&[lo, up]);
-                let (lower, upper) = (&self.arena[&lo], &self.arena[&up]);
-                merge_trees(lower, upper, limit).map(|mut tree| {
-                    tree.capacity = self.canvas.capacity;
-                    Layer::new(&lower.name, Painting::from_parts(tree, Default::default()))
-                })
-            }
-            _ => None,
-        };
-        let makes = matches!(op.op, LayerOpKind::Add | LayerOpKind::Duplicate | LayerOpKind::MergeDown);
-        if makes && made.is_none() {
-            self.warnings.push(format!("line {line}: the cell budget cannot hold this layer operation; it is skipped"));
-            return false;
-        }
-        self.drop_redo();
-        let before = self.settings();
-        let (order, sel) = placed(self.order.len(), self.selected, op, i);
-        let new_id = made.map(|l| self.insert(l));
-        let old = std::mem::take(&mut self.order);
-        self.order = order.iter().map(|j| j.map_or_else(|| new_id.expect("a new layer"), |j| old[j])).collect();
-        match op.op {
-            LayerOpKind::MergeDown => {
-                let i = i.expect("names a layer");
-                self.order[i - 1] = new_id.expect("merged");
-            }
-            LayerOpKind::Rename => {
-                let l = self.arena.get_mut(&old[i.expect("names a layer")]).expect("listed");
-                l.name = op.name.clone().expect("rename has a name");
-            }
-            LayerOpKind::Set => {
-                let l = self.arena.get_mut(&old[i.expect("names a layer")]).expect("listed");
-                if let Some(v) = op.visible {
-                    l.visible = v;
-                }
-                if let Some(o) = op.opacity {
-                    l.opacity = o;
-                }
-                if let Some(k) = op.locked {
-                    l.locked = k;
-                }
-            }
-            _ => {}
-        }
-        self.selected = sel;
-        let after = self.settings();
-        self.done.push(Step::Layers(Box::new((before, after))));
-        true
-    }
-
-    // --------------------------------------------------------------- dump
-
     /// The dump of the document (spec 14.5), with the CPU port's g3 tables.
     pub fn dump_bytes(&self) -> Vec<u8> {
         let n = self.len();
@@ -632,64 +496,4 @@ impl Document {
         }
         write_npz(Cursor::new(Vec::new()), &arrays).expect("writing to memory cannot fail").into_inner()
     }
-}
-
-/// The tree of `upper` merged down into `lower` (spec 14.4), or None when it
-/// would need more than `limit` cells.
-pub fn merge_trees(lower: &Layer, upper: &Layer, limit: u64) -> Option<Tree> {
-    let (a, b) = (lower.tree(), upper.tree());
-    let mut m = a.clone();
-    m.capacity = limit.min(u64::from(u32::MAX)) as u32;
-    if u64::from(m.n_used()) > limit {
-        return None;
-    }
-    for d in 0..m.lat.max_depth {
-        let n = m.n_used() as usize;
-        let origins = crate::dump::origins(&m);
-        let mut cand: Vec<u32> = (0..n)
-            .filter(|&c| u32::from(m.depth[c]) == d && m.first_child[c] == NONE)
-            .filter(|&c| {
-                let bc = b.cell_at(origins[c], d) as usize;
-                u32::from(b.depth[bc]) == d && b.first_child[bc] != NONE
-            })
-            .map(|c| c as u32)
-            .collect();
-        if cand.is_empty() {
-            continue;
-        }
-        if cand.len() as u64 > m.available_units() {
-            return None;
-        }
-        let (_, refusal) = m.refine_round(&mut cand);
-        if refusal.is_some() {
-            return None;
-        }
-    }
-    let n = m.n_used() as usize;
-    let origins = crate::dump::origins(&m);
-    let o_a = if lower.visible { f64::from(lower.opacity) } else { 0.0 };
-    let o_b = if upper.visible { f64::from(upper.opacity) } else { 0.0 };
-    let mut leaves = Vec::new();
-    for c in 0..n {
-        if m.depth[c] == FREE || m.first_child[c] != NONE {
-            continue;
-        }
-        let bc = b.cell_at(origins[c], u32::from(m.depth[c])) as usize;
-        let w_a = o_a * f64::from(m.sigma[c]);
-        let w_b = o_b * f64::from(b.sigma[bc]);
-        let w = w_a + w_b;
-        let mut rgb = m.rgb[c];
-        if w > 0.0 {
-            for ch in 0..3 {
-                let v = ((w_a * f64::from(m.rgb[c][ch]) + w_b * f64::from(b.rgb[bc][ch])) / w + 0.5).floor();
-                rgb[ch] = v.clamp(0.0, 255.0) as u8;
-            }
-        }
-        m.set_value(c as u32, rgb, crate::brush::quantize_sigma(w));
-        if m.depth[c] > 0 {
-            leaves.push(c as u32);
-        }
-    }
-    clean(&mut m, leaves);
-    Some(m)
 }
