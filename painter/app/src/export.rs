@@ -408,10 +408,10 @@ fn run_inner(args: &Args) -> Result<(), Refusal> {
     let size = tree.lat.roots.map(|r| f64::from(r) * tree.lat.root_size);
     let cap = args.max_mib << 20;
     let crop = args.region;
-    if let Some(c) = crop {
-        if (0..3).any(|a| c.hi[a] <= 0.0 || c.lo[a] >= size[a]) {
-            return Err(refuse(format!("--region misses the canvas, which spans [0, {}) x [0, {}) x [0, {})", size[0], size[1], size[2])));
-        }
+    if let Some(c) = crop
+        && (0..3).any(|a| c.hi[a] <= 0.0 || c.lo[a] >= size[a])
+    {
+        return Err(refuse(format!("--region misses the canvas, which spans [0, {}) x [0, {}) x [0, {})", size[0], size[1], size[2])));
     }
     let layered = parts[0].0.is_some();
     // The VDB's cap is shared by the layers' grids, which are all built

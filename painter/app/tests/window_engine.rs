@@ -180,7 +180,7 @@ fn a_window_killed_mid_session_keeps_every_journalled_stroke() {
     window.kill().unwrap();
     window.wait().unwrap();
     let kept = ended();
-    assert!(kept >= 3 && kept < 35, "{kept} strokes journalled");
+    assert!((3..35).contains(&kept), "{kept} strokes journalled");
     // Every completed stroke comes back.
     let res = octopaint().arg("info").arg(&doc).output().unwrap();
     let err = String::from_utf8_lossy(&res.stderr);

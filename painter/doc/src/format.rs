@@ -87,6 +87,7 @@ pub fn resolver(imports: &Imports) -> impl Fn(&str) -> std::io::Result<Vec<u8>> 
 
 /// What a document paints: one tree (version 1, a version 1 session) or
 /// the layers of a version 2 session (format version 2, spec 14).
+#[expect(clippy::large_enum_variant, reason = "one per open document; a box would only move the tree")]
 pub enum Content {
     Tree { tree: Tree, history: History },
     Layers(layers::Document),

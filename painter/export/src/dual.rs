@@ -323,7 +323,7 @@ impl<'a> Walk<'a> {
         if self.mesh.triangles.len() > self.opts.max_triangles {
             self.overflow = true;
         }
-        if self.mesh.triangles.len() % self.progress_every == 0 {
+        if self.mesh.triangles.len().is_multiple_of(self.progress_every) {
             (self.progress)(self.mesh.triangles.len());
         }
     }

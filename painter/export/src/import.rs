@@ -120,7 +120,7 @@ pub fn voxels_from_vdb(
     }
     let s = density.transform.scale;
     let t = density.transform.translate;
-    if s.iter().chain(&t).any(|v| !v.is_finite()) || s.iter().any(|&v| v == 0.0) {
+    if s.iter().chain(&t).any(|v| !v.is_finite()) || s.contains(&0.0) {
         return Err(format!("grid {:?} has a degenerate transform (scale {s:?})", density.name));
     }
     // The VDB voxel's edges on the canvas, per canvas axis.

@@ -122,7 +122,7 @@ fn put_mask(out: &mut Vec<u8>, words: &[u64]) {
 /// with zip and without active-mask compression.
 fn put_values<V: GridValue>(out: &mut Vec<u8>, values: &[V]) -> io::Result<()> {
     out.push(NO_MASK_AND_ALL_VALS);
-    let mut raw = Vec::with_capacity(values.len() * std::mem::size_of::<V>());
+    let mut raw = Vec::with_capacity(std::mem::size_of_val(values));
     for v in values {
         v.put(&mut raw);
     }

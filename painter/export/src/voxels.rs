@@ -304,7 +304,7 @@ impl VoxelGrid {
             let o = o.map(|v| v.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32);
             g.fill(o, k, vox);
             regions += 1;
-            if regions % 4096 == 0 {
+            if regions.is_multiple_of(4096) {
                 progress(regions);
             }
             true

@@ -253,7 +253,7 @@ fn gltf_doc(nodes: Vec<NodeSpec>, roots: &[u32]) -> (json::Root, Vec<u8>) {
                ty: json::accessor::Type,
                normalized: bool,
                min_max: Option<(Vec<f32>, Vec<f32>)>| {
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let view = root.push(json::buffer::View {
@@ -352,7 +352,7 @@ fn gltf_doc(nodes: Vec<NodeSpec>, roots: &[u32]) -> (json::Root, Vec<u8>) {
         nodes: roots.iter().map(|&r| json::Index::new(r)).collect(),
     });
     root.scene = Some(scene);
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     root.push(json::Buffer { byte_length: USize64::from(bin.len()), extensions: Default::default(), extras: Default::default(), name: None, uri: None });
@@ -361,7 +361,7 @@ fn gltf_doc(nodes: Vec<NodeSpec>, roots: &[u32]) -> (json::Root, Vec<u8>) {
 
 fn glb(root: &json::Root, bin: Vec<u8>) -> Vec<u8> {
     let mut j = json::serialize::to_vec(root).unwrap();
-    while j.len() % 4 != 0 {
+    while !j.len().is_multiple_of(4) {
         j.push(b' ');
     }
     let length = (12 + 8 + j.len() + 8 + bin.len()) as u32;

@@ -147,7 +147,7 @@ fn filled_buffer(gpu: &Gpu, label: &str, size: u64, pattern: &[u8], from: u64) -
 
 impl GpuPools {
     pub fn new(gpu: &Gpu) -> Result<GpuPools, GpuError> {
-        let limit = u64::from(gpu.limits.max_storage_buffer_binding_size).min(gpu.limits.max_buffer_size);
+        let limit = gpu.limits.max_storage_buffer_binding_size.min(gpu.limits.max_buffer_size);
         // The largest power of two of 16-byte cells one binding holds.
         let cells_fit = limit / std::mem::size_of::<GpuCell>() as u64;
         if cells_fit < u64::from(BLOCK_CELLS) {

@@ -317,7 +317,7 @@ impl RayCaster {
         // One binding holds every pixel (or record): refuse what the device
         // cannot bind before asking it to (wgpu would panic).
         let limits = gpu.device.limits();
-        let limit = u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         if words * 4 > limit {
             let what = if probe { "probe records" } else { "pixels" };
             return Err(GpuError::TooBig(format!(

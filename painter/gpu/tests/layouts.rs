@@ -12,12 +12,12 @@ fn wgsl_layout(source: &str, name: &str) -> (u32, Vec<(String, u32)>) {
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).unwrap();
     for (handle, ty) in module.types.iter() {
-        if ty.name.as_deref() == Some(name) {
-            if let naga::TypeInner::Struct { members, span } = &ty.inner {
-                let offsets = members.iter().map(|m| (m.name.clone().unwrap(), m.offset)).collect();
-                assert_eq!(layouter[handle].size, *span);
-                return (*span, offsets);
-            }
+        if ty.name.as_deref() == Some(name)
+            && let naga::TypeInner::Struct { members, span } = &ty.inner
+        {
+            let offsets = members.iter().map(|m| (m.name.clone().unwrap(), m.offset)).collect();
+            assert_eq!(layouter[handle].size, *span);
+            return (*span, offsets);
         }
     }
     panic!("no struct {name}");

@@ -180,6 +180,7 @@ pub struct StagedCopy {
 
 /// What the render thread takes in one go: a copy, or (grouped staging) a
 /// consistent batch to upload in one frame.
+#[expect(clippy::large_enum_variant, reason = "a copy is a buffer's handle and a few numbers, moved a few times a frame")]
 pub enum StagedItem {
     One(StagedCopy),
     Batch(Vec<StagedCopy>),

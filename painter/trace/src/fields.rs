@@ -139,10 +139,10 @@ pub(super) fn name(line: usize, v: &Value) -> R<String> {
 }
 
 fn one_of<T: Copy>(line: usize, field: &str, v: &Value, names: &[&str], values: &[T]) -> R<T> {
-    if let Value::String(s) = v {
-        if let Some(i) = names.iter().position(|n| n == s) {
-            return Ok(values[i]);
-        }
+    if let Value::String(s) = v
+        && let Some(i) = names.iter().position(|n| n == s)
+    {
+        return Ok(values[i]);
     }
     Err(range(line, field, format!("{} is not one of {}", shown(v), names.join(", "))))
 }
@@ -325,39 +325,6 @@ pub fn segment_too_long(brush: &Brush, a: &Sample, b: &Sample) -> bool {
     !quotient.is_finite() || quotient.floor() + 1.0 > MAX_STAMPS_PER_SEGMENT
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn names_are_plain() {
-        assert!(is_valid_name("a.b-c_9"));
-        for bad in ["", ".", "..", "a/b", "a\n", "a b", "é"] {
-            assert!(!is_valid_name(bad), "{bad:?}");
-        }
-    }
-
-    #[test]
-    fn integer_fields_take_integral_numbers_only() {
-        let v = |s: &str| serde_json::from_str::<Value>(s).unwrap();
-        assert_eq!(int(1, "x", &v("4.0"), 0, 28), Ok(4));
-        assert_eq!(int(1, "x", &v("-0.0"), 0, 28), Ok(0));
-        assert_eq!(int(1, "x", &v("4.5"), 0, 28).unwrap_err().kind, ErrorKind::Type);
-        assert_eq!(int(1, "x", &v("true"), 0, 28).unwrap_err().kind, ErrorKind::Type);
-        assert_eq!(int(1, "x", &v("1e300"), 0, 28).unwrap_err().kind, ErrorKind::Range);
-        assert_eq!(int(1, "x", &v("18446744073709551615"), 0, 28).unwrap_err().kind, ErrorKind::Range);
-        assert_eq!(int(1, "x", &v("-9223372036854775808"), 0, 28).unwrap_err().kind, ErrorKind::Range);
-        assert_eq!(int(1, "x", &v("28"), 0, 28), Ok(28));
-    }
-
-    #[test]
-    fn overflowing_segments_are_refused_not_crashed() {
-        let b = Brush::new(Shape::Box, Mode::Paint, 1e-300, [0.0; 3], 1.0, 0.5);
-        assert!(segment_too_long(&b, &Sample::at([1e300, 0.0, 0.0]), &Sample::at([-1e300, 0.0, 0.0])));
-        assert!(!segment_too_long(&b, &Sample::at([1.0, 0.0, 0.0]), &Sample::at([1.0, 0.0, 0.0])));
-    }
-}
-
 fn layer_ref(line: usize, obj: &Value) -> R<String> {
     match require(line, obj, "layer", "")? {
         Value::String(s) => Ok(s.clone()),
@@ -440,4 +407,37 @@ pub(super) fn parse_import_fields(line: usize, obj: &Value) -> R<(String, String
         Some(other) => return Err(fail(line, "name", ErrorKind::Type, format!("expected a string, got {}", shown(other)))),
     };
     Ok((file, sha, name))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_plain() {
+        assert!(is_valid_name("a.b-c_9"));
+        for bad in ["", ".", "..", "a/b", "a\n", "a b", "é"] {
+            assert!(!is_valid_name(bad), "{bad:?}");
+        }
+    }
+
+    #[test]
+    fn integer_fields_take_integral_numbers_only() {
+        let v = |s: &str| serde_json::from_str::<Value>(s).unwrap();
+        assert_eq!(int(1, "x", &v("4.0"), 0, 28), Ok(4));
+        assert_eq!(int(1, "x", &v("-0.0"), 0, 28), Ok(0));
+        assert_eq!(int(1, "x", &v("4.5"), 0, 28).unwrap_err().kind, ErrorKind::Type);
+        assert_eq!(int(1, "x", &v("true"), 0, 28).unwrap_err().kind, ErrorKind::Type);
+        assert_eq!(int(1, "x", &v("1e300"), 0, 28).unwrap_err().kind, ErrorKind::Range);
+        assert_eq!(int(1, "x", &v("18446744073709551615"), 0, 28).unwrap_err().kind, ErrorKind::Range);
+        assert_eq!(int(1, "x", &v("-9223372036854775808"), 0, 28).unwrap_err().kind, ErrorKind::Range);
+        assert_eq!(int(1, "x", &v("28"), 0, 28), Ok(28));
+    }
+
+    #[test]
+    fn overflowing_segments_are_refused_not_crashed() {
+        let b = Brush::new(Shape::Box, Mode::Paint, 1e-300, [0.0; 3], 1.0, 0.5);
+        assert!(segment_too_long(&b, &Sample::at([1e300, 0.0, 0.0]), &Sample::at([-1e300, 0.0, 0.0])));
+        assert!(!segment_too_long(&b, &Sample::at([1.0, 0.0, 0.0]), &Sample::at([1.0, 0.0, 0.0])));
+    }
 }

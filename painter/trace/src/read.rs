@@ -92,8 +92,8 @@ fn header(lineno: usize, obj: &Value) -> R<(Canvas, Meta, u32)> {
     }
     let v = require(lineno, obj, "version", "")?;
     let version = match v.as_f64() {
-        Some(x) if x == 1.0 => 1,
-        Some(x) if x == 2.0 => 2,
+        Some(1.0) => 1,
+        Some(2.0) => 2,
         _ => {
             let msg = format!("{} is not supported (this reader knows versions 1 and 2)", shown(v));
             return Err(fail(lineno, "version", ErrorKind::Header, msg));

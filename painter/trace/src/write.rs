@@ -133,7 +133,7 @@ mod tests {
     #[test]
     fn extreme_numbers_read_back_bit_for_bit() {
         let canvas = Canvas { roots: [1, 1, 1], max_depth: 4, root_size: 1.0, capacity: 64 };
-        let xs = [f64::MAX, f64::MIN_POSITIVE, 0.1, 1e16, 1e-9, 123456789.123456789, -2.5e-300];
+        let xs = [f64::MAX, f64::MIN_POSITIVE, 0.1, 1e16, 1e-9, 123_456_789.123_456_79, -2.5e-300];
         let s = octopaint_model::Sample { p: [xs[0], xs[1], xs[2]], pressure: 0.3, q: [xs[3], xs[4], xs[5], xs[6]] };
         let b = Brush::new(octopaint_model::Shape::Sphere, octopaint_model::Mode::Paint, 0.1, [1.0, 0.0, 0.0], 1.0, 0.5);
         let events = [

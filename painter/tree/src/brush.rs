@@ -340,11 +340,22 @@ pub fn noise_factor(perm: &[u16; 512], brush: &Brush, x: DVec3) -> f64 {
     (0.5 + noise::fbm(perm, x.to_array(), n.frequency / brush.radius, n.octaves, n.gain)).clamp(0.0, 1.0)
 }
 
+/// What a stroke's blend (spec 8.5) holds fixed for every cell: the mode,
+/// the brush density `sigma_b`, the opacity `alpha` and the mix ratio.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlendOf {
+    pub mode: Mode,
+    pub sigma_b: f64,
+    pub alpha: f64,
+    pub mix_ratio: f64,
+}
+
 /// The value of a cell after a stroke (spec 8.5): `before_rgb` in [0, 1],
 /// `colour` the brush colour K of the primitive that gave the stroke
 /// maximum `a`. Returns unrounded (rgb, sigma). `a == 0` keeps the cell.
 #[inline]
-pub fn blend(mode: Mode, before_rgb: [f64; 3], bs: f64, colour: [f64; 3], sigma_b: f64, alpha: f64, a: f64, mix_ratio: f64) -> ([f64; 3], f64) {
+pub fn blend(of: &BlendOf, before_rgb: [f64; 3], bs: f64, colour: [f64; 3], a: f64) -> ([f64; 3], f64) {
+    let BlendOf { mode, sigma_b, alpha, mix_ratio } = *of;
     if a == 0.0 {
         return (before_rgb, bs);
     }
@@ -422,12 +433,12 @@ mod tests {
 
     #[test]
     fn erase_with_full_opacity_empties_and_mix_adds_density() {
-        let (rgb, s) = blend(Mode::Erase, [0.2; 3], 3.0, [1.0; 3], 7.0, 1.0, 1.0, 1.0);
+        let (rgb, s) = blend(&BlendOf { mode: Mode::Erase, sigma_b: 7.0, alpha: 1.0, mix_ratio: 1.0 }, [0.2; 3], 3.0, [1.0; 3], 1.0);
         assert_eq!((rgb, s), ([0.2; 3], 0.0));
-        let (rgb, s) = blend(Mode::Mix, [1.0, 0.0, 0.0], 1.0, [0.0, 0.0, 1.0], 1.0, 1.0, 1.0, 1.0);
+        let (rgb, s) = blend(&BlendOf { mode: Mode::Mix, sigma_b: 1.0, alpha: 1.0, mix_ratio: 1.0 }, [1.0, 0.0, 0.0], 1.0, [0.0, 0.0, 1.0], 1.0);
         assert_eq!(rgb, [0.5, 0.0, 0.5]);
         assert_eq!(s, 2.0);
-        let (rgb, _) = blend(Mode::Paint, [0.0; 3], 0.0, [0.3, 0.6, 0.9], 2.0, 1.0, 0.25, 1.0);
+        let (rgb, _) = blend(&BlendOf { mode: Mode::Paint, sigma_b: 2.0, alpha: 1.0, mix_ratio: 1.0 }, [0.0; 3], 0.0, [0.3, 0.6, 0.9], 0.25);
         assert_eq!(rgb, [0.3, 0.6, 0.9], "an empty cell takes the brush colour");
     }
 

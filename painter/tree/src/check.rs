@@ -12,7 +12,7 @@ pub fn check_tree(t: &Tree) -> Vec<String> {
     let mut p = Vec::new();
     let n = t.n_used();
     let lat = &t.lat;
-    if n % UNIT != 0 || n < lat.padded {
+    if !n.is_multiple_of(UNIT) || n < lat.padded {
         p.push(format!("used length {n} is not a multiple of 8 at least {}", lat.padded));
         return p;
     }
@@ -50,7 +50,7 @@ pub fn check_tree(t: &Tree) -> Vec<String> {
         }
         let fc = t.first_child[i];
         if fc != NONE {
-            if fc % UNIT != 0 || fc < lat.padded || fc + UNIT > n {
+            if !fc.is_multiple_of(UNIT) || fc < lat.padded || fc + UNIT > n {
                 p.push(format!("cell {c} has first_child {fc} outside the pools"));
             } else if (fc..fc + UNIT).any(|k| t.parent[k as usize] != c) {
                 p.push(format!("children of {c} do not point back"));
@@ -98,7 +98,7 @@ impl Tree {
         if [first_child.len(), depth.len(), rgb.len(), sigma.len()].iter().any(|&l| l != n) {
             return Err("the pools have different lengths".into());
         }
-        if n < t.lat.padded as usize || n % UNIT as usize != 0 || n as u64 > u64::from(canvas.capacity) {
+        if n < t.lat.padded as usize || !n.is_multiple_of(UNIT as usize) || n as u64 > u64::from(canvas.capacity) {
             return Err(format!("{n} cells: not a multiple of 8 between {} and the capacity {}", t.lat.padded, canvas.capacity));
         }
         t.parent = parent;

@@ -43,12 +43,12 @@ pub fn replay_bounded(data: &[u8]) -> bool {
             EventKind::StrokeBegin => last = None,
             EventKind::Sample(s) => {
                 let b = brush.expect("validated");
-                if b.shape != Shape::Sphere {
-                    if let Some(p) = last {
-                        let d = [s.p[0] - p[0], s.p[1] - p[1], s.p[2] - p[2]];
-                        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                        stamps += len / (b.spacing * b.radius * 0.25) + 1.0;
-                    }
+                if b.shape != Shape::Sphere
+                    && let Some(p) = last
+                {
+                    let d = [s.p[0] - p[0], s.p[1] - p[1], s.p[2] - p[2]];
+                    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    stamps += len / (b.spacing * b.radius * 0.25) + 1.0;
                 }
                 last = Some(s.p);
             }
@@ -86,6 +86,7 @@ pub fn voxels(data: &[u8]) {
 pub struct SplitMix64(pub u64);
 
 impl SplitMix64 {
+    #[expect(clippy::should_implement_trait, reason = "an endless generator: an Iterator would hand out Options never None")]
     pub fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;

@@ -218,7 +218,7 @@ fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
         if m <= top - base { base + m } else { top }
     } else {
         let m = (-fl) as u32;
-        if m <= base { base - m } else { 0 }
+        base.saturating_sub(m)
     }
 }
 

@@ -68,8 +68,8 @@ impl SlotMap {
     /// number of units).
     #[inline(always)]
     pub fn unit(&self, unit: u32) -> Option<&[u32; 8]> {
-        const { assert!(PAGE % 8 == 0) };
-        debug_assert!(unit % 8 == 0);
+        const { assert!(PAGE.is_multiple_of(8)) };
+        debug_assert!(unit.is_multiple_of(8));
         self.entry(unit).map(|e| (&self.entries[e..][..8]).try_into().expect("8 entries"))
     }
 
@@ -84,8 +84,8 @@ impl SlotMap {
     /// with one page lookup.
     #[inline]
     pub fn set_unit(&mut self, unit: u32, s: u32) {
-        const { assert!(PAGE % 8 == 0) };
-        debug_assert!(unit % 8 == 0);
+        const { assert!(PAGE.is_multiple_of(8)) };
+        debug_assert!(unit.is_multiple_of(8));
         let e = self.entry_or_new(unit);
         let unit_entries: &mut [u32; 8] = (&mut self.entries[e..][..8]).try_into().expect("8 entries");
         *unit_entries = std::array::from_fn(|k| s + k as u32);

@@ -5,7 +5,7 @@
 //! redo restore the dumps byte for byte.
 
 use glam::DVec3;
-use octopaint_tree::brush::{blend, quantize_rgb, quantize_sigma, sigma_brush};
+use octopaint_tree::brush::{BlendOf, blend, quantize_rgb, quantize_sigma, sigma_brush};
 use octopaint_tree::check::check_tree;
 use octopaint_tree::clean::collapsible_anywhere;
 use octopaint_tree::dirty::{BLOCK_CELLS, region_cells};
@@ -153,8 +153,13 @@ fn check_values(pre: &Tree, post: &Tree, s: &StrokeSpec) -> Result<(), TestCaseE
             a = 0.0;
         }
         let bi = before as usize;
-        let (rgb, sigma) =
-            blend(b.mode, pre.rgb[bi].map(|v| f64::from(v) / 255.0), f64::from(pre.sigma[bi]), prims[k].colour, sigma_b, b.opacity, a, b.mix_ratio);
+        let (rgb, sigma) = blend(
+            &BlendOf { mode: b.mode, sigma_b, alpha: b.opacity, mix_ratio: b.mix_ratio },
+            pre.rgb[bi].map(|v| f64::from(v) / 255.0),
+            f64::from(pre.sigma[bi]),
+            prims[k].colour,
+            a,
+        );
         prop_assert_eq!(post.rgb[c as usize], quantize_rgb(rgb), "rgb of leaf {}", c);
         prop_assert_eq!(post.sigma[c as usize].to_bits(), quantize_sigma(sigma).to_bits(), "sigma of leaf {}", c);
     }

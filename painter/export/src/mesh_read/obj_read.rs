@@ -186,10 +186,10 @@ fn load_mtl_checked(path: &Path) -> Result<tobj::MTLLoadResult, MeshError> {
     std::fs::File::open(path).and_then(|mut f| f.read_to_string(&mut text)).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
     for (n, line) in text.lines().enumerate() {
         let mut w = line.split_whitespace();
-        if let Some("Ka" | "Kd" | "Ks" | "Ke") = w.next() {
-            if w.count() < 3 {
-                return Err(MeshError::Obj(format!("{} line {}: a colour needs three numbers (r g b)", path.display(), n + 1)));
-            }
+        if let Some("Ka" | "Kd" | "Ks" | "Ke") = w.next()
+            && w.count() < 3
+        {
+            return Err(MeshError::Obj(format!("{} line {}: a colour needs three numbers (r g b)", path.display(), n + 1)));
         }
     }
     Ok(tobj::load_mtl_buf(&mut text.as_bytes()))

@@ -4,7 +4,7 @@
 //! Reference twin: `Painting._apply` in reference/octopaint_ref/paint.py.
 
 use super::StrokeState;
-use crate::brush::{TINY, blend, quantize_rgb, quantize_sigma};
+use crate::brush::{BlendOf, TINY, blend, quantize_rgb, quantize_sigma};
 use crate::trace::Mode;
 
 /// `v / 255.0` for every stored channel value, computed once (the same
@@ -80,7 +80,8 @@ impl StrokeState {
     fn stored_general(&self, before_rgb: [u8; 3], before_sigma: f32, colour: [f64; 3], a: f64) -> ([u8; 3], f32) {
         let before = [UNIT_RGB[before_rgb[0] as usize], UNIT_RGB[before_rgb[1] as usize], UNIT_RGB[before_rgb[2] as usize]];
         let b = &self.brush;
-        let (rgb, sigma) = blend(b.mode, before, f64::from(before_sigma), colour, self.sigma_b, self.alpha, a, b.mix_ratio);
+        let (rgb, sigma) =
+            blend(&BlendOf { mode: b.mode, sigma_b: self.sigma_b, alpha: self.alpha, mix_ratio: b.mix_ratio }, before, f64::from(before_sigma), colour, a);
         (quantize_rgb(rgb), quantize_sigma(sigma))
     }
 }
@@ -120,7 +121,8 @@ mod tests {
                             let before = before_rgb.map(|v| f64::from(v) / 255.0);
                             let bs = f64::from(before_sigma);
                             let (rgb, sigma) = st.blended(before_rgb, bs, colour, a);
-                            let (g_rgb, g_sigma) = blend(mode, before, bs, colour, st.sigma_b, st.alpha, a, brush.mix_ratio);
+                            let (g_rgb, g_sigma) =
+                                blend(&BlendOf { mode, sigma_b: st.sigma_b, alpha: st.alpha, mix_ratio: brush.mix_ratio }, before, bs, colour, a);
                             assert_eq!(
                                 (rgb.map(f64::to_bits), sigma.to_bits()),
                                 (g_rgb.map(f64::to_bits), g_sigma.to_bits()),

@@ -261,14 +261,13 @@ impl Painting {
         assert!(self.work.is_none(), "the previous sample is not finished");
         let tree = &self.tree;
         let st = self.stroke.as_mut().expect("sample outside a stroke");
-        if st.brush.mode == Mode::Pickup {
-            if let Some(c) = tree.leaf_at(sample.p) {
-                if tree.sigma[c as usize] > 0.0 {
-                    let canvas = tree.rgb[c as usize].map(|v| f64::from(v) / 255.0);
-                    let rate = st.brush.pickup_rate;
-                    st.colour = [0, 1, 2].map(|i| st.colour[i] + (canvas[i] - st.colour[i]) * rate);
-                }
-            }
+        if st.brush.mode == Mode::Pickup
+            && let Some(c) = tree.leaf_at(sample.p)
+            && tree.sigma[c as usize] > 0.0
+        {
+            let canvas = tree.rgb[c as usize].map(|v| f64::from(v) / 255.0);
+            let rate = st.brush.pickup_rate;
+            st.colour = [0, 1, 2].map(|i| st.colour[i] + (canvas[i] - st.colour[i]) * rate);
         }
         let first = st.prims.len();
         let colour = st.colour;

@@ -182,7 +182,7 @@ impl Walk for SegmentWalk {
         self.largest
     }
     #[inline(always)]
-    fn coverage_at(&self, x: DVec3, _x: &DVec3, hardness: f64) -> f64 {
+    fn coverage_at(&self, x: DVec3, _projected: &DVec3, hardness: f64) -> f64 {
         debug_assert_eq!(hardness, self.brush.hardness);
         stroke_maximum_of(&self.brush, &self.perm, &self.seg, x, None).0
     }

@@ -280,21 +280,21 @@ impl Tree {
     /// Tell the journal and the change log that `c` is about to change.
     #[inline]
     fn touch(&mut self, c: u32) {
-        if let Some(j) = self.journal.as_mut() {
-            if j.needs_save(c) {
-                let rec = if (c as usize) < self.parent.len() {
-                    CellRecord {
-                        parent: self.parent[c as usize],
-                        first_child: self.first_child[c as usize],
-                        depth: self.depth[c as usize],
-                        rgb: self.rgb[c as usize],
-                        sigma: self.sigma[c as usize],
-                    }
-                } else {
-                    CellRecord::FREE
-                };
-                j.save(c, rec);
-            }
+        if let Some(j) = self.journal.as_mut()
+            && j.needs_save(c)
+        {
+            let rec = if (c as usize) < self.parent.len() {
+                CellRecord {
+                    parent: self.parent[c as usize],
+                    first_child: self.first_child[c as usize],
+                    depth: self.depth[c as usize],
+                    rgb: self.rgb[c as usize],
+                    sigma: self.sigma[c as usize],
+                }
+            } else {
+                CellRecord::FREE
+            };
+            j.save(c, rec);
         }
         self.changes.mark_block(c);
     }
@@ -396,7 +396,7 @@ impl Tree {
         if self.journal.as_ref().is_none_or(|j| j.unit_is_new(unit)) {
             // Nothing to save, and a unit lies in one dirty block (blocks
             // hold a whole number of units).
-            const { assert!(changes::BLOCK_CELLS % UNIT == 0) };
+            const { assert!(changes::BLOCK_CELLS.is_multiple_of(UNIT)) };
             self.changes.mark_block(unit);
         } else {
             for c in unit..unit + UNIT {
