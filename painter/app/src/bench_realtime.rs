@@ -122,7 +122,7 @@ struct RunResult {
     g3_ms: Percentiles,
     cast_ms: Percentiles,
     latency_ms: Percentiles,
-    /// The stroke thread's painting time per sample job (Painting::step
+    /// The stroke thread's painting time per sample job (Painting::advance
     /// with the tree's lock held, lock waits excluded).
     paint_ms: Percentiles,
     staging_copies: usize,
@@ -240,7 +240,7 @@ fn consistent_images(
             Job::Sample(s) => {
                 painting.begin_sample(s, 0);
                 loop {
-                    let done = painting.step(aggressive);
+                    let done = painting.advance(aggressive);
                     publish(&mut r, &mut painting, &mut n, &mut out)?;
                     if done {
                         break;

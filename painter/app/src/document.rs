@@ -475,10 +475,10 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
     let Live { script, play, hold_painting, frame_log } = live;
-    let opts = octopaint_xr::session::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting, frame_log };
+    let opts = octopaint_xr::headset::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting, frame_log };
     // The session saves whatever happened in the headset as it ends (the
     // journal has it too).
-    match octopaint_xr::session::run(s, &opts) {
+    match octopaint_xr::headset::run(s, &opts) {
         Ok(r) if r.save_error.is_some() => {
             eprintln!("octopaint: {} (every completed stroke is in the journal)", r.save_error.unwrap_or_default());
             ExitCode::from(1)

@@ -29,7 +29,7 @@ use flate2::Compression;
 use flate2::read::ZlibDecoder;
 use flate2::write::ZlibEncoder;
 use octopaint_tree::history::{History, UndoStep};
-use octopaint_tree::layers::{self, Layer, Row, Settings, Step};
+use octopaint_tree::layers::{self, DocumentStep, Layer, LayerList, LayerRow};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::{CellRecord, FREE, NONE, Tree};
 use octopaint_tree::trace::{Trace, parse_trace_with};
@@ -280,7 +280,7 @@ fn put_name(out: &mut Vec<u8>, name: &str) {
     out.extend_from_slice(name.as_bytes());
 }
 
-fn settings_bytes(out: &mut Vec<u8>, s: &Settings) {
+fn settings_bytes(out: &mut Vec<u8>, s: &LayerList) {
     put_u32(out, s.selected as u32);
     put_u32(out, s.rows.len() as u32);
     for r in &s.rows {
@@ -308,11 +308,11 @@ fn document_bytes(doc: &layers::Document) -> Vec<u8> {
     put_u32(&mut out, undone.len() as u32);
     for step in done.iter().chain(undone) {
         match step {
-            Step::Stroke(id) => {
+            DocumentStep::Stroke(id) => {
                 out.push(0);
                 put_u32(&mut out, *id);
             }
-            Step::Layers(b) => {
+            DocumentStep::Layers(b) => {
                 out.push(1);
                 settings_bytes(&mut out, &b.0);
                 settings_bytes(&mut out, &b.1);
@@ -537,7 +537,7 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
     Ok(Loaded { doc: Document { trace_text, content, meta, imports }, trace, crc })
 }
 
-fn decode_settings(c: &mut Cursor) -> Result<Settings, DocError> {
+fn decode_settings(c: &mut Cursor) -> Result<LayerList, DocError> {
     let selected = c.u32()? as usize;
     let n = c.u32()? as usize;
     if n > layers::MAX_LAYERS {
@@ -550,9 +550,9 @@ fn decode_settings(c: &mut Cursor) -> Result<Settings, DocError> {
         let locked = c.flag()?;
         let opacity = c.f32()?;
         let name = c.name()?;
-        rows.push(Row { id, name, visible, opacity, locked });
+        rows.push(LayerRow { id, name, visible, opacity, locked });
     }
-    Ok(Settings { rows, selected })
+    Ok(LayerList { rows, selected })
 }
 
 fn decode_document(trace: &Trace, docu: &[u8], layrs: &[Vec<u8>]) -> Result<layers::Document, DocError> {
@@ -572,11 +572,11 @@ fn decode_document(trace: &Trace, docu: &[u8], layrs: &[Vec<u8>]) -> Result<laye
     let mut steps = Vec::with_capacity(done + undone);
     for _ in 0..done + undone {
         steps.push(match c.u8()? {
-            0 => Step::Stroke(c.u32()?),
+            0 => DocumentStep::Stroke(c.u32()?),
             1 => {
                 let before = decode_settings(&mut c)?;
                 let after = decode_settings(&mut c)?;
-                Step::Layers(Box::new((before, after)))
+                DocumentStep::Layers(Box::new((before, after)))
             }
             k => return Err(DocError::Corrupt(format!("the DOCU section holds a step of unknown kind {k}"))),
         });

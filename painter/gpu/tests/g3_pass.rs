@@ -41,7 +41,7 @@ fn g3_after_every_level_equals_the_cpu_port() {
             let p = [0.3 + 1.2 * u, 0.5 + 0.1 * (s as f64), 0.6 + 0.7 * u];
             painting.begin_sample(&Sample::at(p), 0);
             loop {
-                let done = painting.step_level();
+                let done = painting.advance_level();
                 let gpu = r.read_g3(&mut painting.tree).unwrap();
                 levels += 1;
                 assert!(gpu == g3_table(&painting.tree), "stroke {s}, sample {i}: GPU g3 differs after a level");

@@ -21,7 +21,7 @@ use crate::jobs::{Aim, Job};
 pub enum Ran {
     /// Done: its changes are in the pools (or it changed nothing).
     Done,
-    /// A sample began: its levels follow (`Painting::step` on
+    /// A sample began: its levels follow (`Painting::advance` on
     /// `document_mut().stroke_painting()`), each published on its own.
     Sample,
     /// Done, with a line for the artist (a save, a layer made).
@@ -98,7 +98,7 @@ impl Replay {
         if let Ok(Ran::Sample) = self.run(job, Instant::now())
             && let Some(p) = self.doc.stroke_painting()
         {
-            while !p.step(None) {}
+            while !p.advance(None) {}
         }
     }
 }

@@ -475,7 +475,7 @@ fn stroke_jobs(shared: &Shared, settings: &Settings, hooks: &Hooks) {
                     g.pass();
                 }
                 let t0 = Instant::now();
-                let done = open(&mut guard).document_mut().stroke_painting().is_none_or(|p| p.step(settings.strategy.aggressive_units));
+                let done = open(&mut guard).document_mut().stroke_painting().is_none_or(|p| p.advance(settings.strategy.aggressive_units));
                 painting_seconds += t0.elapsed().as_secs_f64();
                 publisher.publish(shared, open(&mut guard), seq);
                 if done {

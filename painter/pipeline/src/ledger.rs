@@ -27,7 +27,7 @@ pub struct JobRecord {
     pub submitted: Instant,
     pub started: Option<Instant>,
     pub finished: Option<Instant>,
-    /// Time the stroke thread spent painting it (inside `Painting::step`,
+    /// Time the stroke thread spent painting it (inside `Painting::advance`,
     /// with the tree's lock held; waits for the lock excluded), seconds.
     pub paint_seconds: f64,
     /// Its first and last publications (None: it changed nothing).

@@ -57,7 +57,7 @@ pub struct UndoStep {
     /// The tail: runs of consecutive cells from `n_before` on, ascending,
     /// their records packed (at commit one run, packed from the pools). A
     /// cell whose record is `CellRecord::FREE` here is no entry.
-    tail: Vec<Run>,
+    tail: Vec<CellRun>,
     /// How many tail records are not free (entries).
     tail_born: usize,
     /// The after-records are left in the pools (see the module's notes):
@@ -231,12 +231,12 @@ impl Packed {
 
 /// Consecutive cells of a step's tail: the first and their records.
 #[derive(Clone, Debug)]
-struct Run {
+struct CellRun {
     first: u32,
     cols: Packed,
 }
 
-impl Run {
+impl CellRun {
     fn end(&self) -> u32 {
         self.first + self.cols.len() as u32
     }
@@ -327,7 +327,7 @@ impl UndoStep {
                 _ if new_run => {
                     let mut cols = Packed::default();
                     cols.push(after);
-                    self.tail.push(Run { first: c, cols });
+                    self.tail.push(CellRun { first: c, cols });
                     self.tail_born += 1;
                     return;
                 }
@@ -350,7 +350,7 @@ impl UndoStep {
         }
         let t = Packed::from_pools(tree, from..to);
         self.tail_born = t.len() - t.free_records();
-        self.tail = vec![Run { first: self.n_before, cols: t }];
+        self.tail = vec![CellRun { first: self.n_before, cols: t }];
     }
 
     /// A step just committed (its cells pushed by `push_before`) leaves its

@@ -182,7 +182,7 @@ fn run(s: &Session) -> Result<(), TestCaseError> {
                     loop {
                         let level_before = painting.tree.clone();
                         let g3_before = g3_table(&level_before);
-                        let finished = painting.step_level();
+                        let finished = painting.advance_level();
                         let problems = check_tree(&painting.tree);
                         prop_assert!(problems.is_empty(), "{problems:?}");
                         check_publication(&level_before, &g3_before, &mut painting.tree)?;
@@ -241,7 +241,7 @@ fn paint_in_steps(s: &Session, max_units: Option<usize>, settling: bool) -> Resu
                 for smp in &st.samples {
                     painting.begin_sample(smp, 0);
                     let mut steps = 0u32;
-                    while !painting.step(max_units) {
+                    while !painting.advance(max_units) {
                         // The full check is O(cells): at steps 1, 2, 4, 8...
                         // of each sample and after its last. (Every 16th
                         // step made a one-unit split of a big session

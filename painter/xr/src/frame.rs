@@ -20,8 +20,8 @@ use octopaint_tree::view::DEFAULT_LIGHT;
 use openxr as xr;
 
 use crate::XrError;
+use crate::gestures::Gestures;
 use crate::input::{Hand, LEFT, RIGHT};
-use crate::paint::Painter;
 use crate::placement::{Placement, eye_camera};
 use crate::setup::{Eyes, other};
 
@@ -62,7 +62,7 @@ impl PartialEq for Look {
 pub(crate) struct Scene<'a> {
     pub views: &'a [xr::View],
     pub hands: &'a [Hand; 2],
-    pub painter: &'a Painter,
+    pub painter: &'a Gestures,
     pub placement: &'a Placement,
     /// What the stroke thread published last.
     pub status: &'a Status,

@@ -6,7 +6,7 @@
 
 use octopaint_tree::trace::{Mode, Shape};
 
-use crate::paint::{PALETTE, Page, Painter};
+use crate::gestures::{Gestures, PALETTE, Page};
 
 pub struct Status<'a> {
     /// The heavy-operation indicator, when the stroke thread has been busy
@@ -16,7 +16,7 @@ pub struct Status<'a> {
     pub cells: u32,
     pub capacity: u32,
     pub bytes: usize,
-    pub painter: &'a Painter,
+    pub painter: &'a Gestures,
     /// Canvas units in one metre of the room (the zoom), the depth the
     /// brush paints at and that depth's cell edge (canvas units).
     pub canvas_per_metre: f64,

@@ -11,12 +11,12 @@
 use openxr as xr;
 
 mod frame;
+pub mod gestures;
+pub mod headset;
 pub mod hud;
 pub mod input;
-pub mod paint;
 pub mod placement;
 pub mod platform;
-pub mod session;
 mod setup;
 
 /// An OpenXR pose (f32, room metres) as a position and a unit rotation in

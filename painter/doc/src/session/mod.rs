@@ -494,7 +494,7 @@ impl Session {
     }
 
     /// [`Session::apply`] for a `sample` event whose levels the caller runs
-    /// (`Painting::step` on `doc.stroke_painting()`, the real-time pipeline
+    /// (`Painting::advance` on `doc.stroke_painting()`, the real-time pipeline
     /// publishing between them): checked and recorded as `apply` records
     /// it, then begun. Ok(false): the stroke paints nothing (its layer
     /// was locked), so no level follows. The caller runs every level

@@ -47,7 +47,7 @@ impl Layer {
 
 /// A layer's settings as a layer operation's undo step restores them.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Row {
+pub struct LayerRow {
     pub id: u32,
     pub name: String,
     pub visible: bool,
@@ -58,27 +58,27 @@ pub struct Row {
 /// The list of layers (bottom first) and the selection, as a layer
 /// operation's undo step restores them.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Settings {
-    pub rows: Vec<Row>,
+pub struct LayerList {
+    pub rows: Vec<LayerRow>,
     pub selected: usize,
 }
 
 /// One step of a document's history (spec 14.3).
 #[derive(Clone)]
-pub enum Step {
+pub enum DocumentStep {
     /// A stroke on the layer of this id (its own undo step is the newest
     /// of that layer's history).
     Stroke(u32),
     /// A layer operation: the settings before and after it.
-    Layers(Box<(Settings, Settings)>),
+    Layers(Box<(LayerList, LayerList)>),
 }
 
-impl Step {
+impl DocumentStep {
     /// The layer ids the step refers to.
     pub fn ids(&self) -> Vec<u32> {
         match self {
-            Step::Stroke(id) => vec![*id],
-            Step::Layers(b) => b.0.rows.iter().chain(b.1.rows.iter()).map(|r| r.id).collect(),
+            DocumentStep::Stroke(id) => vec![*id],
+            DocumentStep::Layers(b) => b.0.rows.iter().chain(b.1.rows.iter()).map(|r| r.id).collect(),
         }
     }
 }
@@ -93,8 +93,8 @@ pub struct Document {
     order: Vec<u32>,
     selected: usize,
     next_id: u32,
-    done: Vec<Step>,
-    undone: Vec<Step>,
+    done: Vec<DocumentStep>,
+    undone: Vec<DocumentStep>,
     painting_on: Option<u32>,
     /// Warnings in the order they happened (the replay prints them).
     pub warnings: Vec<String>,
@@ -121,8 +121,8 @@ impl Document {
     /// A document of one layer holding `painting` (a one-tree document,
     /// or a version 1 trace), its strokes the document's history.
     pub fn from_painting(canvas: &Canvas, painting: Painting) -> Document {
-        let done = (0..painting.history.done.len()).map(|_| Step::Stroke(0)).collect();
-        let undone = (0..painting.history.undone.len()).map(|_| Step::Stroke(0)).collect();
+        let done = (0..painting.history.done.len()).map(|_| DocumentStep::Stroke(0)).collect();
+        let undone = (0..painting.history.undone.len()).map(|_| DocumentStep::Stroke(0)).collect();
         let mut arena = BTreeMap::new();
         arena.insert(0, Layer::new(FIRST_NAME, painting));
         Document { canvas: *canvas, arena, order: vec![0], selected: 0, next_id: 1, done, undone, painting_on: None, warnings: Vec::new() }
@@ -255,7 +255,7 @@ impl Document {
     }
 
     /// Start a sample of the open stroke, its levels to follow with
-    /// `Painting::step` on [`Document::stroke_painting`] (the real-time
+    /// `Painting::advance` on [`Document::stroke_painting`] (the real-time
     /// pipeline publishes between them); false when no stroke is open or
     /// it was skipped (nothing to step).
     pub fn begin_sample(&mut self, sample: &Sample, line: usize) -> bool {
@@ -273,7 +273,7 @@ impl Document {
     pub fn end_stroke(&mut self) {
         if let Some(id) = self.painting_on.take() {
             self.arena.get_mut(&id).expect("listed").painting.end_stroke();
-            self.done.push(Step::Stroke(id));
+            self.done.push(DocumentStep::Stroke(id));
         }
     }
 
@@ -283,7 +283,7 @@ impl Document {
     pub fn import_voxels(&mut self, vs: &crate::voxels::VoxelSet, line: usize) -> bool {
         let Some(id) = self.ready_to_paint(line, "import") else { return false };
         self.arena.get_mut(&id).expect("listed").painting.import_voxels(vs, line);
-        self.done.push(Step::Stroke(id));
+        self.done.push(DocumentStep::Stroke(id));
         true
     }
 
@@ -313,7 +313,7 @@ impl Document {
         trial.warnings.truncate(warned);
         self.drop_redo();
         self.arena.get_mut(&id).expect("listed").painting = trial;
-        self.done.push(Step::Stroke(id));
+        self.done.push(DocumentStep::Stroke(id));
         Ok(())
     }
 
@@ -348,7 +348,7 @@ impl Document {
     pub fn trim_to(&mut self, max_bytes: usize) -> usize {
         let mut dropped = 0;
         while self.history_bytes() > max_bytes && self.done.len() > 1 {
-            if let Step::Stroke(id) = self.done.remove(0)
+            if let DocumentStep::Stroke(id) = self.done.remove(0)
                 && let Some(l) = self.arena.get_mut(&id)
                 && !l.painting.history.done.is_empty()
             {
@@ -367,7 +367,7 @@ impl Document {
     /// The parts a saved document keeps: every layer by id (those undo
     /// still needs included), the list, the selection, the next id and the
     /// history.
-    pub fn parts(&self) -> (impl Iterator<Item = (u32, &Layer)> + '_, &[u32], usize, u32, &[Step], &[Step]) {
+    pub fn parts(&self) -> (impl Iterator<Item = (u32, &Layer)> + '_, &[u32], usize, u32, &[DocumentStep], &[DocumentStep]) {
         (self.arena.iter().map(|(id, l)| (*id, l)), &self.order, self.selected, self.next_id, &self.done, &self.undone)
     }
 
@@ -383,8 +383,8 @@ impl Document {
         order: Vec<u32>,
         selected: usize,
         next_id: u32,
-        done: Vec<Step>,
-        undone: Vec<Step>,
+        done: Vec<DocumentStep>,
+        undone: Vec<DocumentStep>,
     ) -> Result<Document, String> {
         let mut arena = BTreeMap::new();
         for (id, l) in layers {
@@ -407,7 +407,7 @@ impl Document {
         if selected >= order.len() {
             return Err(format!("the selection {selected} is past the {} layers", order.len()));
         }
-        let check_rows = |s: &Settings| -> Result<(), String> {
+        let check_rows = |s: &LayerList| -> Result<(), String> {
             if s.rows.is_empty() || s.rows.len() > MAX_LAYERS || s.selected >= s.rows.len() {
                 return Err("a layer step has an impossible list".into());
             }
@@ -424,14 +424,14 @@ impl Document {
         let mut strokes: BTreeMap<u32, (usize, usize)> = BTreeMap::new();
         for (k, s) in done.iter().chain(&undone).enumerate() {
             match s {
-                Step::Stroke(id) => {
+                DocumentStep::Stroke(id) => {
                     if !arena.contains_key(id) {
                         return Err(format!("step {k} paints layer {id}, which is missing"));
                     }
                     let e = strokes.entry(*id).or_default();
                     if k < done.len() { e.0 += 1 } else { e.1 += 1 }
                 }
-                Step::Layers(b) => {
+                DocumentStep::Layers(b) => {
                     check_rows(&b.0)?;
                     check_rows(&b.1)?;
                 }

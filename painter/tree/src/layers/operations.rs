@@ -2,7 +2,7 @@
 //! redo over strokes and layer operations, each operation applied under the
 //! rules of octopaint-model's `layer_rules`, and merge down.
 
-use super::{Document, Layer, Row, Settings, Step, check_op, placed};
+use super::{Document, DocumentStep, Layer, LayerList, LayerRow, check_op, placed};
 use crate::clean::clean;
 use crate::paint::Painting;
 use crate::pool::{FREE, NONE, Tree};
@@ -10,20 +10,20 @@ use crate::trace::{LayerOp, LayerOpKind};
 
 impl Document {
     /// The list of layers and the selection, as an undo step keeps them.
-    fn settings(&self) -> Settings {
+    fn settings(&self) -> LayerList {
         let rows = self
             .order
             .iter()
             .map(|&id| {
                 let l = &self.arena[&id];
-                Row { id, name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }
+                LayerRow { id, name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }
             })
             .collect();
-        Settings { rows, selected: self.selected }
+        LayerList { rows, selected: self.selected }
     }
 
     /// Put back a list of layers and the selection an undo step kept.
-    fn restore(&mut self, s: &Settings) {
+    fn restore(&mut self, s: &LayerList) {
         self.order = s.rows.iter().map(|r| r.id).collect();
         for r in &s.rows {
             let l = self.arena.get_mut(&r.id).expect("a step's layers stay in the arena");
@@ -39,10 +39,10 @@ impl Document {
     pub fn undo(&mut self) -> bool {
         let Some(step) = self.done.pop() else { return false };
         match &step {
-            Step::Stroke(id) => {
+            DocumentStep::Stroke(id) => {
                 self.arena.get_mut(id).expect("listed").painting.undo();
             }
-            Step::Layers(b) => self.restore(&b.0),
+            DocumentStep::Layers(b) => self.restore(&b.0),
         }
         self.undone.push(step);
         true
@@ -52,10 +52,10 @@ impl Document {
     pub fn redo(&mut self) -> bool {
         let Some(step) = self.undone.pop() else { return false };
         match &step {
-            Step::Stroke(id) => {
+            DocumentStep::Stroke(id) => {
                 self.arena.get_mut(id).expect("listed").painting.redo();
             }
-            Step::Layers(b) => self.restore(&b.1),
+            DocumentStep::Layers(b) => self.restore(&b.1),
         }
         self.done.push(step);
         true
@@ -142,7 +142,7 @@ impl Document {
         }
         self.selected = sel;
         let after = self.settings();
-        self.done.push(Step::Layers(Box::new((before, after))));
+        self.done.push(DocumentStep::Layers(Box::new((before, after))));
         true
     }
 }

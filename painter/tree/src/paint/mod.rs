@@ -14,7 +14,7 @@
 //! | mod.rs | a stroke's state and slots, the levels of a sample, stroke end, undo | `Stroke`, `begin_stroke` .. `redo` |
 //! | blend.rs | what a cell stores at a stroke maximum (spec 8.5, rounded by spec 5) | `_apply` |
 //! | pass.rs | level 0: the paint pass, serial or split across threads | `_process_segment`, `_evaluate` |
-//! | runs.rs | one run of the paint pass, the only unsafe code (in-place writes) | `_evaluate` |
+//! | runs.rs | one run of the paint pass, its only unsafe code (in-place writes) | `_evaluate` |
 //! | walks.rs | what a pass walks with (a capsule, a stamp, a segment), reach and stroke maxima | `_reach`, `_reach_stamps`, `_reach_one_capsule` |
 //! | refine.rs | refinement rounds and a round's new children | `_round`, `_paint_new_cells` |
 //! | settle.rs | the settled-leaf test (spec 8.7) | `_settled` |
@@ -252,11 +252,11 @@ impl Painting {
     /// Process one sample completely (all levels).
     pub fn add_sample(&mut self, sample: &Sample, line: usize) {
         self.begin_sample(sample, line);
-        while !self.step_level() {}
+        while !self.advance_level() {}
     }
 
     /// Start a sample: pickup, then the segment's primitives (spec 8.10
-    /// steps 1-2). The levels follow with [`Painting::step_level`].
+    /// steps 1-2). The levels follow with [`Painting::advance_level`].
     pub fn begin_sample(&mut self, sample: &Sample, line: usize) {
         assert!(self.work.is_none(), "the previous sample is not finished");
         let tree = &self.tree;
@@ -281,8 +281,8 @@ impl Painting {
 
     /// Run one level of the current sample. Returns true when the sample is
     /// finished (also when there was nothing to do).
-    pub fn step_level(&mut self) -> bool {
-        self.step(None)
+    pub fn advance_level(&mut self) -> bool {
+        self.advance(None)
     }
 
     /// One step of the current sample: the paint pass, or a round of
@@ -291,7 +291,7 @@ impl Painting {
     /// steps publish sooner (the real-time pipeline's aggressive staging);
     /// the tree is 2:1 balanced after every step, and the final tree is the
     /// same for any step size. Returns true when the sample is finished.
-    pub fn step(&mut self, max_units: Option<usize>) -> bool {
+    pub fn advance(&mut self, max_units: Option<usize>) -> bool {
         let Some(mut work) = self.work.take() else { return true };
         let t0 = std::time::Instant::now();
         let more = match std::mem::replace(&mut work.stage, Stage::PaintPass) {

@@ -33,7 +33,7 @@ pub const PALETTE: [[f64; 3]; 8] =
     [[0.92, 0.45, 0.15], [0.85, 0.15, 0.15], [0.95, 0.85, 0.25], [0.25, 0.65, 0.3], [0.2, 0.45, 0.9], [0.55, 0.3, 0.75], [0.95, 0.95, 0.95], [0.08, 0.08, 0.1]];
 
 /// What the controllers are doing to the painting and the canvas.
-pub struct Painter {
+pub struct Gestures {
     /// Brush radius in the room, metres (the canvas radius follows the zoom).
     pub room_radius: f64,
     pub colour: usize,
@@ -94,9 +94,9 @@ enum Grab {
     },
 }
 
-impl Default for Painter {
+impl Default for Gestures {
     fn default() -> Self {
-        Painter {
+        Gestures {
             room_radius: 0.01,
             colour: 0,
             shape: 0,
@@ -121,7 +121,7 @@ fn yaw(v: DVec3) -> f64 {
     v.x.atan2(-v.z)
 }
 
-impl Painter {
+impl Gestures {
     /// Whether the view is lit, and whether it shows the ground grid.
     pub fn lit_and_grid(&self) -> (bool, bool) {
         VIEWS[self.view]

@@ -26,7 +26,7 @@ use openxr as xr;
 
 use crate::XrError;
 use crate::frame::{Drawer, Scene, write_side_by_side};
-use crate::paint::Live;
+use crate::gestures::Live;
 use crate::placement::{Bounds, Placement, head_of};
 use crate::setup::{VIEW_TYPE, other, xr_call};
 
@@ -120,7 +120,7 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     let configs = xr_call("reading the views", xr_instance.enumerate_view_configuration_views(system, VIEW_TYPE))?;
     let size = [configs[0].recommended_image_rect_width, configs[0].recommended_image_rect_height];
     let eyes = crate::setup::Eyes::create(&session, &renderer.gpu, size)?;
-    let mut painter = crate::paint::Painter::default();
+    let mut painter = crate::gestures::Gestures::default();
     if let Some(m) = doc.mirror() {
         painter.mirror = m;
     }
@@ -228,7 +228,7 @@ struct Loop<'a> {
     xr_instance: &'a xr::Instance,
     blend: xr::EnvironmentBlendMode,
     script: Option<crate::input::Script>,
-    painter: crate::paint::Painter,
+    painter: crate::gestures::Gestures,
     /// What the stroke thread published last.
     status: octopaint_pipeline::Status,
     bounds: Bounds,
