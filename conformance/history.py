@@ -8,7 +8,6 @@ from __future__ import annotations
 import subprocess
 
 import numpy as np
-
 from octopaint_ref.replay import replay
 from octopaint_ref.trace import read_trace
 

@@ -449,7 +449,7 @@ def npy(descr: str, shape: tuple, fmt: str, values) -> bytes:
     """One .npy (format 1.0) without numpy: the header dict padded so the data
     starts at a multiple of 64 bytes, then the values little-endian."""
     shp = "(" + "".join(f"{n}, " for n in shape)[:-2] + ("," if len(shape) == 1 else "") + ")" if shape else "()"
-    head = "{'descr': '%s', 'fortran_order': False, 'shape': %s, }" % (descr, shp)
+    head = f"{{'descr': '{descr}', 'fortran_order': False, 'shape': {shp}, }}"
     pad = 64 - (10 + len(head) + 1) % 64
     head = head + " " * (pad % 64) + "\n"
     return b"\x93NUMPY\x01\x00" + struct.pack("<H", len(head)) + head.encode() + struct.pack("<" + fmt * len(values), *values)
@@ -493,7 +493,7 @@ def ball_voxels(depth: int, centre, radius: float, root_size: float, colour):
 IMPORT_FILES: dict[str, bytes] = {}
 
 
-def import_event(w: "Writer", folder_file: str, data: bytes, dt=0.1, **kw) -> None:
+def import_event(w: Writer, folder_file: str, data: bytes, dt=0.1, **kw) -> None:
     IMPORT_FILES[folder_file] = data
     w.ev("import", dt, file=folder_file, sha256=hashlib.sha256(data).hexdigest(), **kw)
 

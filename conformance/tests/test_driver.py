@@ -7,12 +7,11 @@ import stat
 import subprocess
 import sys
 
-import numpy as np
-from PIL import Image
-
 import dumps
 import images
+import numpy as np
 import readers
+from PIL import Image
 
 CONFORMANCE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 REPO = os.path.dirname(CONFORMANCE)

@@ -26,7 +26,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import REPO
 
 SYSTEM_PYTHON = "/usr/bin/python3"
@@ -355,9 +354,8 @@ def test_a_document_exports_one_pair_of_grids_node_and_prim_per_layer(openvdb, p
     equal voxel for voxel to the reference's export of that layer's tree;
     one glTF node, one OBJ object and one USD Xform (with its Volume and
     Surface) per layer; --layers picks layers by name."""
-    from pxr import Usd, UsdVol
-
     from octopaint_ref.dump import dump_bytes, layer_trees, load_dump
+    from pxr import Usd, UsdVol
 
     trace = os.path.join(TRACES, "layers.jsonl")
     r = run([painter, "replay", trace, "--out", str(tmp_path / "replay"), "--renderer", "none", "--quiet"])

@@ -43,9 +43,8 @@ import subprocess
 from pathlib import Path
 from typing import NamedTuple
 
-import pytest
-
 import fuzz_seeds
+import pytest
 
 # The session: strokes, an undo, a redo, mirror planes on a small canvas
 # (fuzz_seeds.journal_trace), so that its document is small and each of

@@ -40,7 +40,7 @@ def test_every_target_runs_its_seeds_and_variants_without_a_panic(painter, tmp_p
     assert r.returncode == 0, (r.stdout, r.stderr[-4000:])
     lines = {line.split()[0]: line for line in r.stdout.splitlines() if line.strip()}
     assert set(lines) == set(fuzz_seeds.TARGETS), r.stdout
-    for name, line in lines.items():
+    for line in lines.values():
         m = re.search(r"(\d+) seeds, (\d+) inputs, (\d+) panics", line)
         assert m and int(m.group(2)) == int(m.group(1)) + RUNS and m.group(3) == "0", line
     assert not (tmp_path / "crashes").exists()

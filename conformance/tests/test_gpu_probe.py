@@ -16,7 +16,6 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from octopaint_ref import gpu_probe as G
 from octopaint_ref import precision as P
 from octopaint_ref.dump import dump_bytes, load_dump, write_atomic

@@ -23,12 +23,10 @@ import os
 import zipfile
 
 import numpy as np
+import readers
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from octopaint_ref.voxelset import write_bytes
-
-import readers
 
 CANVAS = {"roots": [2, 1, 1], "max_depth": 5, "root_size": 1.0, "capacity": 65536}
 # Valid values more often than not, so that both verdicts come up.

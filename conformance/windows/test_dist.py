@@ -7,13 +7,10 @@ from __future__ import annotations
 
 import os
 import re
-import subprocess
 import tarfile
 import zipfile
 
-import pytest
-
-from conftest import LINUX, REPO, WINE, Program
+from conftest import REPO, WINE, Program
 
 with open(os.path.join(REPO, "painter", "Cargo.toml")) as f:
     VERSION = re.search(r'^version = "([^"]+)"$', f.read(), re.M).group(1)

@@ -16,7 +16,6 @@ import threading
 
 import numpy as np
 import pytest
-
 from conftest import REPO, Program, windows_path
 from images import compare
 

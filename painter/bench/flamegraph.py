@@ -41,7 +41,7 @@ def _group(text):
     """A top-level <...> of a path: `<impl a::T>` is T, `<a::A as b::B>` is
     `A as B`, anything else loses its generics."""
     text = text.strip()
-    last = lambda p: _plain(p).strip().rstrip(":").split("::")[-1]  # noqa: E731
+    last = lambda p: _plain(p).strip().rstrip(":").split("::")[-1]
     if text.startswith("impl "):
         return last(text[5:])
     if " as " in text:
@@ -144,10 +144,10 @@ def render(counts, title):
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{WIDTH}" height="{height}" '
         f'font-family="monospace" font-size="{FONT}">',
-        f'<rect width="100%" height="100%" fill="#fafafa"/>',
+        '<rect width="100%" height="100%" fill="#fafafa"/>',
         f'<text x="{WIDTH / 2}" y="{ROW}" text-anchor="middle" font-size="{FONT + 3}">{html.escape(title)} ({total} samples)</text>',
     ]
-    chars = lambda w: int((w - 4) / (FONT * 0.6))  # noqa: E731
+    chars = lambda w: int((w - 4) / (FONT * 0.6))
     for x, level, w, name, n in boxes:
         y = height - (level + 2) * ROW
         tip = f"{name}: {n} samples, {100 * n / total:.1f}%"

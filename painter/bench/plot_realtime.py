@@ -9,14 +9,14 @@ distribution of the default configuration.
 from __future__ import annotations
 
 import json
-import textwrap
 import os
 import sys
+import textwrap
 
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 
 def series(ax, runs, title):
@@ -37,7 +37,7 @@ def main() -> int:
         doc = json.load(f)
     runs = doc["runs"]
     os.makedirs(out, exist_ok=True)
-    by = lambda g: [r for r in runs if r["group"] == g]  # noqa: E731
+    by = lambda g: [r for r in runs if r["group"] == g]
     note = f"{doc['adapter']}, {doc['image'][0]}x{doc['image'][1]}"
 
     if by("fig8a"):

@@ -21,7 +21,6 @@ import time
 import jax
 import jax.numpy as jnp
 import numpy as np
-
 from octopaint_ref import raycast
 from octopaint_ref.camera import orbit_camera
 from octopaint_ref.diffpaint import stroke_values

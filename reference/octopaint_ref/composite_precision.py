@@ -185,7 +185,7 @@ def adversarial_media() -> dict:
     """Named sets of rays [R, K] of optical depths and colours: the extremes
     of sigma (1e-5 .. 1e5 per canvas unit) and of segment length that a
     40 km canvas with 0.3 mm cells holds."""
-    rng_u = lambda i: ((np.arange(i) * 0x9E3779B9 + 0x7F4A7C15) % 2**32) / 2**32  # noqa: E731
+    rng_u = lambda i: ((np.arange(i) * 0x9E3779B9 + 0x7F4A7C15) % 2**32) / 2**32
     media = {}
     # A haze: 4,096 thin segments of the same small depth (a long ray
     # through a translucent fog of fine cells), total depth 0.41.

@@ -102,7 +102,7 @@ def model_apply(state: tuple, op: LayerOp) -> tuple:
     i = names.index(op.layer) if op.layer is not None else None
     order, new_sel = _placed(len(names), sel, op, i)
     out_n, out_l = [], []
-    for k, j in enumerate(order):
+    for j in order:
         if j is None:
             out_n.append(op.name)
             out_l.append(False)

@@ -2,7 +2,8 @@
 history for strokes and layer operations, merge down, and the dump of a
 document. The trace reader follows the same operations through a model of
 the names, locks and selection (`check_op`, `model_apply`), so both use the
-rules written here once. Painter twin: painter/tree/src/layers.rs.
+rules written once. Painter twin: painter/tree/src/layers/ (the rules:
+painter/model/src/layer_rules.rs).
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import numpy as np
 
 from .clean import clean
 from .dump import LAYER_ARRAYS, tree_arrays
-from .paint import Painting
 from .layer_rules import FIRST_NAME, NAME_BYTES, LayerOp, _placed, check_op
+from .paint import Painting
 from .tree import FREE, NONE
 
 F32_MAX = 3.4028234663852886e38

@@ -46,12 +46,12 @@ def study(traces=("lit.jsonl", "scene.jsonl"), precisions=("f16", "f32")) -> lis
 
         def after(ev, painting, name=name):
             if ev.kind in ("camera", "light"):
-                state[ev.kind] = ev.value
-            if ev.kind != "render" or state["light"] is None or not state["light"].on:
+                state[ev.kind] = ev.value  # noqa: B023 (called in this iteration only)
+            if ev.kind != "render" or state["light"] is None or not state["light"].on:  # noqa: B023 (called in this iteration only)
                 return
             arrays = tree_arrays(painting.tree)
             dev = device_tree(arrays)
-            cam, light = state["camera"], state["light"]
+            cam, light = state["camera"], state["light"]  # noqa: B023 (called in this iteration only)
             ref = {kind: render(arrays, cam, "f64", device=dev, light=lt).image for kind, lt in (("lit", light), ("unlit", None))}
             for prec in precisions:
                 row = {"trace": name, "render": ev.value, "shadows": light.shadows, "precision": prec}

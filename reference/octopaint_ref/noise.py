@@ -67,7 +67,7 @@ def perlin(xp, perm, p):
     B = perm[X + 1] + Y
     BA = perm[B] + Z
     BB = perm[B + 1] + Z
-    g = lambda h, a, b, c: _grad(xp, perm[h], a, b, c)  # noqa: E731
+    g = lambda h, a, b, c: _grad(xp, perm[h], a, b, c)
     return _lerp(
         w,
         _lerp(v, _lerp(u, g(AA, x, y, z), g(BA, x - 1, y, z)), _lerp(u, g(AB, x, y - 1, z), g(BB, x - 1, y - 1, z))),

@@ -231,7 +231,7 @@ def fig11_choices(arrays, rays: Ray, m: dict) -> list[dict]:
     _, first = np.unique(m["ray"][painted], return_index=True)
     at_paint = m["angle"][painted[first]]
     fine = m["angle"][m["edge"] / m["step_length"] <= 1.0 / 64]
-    top = lambda x: float(x.max()) if x.size else float("nan")  # noqa: E731
+    top = lambda x: float(x.max()) if x.size else float("nan")
     return [
         {"key": "ours", "choice": "ours: max over rays of the final exit point, from the exact eye, against the f32 direction", "rad": float(final.max())},
         {"key": "exact_direction", "choice": "the same against the exact (unrounded) pixel direction", "rad": float(exact_dir.max())},
@@ -306,7 +306,7 @@ def run_study(out: str, quick: bool = False) -> dict:
 
     t0 = time.perf_counter()
     os.makedirs(out, exist_ok=True)
-    log = lambda *a: print(f"[{time.perf_counter() - t0:6.1f} s]", *a, file=sys.stderr, flush=True)  # noqa: E731
+    log = lambda *a: print(f"[{time.perf_counter() - t0:6.1f} s]", *a, file=sys.stderr, flush=True)
     arrays = build_scene(paint=True)
     log(f"scene: {int((arrays['depth'] != 255).sum())} cells, depth {int(arrays['depth'][arrays['depth'] != 255].max())}")
     results: dict = {"cells": int((arrays["depth"] != 255).sum())}

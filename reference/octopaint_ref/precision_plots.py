@@ -6,10 +6,10 @@ from __future__ import annotations
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from . import ray_error as RE  # noqa: E402
+from . import ray_error as RE
 
 PRECISIONS = ("f16", "f32", "f64")
 FRAMES = ("local", "world")

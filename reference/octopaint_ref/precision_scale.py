@@ -92,7 +92,8 @@ class Tracer:
 
     def __init__(self, precision: str, frame: str, depth: int, capacity: int, native: bool = False):
         import jax
-        from jax.sharding import Mesh, PartitionSpec as P
+        from jax.sharding import Mesh
+        from jax.sharding import PartitionSpec as P
 
         from . import precision as PR
         from .arith import FORMATS, format_of
@@ -112,7 +113,7 @@ class Tracer:
         def local(tree, eye, frac, dirs):
             rays = Ray(eye, frac, dirs)
             bg = jax.numpy.zeros(3)
-            one = lambda ray: trace_ray(tree, setup, ray, bg, np.uint64(0), last_only=True)  # noqa: E731
+            one = lambda ray: trace_ray(tree, setup, ray, bg, np.uint64(0), last_only=True)
             return jax.vmap(one)(rays)
 
         spec = P("rays")
@@ -137,7 +138,7 @@ class Tracer:
         steps = np.asarray(s.steps)[:count]
         if (steps >= self.setup.max_steps).any():
             raise RuntimeError(f"rays {first}..{first + count - 1}: a ray reached --capacity {self.setup.max_steps} cells")
-        pick = lambda a: np.asarray(a)[:count, 0]  # noqa: E731  (the last step's row)
+        pick = lambda a: np.asarray(a)[:count, 0]
         w = PR.offsets(self.frame, self.canvas, pick(rec.origin), pick(rec.depth), pick(rec.p_exit), rays.eye_lattice, rays.frac)
         fmt_dirs = dirs.astype(PR.FORMATS[self.precision].numpy_dtype).astype(np.float64)
         angle, length = RE.angles(w, fmt_dirs)

@@ -495,7 +495,7 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_
 @partial(jax.jit, static_argnums=(1,))
 def trace_rays(tree: DeviceTree, setup: Setup, rays: Ray, background, guard, lighting=None):
     """trace_ray over R rays (vmap): (State [R], Record [R, K] or None)."""
-    one = lambda t, r, b, g, li: trace_ray(t, setup, r, b, g, lighting=li)  # noqa: E731
+    one = lambda t, r, b, g, li: trace_ray(t, setup, r, b, g, lighting=li)
     return jax.vmap(one, in_axes=(None, 0, None, None, None))(tree, rays, background, guard, lighting)
 
 
@@ -603,7 +603,7 @@ def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="lo
     parts = []
     for chunk, k in _tiles(rays, tile):
         s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting)
-        parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))
+        parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))  # noqa: B023 (called in this iteration only)
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
 
@@ -618,8 +618,8 @@ def _tiles(rays: Ray, tile: int):
         pad = tile - k
 
         def padded(a, fill):
-            a = np.asarray(a)[sl]
-            return np.concatenate([a, np.broadcast_to(fill, (pad,) + a.shape[1:])]) if pad else a
+            a = np.asarray(a)[sl]  # noqa: B023 (called in this iteration only)
+            return np.concatenate([a, np.broadcast_to(fill, (pad,) + a.shape[1:])]) if pad else a  # noqa: B023 (called in this iteration only)
 
         # Padding rays start far outside the canvas pointing away: they miss.
         chunk = Ray(
@@ -793,7 +793,7 @@ def trace_layers_ray(trees: DeviceTree, setup: Setup, opacity, ray: Ray, backgro
 
 @partial(jax.jit, static_argnums=(1,))
 def trace_layers_rays(trees: DeviceTree, setup: Setup, opacity, rays: Ray, background, guard, lighting=None):
-    one = lambda r: trace_layers_ray(trees, setup, opacity, r, background, guard, lighting)  # noqa: E731
+    one = lambda r: trace_layers_ray(trees, setup, opacity, r, background, guard, lighting)
     return jax.vmap(one)(rays)
 
 

@@ -33,7 +33,7 @@ class Prims:
     def __len__(self) -> int:
         return len(self.colour)
 
-    def take(self, idx) -> "Prims":
+    def take(self, idx) -> Prims:
         return Prims(self.shape, {k: v[idx] for k, v in self.arrays.items()}, self.colour[idx], self.lo[idx], self.hi[idx])
 
 
@@ -67,7 +67,7 @@ class PrimsHistory:
             return
         if self.store is None:
             cap = max(64, 2 * k)
-            grow = lambda a: np.zeros((cap,) + a.shape[1:], a.dtype)  # noqa: E731
+            grow = lambda a: np.zeros((cap,) + a.shape[1:], a.dtype)
             self.store = Prims(p.shape, {n: grow(a) for n, a in p.arrays.items()}, grow(p.colour), grow(p.lo), grow(p.hi))
         elif self.n + k > len(self.store.colour):
             cap = 2 * (self.n + k)

@@ -14,7 +14,6 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from jax import lax
-
 from octopaint_ref.arith import FORMATS, Arith
 
 

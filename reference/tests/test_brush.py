@@ -6,7 +6,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from octopaint_ref import brush as B
 from octopaint_ref.noise import fbm, hash32, perlin, permutation
 
@@ -82,7 +81,7 @@ def test_reach_contains_every_covered_point(shape):
     # A ball of radius h around each reached-out point misses the shape:
     # sample the ball and check the gauge stays >= 1 there.
     out = x[~reach][:200]
-    for d in rng.normal(size=(50, 3)):  # noqa: B007
+    for d in rng.normal(size=(50, 3)):
         d = d / np.linalg.norm(d) * 0.05 * rng.uniform()
         assert np.all(B.stamp_gauge(np, shape, out + d, c, r, rot, aspect) >= 1 - 1e-12)
 
@@ -199,8 +198,8 @@ def test_capsule_reach_is_monotone_for_tapered_segments():
         octants = np.array([[(o >> a) & 1 for a in range(3)] for o in range(8)]) - 0.5
         child = (parent[:, None, :] + octants[None] * (size / 2)).reshape(-1, 3)
         def reach(x, s):
-            dist, _, r = B.capsule_geometry(np, x, p0[None], p1[None], np.array([r0]), np.array([r1]))
-            return (dist - r)[:, 0] <= B.HALF_DIAG * s * k
+            dist, _, r = B.capsule_geometry(np, x, p0[None], p1[None], np.array([r0]), np.array([r1]))  # noqa: B023 (called in this iteration only)
+            return (dist - r)[:, 0] <= B.HALF_DIAG * s * k  # noqa: B023 (called in this iteration only)
         child_in = reach(child, size / 2).reshape(-1, 8).any(axis=1)
         assert np.all(reach(parent, size)[child_in])
 
@@ -214,7 +213,7 @@ def test_stamp_reach_is_monotone(shape):
     parent = rng.uniform(-0.6, 0.6, (5000, 3))
     octants = np.array([[(o >> a) & 1 for a in range(3)] for o in range(8)]) - 0.5
     child = (parent[:, None, :] + octants[None] * (size / 2)).reshape(-1, 3)
-    h = lambda n, s: np.full(n, B.HALF_DIAG * s)  # noqa: E731
+    h = lambda n, s: np.full(n, B.HALF_DIAG * s)
     child_in = B.stamp_reach(np, shape, child, c, r, rot, aspect, h(len(child), size / 2))[:, 0].reshape(-1, 8).any(axis=1)
     assert np.all(B.stamp_reach(np, shape, parent, c, r, rot, aspect, h(len(parent), size))[:, 0][child_in])
 

@@ -6,7 +6,6 @@ a long haze."""
 
 import numpy as np
 import pytest
-
 from octopaint_ref import composite_precision as CP
 from octopaint_ref import precision as PR
 from octopaint_ref.camera import pixel_directions

@@ -4,7 +4,6 @@ iterations on small images; the full runs are in docs/examples)."""
 import os
 import sys
 
-
 EXAMPLES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "examples")
 sys.path.insert(0, EXAMPLES)
 

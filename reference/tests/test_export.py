@@ -17,10 +17,8 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-
 from conftest import TRACES
 from octopaint_ref.cli import main
-from octopaint_ref.trace import TraceError, read_trace
 from octopaint_ref.dump import dump_bytes, load_dump, tree_arrays, write_atomic
 from octopaint_ref.export import (
     ExportError,
@@ -34,6 +32,7 @@ from octopaint_ref.export import (
     srgb_to_linear,
 )
 from octopaint_ref.g3 import g3_from_links
+from octopaint_ref.trace import TraceError, read_trace
 
 NONE = 0xFFFF_FFFF
 
@@ -437,7 +436,7 @@ def test_command_refuses_a_missing_input(tmp_path, capsys):
 def test_command_line_entry_point(hand_dump, tmp_path):
     """The module runs as a program; argparse refuses a bad --colour with 2."""
     out_path = tmp_path / "r.npz"
-    run = lambda *a: subprocess.run([sys.executable, "-m", "octopaint_ref.cli", "export", *a], capture_output=True, text=True)  # noqa: E731
+    run = lambda *a: subprocess.run([sys.executable, "-m", "octopaint_ref.cli", "export", *a], capture_output=True, text=True)
     r = run(str(hand_dump), "--voxels", str(out_path), "--colour", "cmyk")
     assert r.returncode == 2 and "invalid choice: 'cmyk'" in r.stderr and not out_path.exists()
     r = run(str(hand_dump), "--voxels", str(out_path), "--quiet")

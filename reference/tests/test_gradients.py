@@ -6,7 +6,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from octopaint_ref import raycast
 from octopaint_ref.camera import pixel_directions, split_eye
 from octopaint_ref.diffpaint import stroke_values

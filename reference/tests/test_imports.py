@@ -4,7 +4,6 @@ one undo step, independent of the order of the voxels."""
 
 import numpy as np
 import pytest
-
 from octopaint_ref.check import check_arrays
 from octopaint_ref.dump import tree_arrays
 from octopaint_ref.paint import Painting
@@ -144,12 +143,12 @@ def test_the_reader_checks_the_file_and_its_digest(tmp_path):
             raise FileNotFoundError(2, "No such file")
         return files[f]
 
-    ok = parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "%s", "name": "v"}\n' % sha256(data), resolve)
+    ok = parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "' + sha256(data) + '", "name": "v"}\n', resolve)
     (ev,) = ok.events
     assert ev.kind == "import" and ev.value.voxels.depth == 3 and ev.value.name == "v"
     with pytest.raises(TraceError) as e:
-        parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "%s"}\n' % ("0" * 64), resolve)
+        parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "' + "0" * 64 + '"}\n', resolve)
     assert (e.value.line, e.value.kind) == (2, "import")
     with pytest.raises(TraceError) as e:
-        parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "%s"}\n' % sha256(data), None)
+        parse_trace(head + '{"ev": "import", "t": 0, "file": "v.npz", "sha256": "' + sha256(data) + '"}\n', None)
     assert (e.value.line, e.value.kind) == (2, "import")

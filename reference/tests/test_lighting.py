@@ -8,7 +8,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-
 from conftest import TRACES
 from octopaint_ref import raycast
 from octopaint_ref.dump import tree_arrays

@@ -6,11 +6,10 @@ import os
 
 import numpy as np
 import pytest
-
 from conftest import TRACES
+from octopaint_ref.brush import mirrored
 from octopaint_ref.dump import tree_arrays
 from octopaint_ref.replay import replay
-from octopaint_ref.brush import mirrored
 from octopaint_ref.stroke import StrokePath
 from octopaint_ref.trace import Brush, Mirror, Sample, TraceError, parse_trace, read_trace
 

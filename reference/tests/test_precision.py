@@ -4,7 +4,6 @@ error metric it is measured with, against mpmath."""
 import mpmath
 import numpy as np
 import pytest
-
 from octopaint_ref import oracle
 from octopaint_ref import ray_error as RE
 from octopaint_ref.precision import build_scene, eye_split, fig11_choices, measure, rays_from, sphere_directions, within_bound

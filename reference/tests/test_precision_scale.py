@@ -10,7 +10,6 @@ import subprocess
 import sys
 
 import numpy as np
-
 from octopaint_ref.precision_scale import empty_summary, merge, summarise
 
 ARGS = ["--rays", "600", "--shard", "256", "--precision", "f16", "--quiet"]

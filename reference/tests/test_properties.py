@@ -12,7 +12,6 @@ import copy
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from octopaint_ref import brush as B
 from octopaint_ref.check import check_arrays
 from octopaint_ref.clean import collapsible_anywhere
@@ -20,6 +19,7 @@ from octopaint_ref.dump import tree_arrays
 from octopaint_ref.g3 import NONE, g3_from_links
 from octopaint_ref.paint import Painting
 from octopaint_ref.trace import MODES, SHAPES, Brush, Canvas, Noise, Sample
+
 
 def flushed(x):
     return 0.0 if abs(x) < 2.2250738585072014e-308 else x  # as the trace reader reads it
@@ -59,7 +59,7 @@ def strokes(draw):
         # while the pressure (and so the radius) swings.
         p = draw(coord)
         samples = []
-        for i in range(n):
+        for _ in range(n):
             step = draw(st.tuples(*[st.floats(-0.01, 0.01).map(flushed)] * 3))
             p = tuple(p[k] + step[k] for k in range(3))
             samples.append(Sample(p, draw(unit), draw(quat)))
@@ -97,7 +97,7 @@ class Checker:
         assert not problems, problems
         new = g3_of(t)
         k = max(len(new), len(self.g3))
-        pad = lambda g: np.vstack([g, np.full((k - len(g), 3), NONE, np.uint32)])  # noqa: E731
+        pad = lambda g: np.vstack([g, np.full((k - len(g), 3), NONE, np.uint32)])
         changed = set(np.nonzero(np.any(pad(new) != pad(self.g3), axis=1))[0].tolist())
         dirty = set(t.take_dirty().tolist())
         assert changed <= dirty, sorted(changed - dirty)[:10]

@@ -7,8 +7,6 @@ import os
 
 import numpy as np
 import pytest
-from PIL import Image
-
 from conftest import TRACES
 from octopaint_ref import oracle, raycast
 from octopaint_ref.arith import FORMATS
@@ -17,6 +15,7 @@ from octopaint_ref.png import png_bytes, read_png
 from octopaint_ref.precision import build_scene, eye_split, rays_from, sphere_directions
 from octopaint_ref.trace import Camera, read_trace
 from octopaint_ref.tree import Tree
+from PIL import Image
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import TRACES
 from octopaint_ref.check import check_arrays
 from octopaint_ref.dump import layer_trees, load_dump
@@ -43,7 +42,7 @@ def _arrays(out, name):
 
 def test_undo_and_redo_are_byte_identical(replayed):
     out, _ = replayed
-    read = lambda n: open(os.path.join(out, n + ".npz"), "rb").read()  # noqa: E731
+    read = lambda n: open(os.path.join(out, n + ".npz"), "rb").read()
     assert read("undo_redo_undone") == read("undo_redo_a")
     assert read("undo_redo_redone") == read("undo_redo_b")
     assert read("undo_redo_a") != read("undo_redo_b")

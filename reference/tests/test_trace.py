@@ -7,7 +7,6 @@ import subprocess
 import sys
 
 import pytest
-
 from conftest import TRACES
 from octopaint_ref.trace import TraceError, parse_trace, read_trace
 

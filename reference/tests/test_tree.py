@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-
 from octopaint_ref.check import check_arrays
 from octopaint_ref.clean import clean
 from octopaint_ref.dump import tree_arrays
@@ -124,7 +123,7 @@ def test_dirty_cells_cover_every_g3_change():
         m = t.n_used
         after = g3_from_links(t.parent[:m], t.first_child[:m], t.depth[:m], t.roots)
         k = max(n, m)
-        pad = lambda g: np.vstack([g, np.full((k - len(g), 3), NONE, np.uint32)])  # noqa: E731
+        pad = lambda g: np.vstack([g, np.full((k - len(g), 3), NONE, np.uint32)])  # noqa: B023 (called in this iteration only)
         changed = set(np.nonzero(np.any(pad(before) != pad(after), axis=1))[0].tolist())
         dirty = set(t.take_dirty().tolist())
         assert changed <= dirty, sorted(changed - dirty)[:10]

@@ -26,7 +26,7 @@ import sys
 import pyopenvdb as vdb
 
 
-def scattered_float(name: str) -> "vdb.FloatGrid":
+def scattered_float(name: str) -> vdb.FloatGrid:
     """Scattered voxels, a fill (tiles of 128 and 8, partial leaves) and
     nodes whose inactive values take every value-table mode."""
     g = vdb.FloatGrid(background=0.0)
@@ -43,7 +43,7 @@ def scattered_float(name: str) -> "vdb.FloatGrid":
     return g
 
 
-def modes(name: str) -> "vdb.FloatGrid":
+def modes(name: str) -> vdb.FloatGrid:
     """Background 2: leaves whose inactive values are +bg, -bg, one other
     value, -bg and +bg mixed, bg and one other, two others, three others:
     io::writeCompressedValues picks modes 0 to 6 for them."""
@@ -75,7 +75,7 @@ def modes(name: str) -> "vdb.FloatGrid":
     return g
 
 
-def colours(name: str, half: bool) -> "vdb.Vec3SGrid":
+def colours(name: str, half: bool) -> vdb.Vec3SGrid:
     g = vdb.Vec3SGrid()
     g.name = name
     rng = random.Random(11)
