@@ -2,7 +2,10 @@
 #   make demo   set up, replay the scene trace with the reference (images and
 #               tree dumps) and with the painter (tree dumps), compare them,
 #               export the scene's detail to OpenVDB and glTF (out/export)
-#   make test   set up, run every test: the painter's (cargo), the
+#   make check  the fast lane, first in `make test`: formatting (rustfmt),
+#               lints (clippy with warnings denied, ruff), module circles,
+#               the core crates' and the reference's unit tests
+#   make test   set up, run `make check`, then every test: the painter's (cargo), the
 #               reference's and the conformance driver's (pytest),
 #               conformance on every trace, the VR session against
 #               Monado's simulated headset (test-vr), the Windows build
@@ -21,6 +24,9 @@
 # crates.io.
 
 VENV := .venv
+# The Python linter of `make check` (ruff.toml), pinned: a newer ruff may
+# add rules.
+RUFF_VERSION := 0.17.6
 PY := $(VENV)/bin/python
 OUT := out
 PAINTER := painter/target/release/octopaint
@@ -28,7 +34,7 @@ PAINTER := painter/target/release/octopaint
 CARGO := env -u MAKEFLAGS -u MFLAGS -u CARGO_MAKEFLAGS cargo
 export NODEVICE_SELECT := 1
 
-.PHONY: demo test test-lanes check-circles setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-soak bench-export gpu-campaign clean \
+.PHONY: demo test test-lanes check check-circles setup system painter paint test-vr test-painter test-reference test-conformance conformance fuzz fuzz-smoke fuzz-long precision examples bench-gpu bench-realtime bench-soak bench-export gpu-campaign clean \
 	system-windows painter-windows check-macos tools dist test-windows test-windows-package test-windows-crates
 
 setup: system $(VENV)/.installed
@@ -60,6 +66,7 @@ $(VENV)/.installed: reference/pyproject.toml
 	  apt-get update -qq && apt-get install -y -qq python3-venv && python3 -m venv $(VENV); }
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e ./reference
+	$(PY) -m pip install --quiet ruff==$(RUFF_VERSION)
 	@touch $@
 
 # Cargo decides what to rebuild; --locked keeps the dependency versions of Cargo.lock.
@@ -90,12 +97,29 @@ check-circles:
 	python3 painter/tools/test_module_circles.py
 	python3 painter/tools/module_circles.py
 
+# The fast lane: what fails in minutes fails first. rustfmt and clippy come
+# with rustup's default profile; `rustup component add` is for a minimal one.
+# Clippy's allowances are in painter/Cargo.toml ([workspace.lints]), each
+# with its reason. The unit tests: the model, trace and tree crates' own
+# (`--lib`; the tree's integration tests run in test-painter) and the
+# reference's fast files (REFERENCE_UNIT; test-reference runs the rest).
+REFERENCE_UNIT := tests/test_arith.py tests/test_brush.py tests/test_trace.py tests/test_tree.py tests/test_layers.py tests/test_imports.py tests/test_mirror.py
+check: setup check-circles
+	@rustup component list --installed 2>/dev/null | grep -q '^rustfmt' || rustup component add rustfmt
+	@rustup component list --installed 2>/dev/null | grep -q '^clippy' || rustup component add clippy
+	cd painter && cargo fmt --all -- --check
+	cd painter && cargo fmt --manifest-path fuzz/Cargo.toml -- --check
+	$(VENV)/bin/ruff check .
+	$(CARGO) clippy --release --locked --manifest-path painter/Cargo.toml --workspace --all-targets -- -D warnings
+	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml -p octopaint-model -p octopaint-trace -p octopaint-tree --lib
+	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider --durations=10 $(REFERENCE_UNIT)
+
 # The reference's own tests need no painter.
 test-reference: setup
-	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider tests
+	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider --durations=15 tests $(REFERENCE_UNIT:%=--ignore=%)
 
 test-conformance: setup painter
-	$(PY) -m pytest -q -p no:cacheprovider conformance/tests
+	$(PY) -m pytest -q -p no:cacheprovider --durations=15 conformance/tests
 
 conformance: setup painter
 	$(PY) conformance/driver.py --painter $(PAINTER) --report $(OUT)/conformance --require-images
@@ -127,6 +151,7 @@ test-vr: setup painter
 	painter/xr/monado/test.sh $(PY)
 
 test:
+	@$(MAKE) --no-print-directory check
 	@$(MAKE) --no-print-directory -j2 --output-sync=target test-lanes
 
 # Two lanes: `make test` runs two chains of targets at once, one a core on
@@ -144,7 +169,7 @@ test:
 # printed whole when it ends; a failure stops both lanes after their
 # current target. Cargo runs outside make's job server (CARGO above), so a
 # build takes both cores whenever the other lane is idle.
-test-lanes: check-circles test-painter test-reference test-conformance conformance test-vr test-windows check-macos
+test-lanes: test-painter test-reference test-conformance conformance test-vr test-windows check-macos
 ifneq ($(filter test-lanes,$(MAKECMDGOALS)),)
 system-windows: | system
 painter: | system-windows
