@@ -26,6 +26,7 @@ from octopaint_ref.camera import orbit_camera
 from octopaint_ref.diffpaint import stroke_values
 from octopaint_ref.diffrender import composite, record_paths
 from octopaint_ref.dump import tree_arrays, write_atomic
+from octopaint_ref.jax_setup import configure
 from octopaint_ref.optim import adam_init, adam_step
 from octopaint_ref.png import png_bytes
 from octopaint_ref.tree import Tree
@@ -110,6 +111,7 @@ def run(iterations=150, out=None, size=(48, 48), log=print):
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--iterations", type=int, default=150)
     ap.add_argument("--out", default="docs/examples")

@@ -35,12 +35,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 from jax import lax
 
-# f16 and f32 are carried in f64: the package runs with x64 (as brush.py).
-jax.config.update("jax_enable_x64", True)
+# f16 and f32 are carried in f64: the package runs with JAX's 64-bit mode on
+# (jax_setup.py; whoever runs it turns it on).
 
 
 @dataclass(frozen=True)

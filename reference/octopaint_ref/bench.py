@@ -12,11 +12,13 @@ import glob
 import os
 import sys
 
+from .jax_setup import configure
 from .replay import replay
 from .trace import read_trace
 
 
 def main(argv=None) -> int:
+    configure()
     argv = sys.argv[1:] if argv is None else argv
     here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     traces = argv or sorted(glob.glob(os.path.join(here, "traces", "*.jsonl")))

@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from .dump import tree_arrays
+from .jax_setup import configure
 from .raycast import device_tree, render
 from .replay import replay
 from .trace import read_trace
@@ -28,6 +29,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(prog="python -m octopaint_ref.bench_raycast", description=__doc__.split("\n\n")[0])
     ap.add_argument("--trace", default=os.path.join(REPO, "traces", "scene.jsonl"))
     ap.add_argument("--size", type=int, default=256, help="image width and height")

@@ -14,7 +14,6 @@ Shapes of arrays: n cells, k primitives (capsules or stamps).
 from __future__ import annotations
 
 import math
-import os
 from functools import partial
 
 import jax
@@ -22,14 +21,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from . import noise
-
-jax.config.update("jax_enable_x64", True)
-# Compiled kernels are cached on disk so that every replay after the first
-# skips XLA compilation (a few seconds); OCTOPAINT_JAX_CACHE=off disables it.
-_cache = os.environ.get("OCTOPAINT_JAX_CACHE", os.path.expanduser("~/.cache/octopaint_ref/jax"))
-if _cache != "off":
-    jax.config.update("jax_compilation_cache_dir", _cache)
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
 
 HALF_DIAG = 0.8660254037844386  # sqrt(3)/2 as f64: a cell's half-diagonal per unit edge
 CELLS_PER_RADIUS = 10.0

@@ -7,6 +7,7 @@ import sys
 
 from .check import check_arrays
 from .dump import DumpError, layer_trees, load_dump
+from .jax_setup import configure
 from .trace import TraceError, read_trace
 
 
@@ -82,6 +83,7 @@ def _cmd_export(args) -> int:
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(prog="octopaint-ref", description="Octopaint reference implementation")
     sub = ap.add_subparsers(dest="cmd", required=True)
     rp = sub.add_parser("replay", help="replay a trace, writing <name>.npz at snapshots and <name>.png at renders")

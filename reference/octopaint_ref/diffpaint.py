@@ -16,6 +16,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from . import brush as B
+from .jax_setup import require_x64
 
 
 def stroke_values(centres, before_rgb, before_sigma, stroke: dict, hardness: float):
@@ -24,6 +25,7 @@ def stroke_values(centres, before_rgb, before_sigma, stroke: dict, hardness: flo
     cells with centres [n, 3] and before-values rgb [n, 3] (floats in [0, 1])
     and sigma [n]: the stroke maximum over its capsules (the first sample a
     sphere, then one capsule per segment), then the paint blend."""
+    require_x64()
     pts = stroke["points"]
     p0 = jnp.concatenate([pts[:1], pts[:-1]], axis=0)
     p1 = pts

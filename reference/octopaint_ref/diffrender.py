@@ -27,6 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from .jax_setup import require_x64
 from .raycast import LEFT, OVERFLOW, T_MIN, Canvas, DeviceTree, Ray, cast, start_points
 
 
@@ -55,6 +56,7 @@ class PathOverflow(ValueError):
 def record_paths(tree: DeviceTree, canvas: Canvas, rays: Ray, capacity: int = 256) -> Paths:
     """Record each ray's full cell sequence to the canvas boundary (density
     ignored, so the sequence does not depend on the values being fitted)."""
+    require_x64()
     blind = tree._replace(sigma=jnp.zeros_like(tree.sigma))
     s, rec = cast(blind, canvas, rays, "f64", "local", max_steps=capacity, record=capacity)
     if np.any(s.status == OVERFLOW):
@@ -93,7 +95,7 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, sh
         axis = jnp.asarray(paths.axis)[:, k]
         cell = jnp.asarray(paths.cell)[:, k]
         depth = jnp.asarray(paths.depth)[:, k]
-        on_axis = jnp.arange(3)[None, :] == axis[:, None]
+        on_axis = jnp.arange(3, dtype=axis.dtype)[None, :] == axis[:, None]
         d_axis = jnp.sum(jnp.where(on_axis, d, 0.0), axis=1)
         p_axis = jnp.sum(jnp.where(on_axis, p, 0.0), axis=1)
         bound = jnp.where(d_axis > 0, 0.5, -0.5)
@@ -109,6 +111,6 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, sh
         return (p_next, colour, trans), None
 
     r = d.shape[0]
-    (p, colour, trans), _ = lax.scan(step, (p0, jnp.zeros((r, 3)), jnp.ones(r)), jnp.arange(K))
+    (p, colour, trans), _ = lax.scan(step, (p0, jnp.zeros((r, 3)), jnp.ones(r)), jnp.arange(K, dtype=steps.dtype))
     return colour + trans[:, None] * jnp.asarray(background)[None, :]
 

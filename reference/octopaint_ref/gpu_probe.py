@@ -43,6 +43,7 @@ from . import ray_error as RE
 from .arith import FORMATS
 from .camera import split_eye
 from .dump import dump_bytes, load_dump, write_atomic
+from .jax_setup import configure
 from .oracle import exact_path
 from .raycast import LEFT, OPAQUE, OVERFLOW, STATUS_NAMES, Ray, cast, device_tree, start_points
 
@@ -261,6 +262,7 @@ def command(a) -> int:
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(prog="octopaint-ref gpu-probe", description=__doc__.split("\n\n")[0])
     add_arguments(ap)
     return command(ap.parse_args(argv))

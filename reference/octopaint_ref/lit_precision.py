@@ -25,6 +25,7 @@ import sys
 import numpy as np
 
 from .dump import tree_arrays
+from .jax_setup import configure
 from .precision import psnr
 from .raycast import device_tree, render
 from .replay import replay
@@ -92,6 +93,7 @@ def command(a) -> int:
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(prog="octopaint-ref lit-precision", description=__doc__.split("\n\n")[0])
     add_arguments(ap)
     return command(ap.parse_args(argv))

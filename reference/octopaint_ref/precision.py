@@ -27,6 +27,7 @@ from . import ray_error as RE
 from .arith import FORMATS
 from .camera import look_at, split_eye
 from .dump import tree_arrays
+from .jax_setup import configure
 from .oracle import exact_path
 from .paint import Painting
 from .raycast import OVERFLOW, Ray, cast, device_tree, render, start_points
@@ -499,6 +500,7 @@ def tables(r: dict) -> str:
 
 
 def main(argv=None) -> int:
+    configure()
     ap = argparse.ArgumentParser(prog="python -m octopaint_ref.precision", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default="docs/precision", help="folder for the figures and tables")
     ap.add_argument("--quick", action="store_true", help="a small run (about a minute)")

@@ -256,6 +256,9 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def main(argv=None) -> int:
+    from .jax_setup import configure  # JAX is imported where it is used, as below
+
+    configure()
     ap = argparse.ArgumentParser(prog="octopaint-ref precision", description=__doc__.split("\n\n")[0])
     add_arguments(ap)
     return command(ap.parse_args(argv))

@@ -34,6 +34,7 @@ from jax import lax
 from .arith import Arith, Format, format_of
 from .camera import pixel_directions, split_eye
 from .g3 import g3_from_links
+from .jax_setup import require_x64
 
 NONE = 0xFFFF_FFFF
 # Why a ray stopped.
@@ -78,6 +79,7 @@ def _bucket(n: int) -> int:
 def device_tree(arrays: dict) -> tuple[DeviceTree, Canvas]:
     """From tree-dump arrays (dump.tree_arrays or a loaded .npz; g3 is
     recomputed from the links when absent)."""
+    require_x64()
     parent = np.asarray(arrays["parent"], np.uint32)
     first_child = np.asarray(arrays["first_child"], np.uint32)
     depth = np.asarray(arrays["depth"], np.uint8)
@@ -680,6 +682,7 @@ class March(NamedTuple):
 def stack_trees(arrays_list: list) -> tuple[DeviceTree, Canvas]:
     """The DeviceTrees of several layers (dump arrays each), padded to one
     size and stacked along a leading layer axis."""
+    require_x64()
     n = max(len(a["parent"]) for a in arrays_list)
     trees = []
     for a in arrays_list:
