@@ -246,7 +246,7 @@ fn held(c: &dyn Canvas) -> Held {
     let arena: Vec<_> = doc.parts().0.map(|(_, l)| l.tree()).collect();
     Held {
         cells_used: doc.used(),
-        cells_allocated: arena.iter().map(|t| t.parent.capacity() as u64).sum(),
+        cells_allocated: arena.iter().map(|t| t.pool_capacity() as u64).sum(),
         pool_bytes: arena.iter().map(|t| t.pool_bytes_allocated()).sum(),
         undo_bytes: doc.history_bytes(),
         forgotten: c.forgotten(),

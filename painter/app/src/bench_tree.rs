@@ -173,7 +173,7 @@ fn write_strokes(set: &StrokeSet, path: &std::path::Path) -> anyhow::Result<()> 
 }
 
 fn count_cells(t: &Tree) -> (u64, u64) {
-    let live = t.depth.iter().filter(|&&d| d != FREE).count() as u64;
+    let live = t.depth().iter().filter(|&&d| d != FREE).count() as u64;
     let leaves = (0..t.n_used()).filter(|&c| t.is_live(c) && t.is_leaf(c)).count() as u64;
     (live, leaves)
 }
@@ -284,7 +284,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         t.n_used(),
         live,
         leaves,
-        t.depth.iter().filter(|&&d| d != FREE).max().copied().unwrap_or(0),
+        t.depth().iter().filter(|&&d| d != FREE).max().copied().unwrap_or(0),
         Tree::BYTES_PER_CELL,
         t.pool_bytes_allocated() as f64 / n,
         history / n,

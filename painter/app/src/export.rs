@@ -601,9 +601,7 @@ fn chosen_layers(doc: &Document, names: Option<&[String]>) -> Result<Vec<(Option
             let mut tree = l.tree().clone();
             if l.opacity != 1.0 {
                 let o = f64::from(l.opacity);
-                for s in tree.sigma.iter_mut() {
-                    *s = octopaint_tree::brush::quantize_sigma(f64::from(*s) * o);
-                }
+                tree.map_sigma(|s| octopaint_tree::brush::quantize_sigma(f64::from(s) * o));
             }
             (Some(l.name.clone()), tree)
         })

@@ -320,7 +320,10 @@ fn mirror_painting_paints_both_sides_and_records_its_planes() {
     let tree = octopaint_tree::dump::read_dump(&std::fs::read(&dump).unwrap()).unwrap();
     let (mut left, mut right) = (0usize, 0usize);
     for c in 0..tree.n_used() {
-        if tree.depth[c as usize] != octopaint_tree::pool::FREE && tree.first_child[c as usize] == octopaint_tree::pool::NONE && tree.sigma[c as usize] > 0.0 {
+        if tree.depth()[c as usize] != octopaint_tree::pool::FREE
+            && tree.first_child()[c as usize] == octopaint_tree::pool::NONE
+            && tree.sigma()[c as usize] > 0.0
+        {
             if tree.centre(c).x < 0.5 { left += 1 } else { right += 1 }
         }
     }

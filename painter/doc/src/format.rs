@@ -119,17 +119,17 @@ fn pools_bytes(t: &Tree) -> Vec<u8> {
     let n = t.n_used() as usize;
     let mut out = Vec::with_capacity(4 + n * 16);
     put_u32(&mut out, n as u32);
-    for v in &t.parent {
+    for v in t.parent() {
         put_u32(&mut out, *v);
     }
-    for v in &t.first_child {
+    for v in t.first_child() {
         put_u32(&mut out, *v);
     }
-    out.extend_from_slice(&t.depth);
-    for v in &t.rgb {
+    out.extend_from_slice(t.depth());
+    for v in t.rgb() {
         out.extend_from_slice(v);
     }
-    for v in &t.sigma {
+    for v in t.sigma() {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out

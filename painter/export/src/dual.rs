@@ -126,7 +126,7 @@ fn other_axes(a: usize) -> (usize, usize) {
 impl<'a> Walk<'a> {
     fn is_leaf(&self, n: Node) -> bool {
         match n {
-            Node::Cell(c) => self.tree.first_child[c as usize] == NONE || u32::from(self.tree.depth[c as usize]) >= self.opts.depth_cap,
+            Node::Cell(c) => self.tree.first_child()[c as usize] == NONE || u32::from(self.tree.depth()[c as usize]) >= self.opts.depth_cap,
             Node::Virtual { .. } => false,
             Node::Outside { .. } | Node::Void { .. } => true,
         }
@@ -135,7 +135,7 @@ impl<'a> Walk<'a> {
     /// Child octant `k` of a node that is not a leaf.
     fn child(&self, n: Node, k: usize) -> Node {
         match n {
-            Node::Cell(c) => Node::Cell(self.tree.first_child[c as usize] + k as u32),
+            Node::Cell(c) => Node::Cell(self.tree.first_child()[c as usize] + k as u32),
             Node::Virtual { level, at } => {
                 let p = [0, 1, 2].map(|a| 2 * at[a] + ((k >> a) & 1) as i32);
                 let l = level - 1;
@@ -169,8 +169,8 @@ impl<'a> Walk<'a> {
         let rs = self.tree.lat.root_size;
         match n {
             Node::Cell(c) => {
-                let d = u32::from(self.tree.depth[c as usize]);
-                let value = if self.tree.first_child[c as usize] == NONE {
+                let d = u32::from(self.tree.depth()[c as usize]);
+                let value = if self.tree.first_child()[c as usize] == NONE {
                     leaf_value(self.tree, c)
                 } else {
                     let tree = self.tree;
@@ -408,8 +408,8 @@ pub fn surface(tree: &Tree, opts: SurfaceOptions, progress: &mut dyn FnMut(usize
 /// have many leaves, more than large thin volumes).
 pub fn default_iso(tree: &Tree) -> Option<f64> {
     let mut s: Vec<f32> = (0..tree.n_used() as usize)
-        .filter(|&c| tree.depth[c] != octopaint_tree::pool::FREE && tree.first_child[c] == NONE && tree.sigma[c] > 0.0)
-        .map(|c| tree.sigma[c])
+        .filter(|&c| tree.depth()[c] != octopaint_tree::pool::FREE && tree.first_child()[c] == NONE && tree.sigma()[c] > 0.0)
+        .map(|c| tree.sigma()[c])
         .collect();
     if s.is_empty() {
         return None;

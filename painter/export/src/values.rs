@@ -42,7 +42,7 @@ pub fn srgb_to_linear(v: f64) -> f64 {
 /// A leaf's own value.
 pub fn leaf_value(tree: &Tree, c: u32) -> Value {
     let i = c as usize;
-    Value { sigma: f64::from(tree.sigma[i]), rgb: tree.rgb[i].map(|v| f64::from(v) / 255.0) }
+    Value { sigma: f64::from(tree.sigma()[i]), rgb: tree.rgb()[i].map(|v| f64::from(v) / 255.0) }
 }
 
 /// The value of cell `c` seen at its own depth: a leaf's own; for a cell
@@ -51,20 +51,20 @@ pub fn leaf_value(tree: &Tree, c: u32) -> Value {
 /// weighted by extinction times volume, so that empty leaves do not pale it
 /// (a plain volume-weighted mean where every leaf is empty).
 pub fn cell_value(tree: &Tree, c: u32) -> Value {
-    if tree.first_child[c as usize] == NONE {
+    if tree.first_child()[c as usize] == NONE {
         return leaf_value(tree, c);
     }
-    let d0 = i32::from(tree.depth[c as usize]);
+    let d0 = i32::from(tree.depth()[c as usize]);
     let (mut sigma, mut rgb_dense, mut rgb_all, mut w_dense) = (0.0, [0.0f64; 3], [0.0f64; 3], 0.0);
     let mut stack = vec![c];
     while let Some(x) = stack.pop() {
-        let fc = tree.first_child[x as usize];
+        let fc = tree.first_child()[x as usize];
         if fc != NONE {
             stack.extend(fc..fc + 8);
             continue;
         }
         // Volume relative to c: 8^-(d - d0), a power of two, exact.
-        let w = (2.0f64).powi(-3 * (i32::from(tree.depth[x as usize]) - d0));
+        let w = (2.0f64).powi(-3 * (i32::from(tree.depth()[x as usize]) - d0));
         let v = leaf_value(tree, x);
         sigma += v.sigma * w;
         for a in 0..3 {

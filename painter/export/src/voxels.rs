@@ -117,8 +117,8 @@ pub fn deepest_painted(tree: &Tree, crop: Option<Crop>) -> u32 {
     let origins = crop.map(|_| octopaint_tree::dump::origins(tree));
     let mut d = 0;
     for c in 0..tree.n_used() as usize {
-        if tree.depth[c] != octopaint_tree::pool::FREE && tree.first_child[c] == NONE && tree.sigma[c] > 0.0 {
-            let depth = u32::from(tree.depth[c]);
+        if tree.depth()[c] != octopaint_tree::pool::FREE && tree.first_child()[c] == NONE && tree.sigma()[c] > 0.0 {
+            let depth = u32::from(tree.depth()[c]);
             if let (Some(crop), Some(o)) = (crop, &origins)
                 && !crop.touches_cell(tree, o[c], depth)
             {
@@ -163,8 +163,8 @@ fn for_each_region(tree: &Tree, e: u32, crop: Option<Crop>, mut f: impl FnMut([i
     stack.reverse();
     let mut pieces: Vec<([i64; 3], u32)> = Vec::new();
     while let Some((c, o)) = stack.pop() {
-        let d = u32::from(tree.depth[c as usize]);
-        let fc = tree.first_child[c as usize];
+        let d = u32::from(tree.depth()[c as usize]);
+        let fc = tree.first_child()[c as usize];
         // The cell's cube in voxels of depth e (a cell deeper than e is
         // never reached: its ancestor at e stops the descent).
         let ov = o.map(|x| i64::from(x >> (dmax - e)));

@@ -48,17 +48,17 @@ fn sums_by_voxel(tree: &Tree, origins: &[[u32; 3]], e: u32) -> Sums {
     let dmax = tree.lat.max_depth;
     let mut sums = Sums::new();
     for l in 0..tree.n_used() as usize {
-        if tree.depth[l] == octopaint_tree::FREE || tree.first_child[l] != NONE || u32::from(tree.depth[l]) <= e {
+        if tree.depth()[l] == octopaint_tree::FREE || tree.first_child()[l] != NONE || u32::from(tree.depth()[l]) <= e {
             continue;
         }
         let v = origins[l].map(|o| o >> (dmax - e));
-        let w = (2.0f64).powi(-3 * (i32::from(tree.depth[l]) - e as i32));
-        let sl = f64::from(tree.sigma[l]);
+        let w = (2.0f64).powi(-3 * (i32::from(tree.depth()[l]) - e as i32));
+        let sl = f64::from(tree.sigma()[l]);
         let s = sums.entry(v).or_default();
         s.0 += sl * w;
         s.3 += w;
         for a in 0..3 {
-            let c = f64::from(tree.rgb[l][a]) / 255.0;
+            let c = f64::from(tree.rgb()[l][a]) / 255.0;
             s.1[a] += c * sl * w;
             s.2[a] += c * w;
         }
@@ -73,10 +73,10 @@ fn expected(tree: &Tree, sums: &Sums, e: u32, p: [i32; 3]) -> Option<(f32, [f32;
     let dmax = tree.lat.max_depth;
     let q = p.map(|v| (v as u32) << (dmax - e));
     let c = tree.cell_at(q, dmax);
-    let d = u32::from(tree.depth[c as usize]);
+    let d = u32::from(tree.depth()[c as usize]);
     let (sigma, rgb) = if d <= e {
-        let s = f64::from(tree.sigma[c as usize]);
-        (s, tree.rgb[c as usize].map(|v| f64::from(v) / 255.0))
+        let s = f64::from(tree.sigma()[c as usize]);
+        (s, tree.rgb()[c as usize].map(|v| f64::from(v) / 255.0))
     } else {
         let &(s, w_rgb, all, vol) = sums.get(&p.map(|v| v as u32)).expect("leaves under a voxel");
         assert!((vol - 1.0).abs() < 1e-12, "the leaves under a voxel tile it: volume {vol}");
@@ -124,7 +124,7 @@ fn voxels_hold_the_leaves_values_at_every_depth() {
             }
             // Also probe next to every painted leaf, where the values are.
             for l in 0..tree.n_used() as usize {
-                if tree.depth[l] == octopaint_tree::FREE || tree.first_child[l] != NONE || tree.sigma[l] == 0.0 {
+                if tree.depth()[l] == octopaint_tree::FREE || tree.first_child()[l] != NONE || tree.sigma()[l] == 0.0 {
                     continue;
                 }
                 let v = origins[l].map(|o| (o >> (dmax - e)) as i32);
@@ -138,8 +138,8 @@ fn voxels_hold_the_leaves_values_at_every_depth() {
             let mut vol = 0u128;
             let mut stack: Vec<u32> = (0..tree.lat.n_roots).collect();
             while let Some(c) = stack.pop() {
-                let d = u32::from(tree.depth[c as usize]);
-                let fc = tree.first_child[c as usize];
+                let d = u32::from(tree.depth()[c as usize]);
+                let fc = tree.first_child()[c as usize];
                 if fc != NONE && d < e {
                     stack.extend(fc..fc + 8);
                 } else if octopaint_export::values::cell_value(tree, c).sigma as f32 > 0.0 {
@@ -356,13 +356,13 @@ fn surfaces_are_closed_oriented_manifolds() {
             // give or take a layer of half a leaf around them.
             let inside: f64 = (0..tree.n_used() as usize)
                 .filter(|&c| {
-                    tree.depth[c] != octopaint_tree::FREE
-                        && tree.first_child[c] == NONE
-                        && u32::from(tree.depth[c]) <= cap
-                        && f64::from(tree.sigma[c]) >= iso
+                    tree.depth()[c] != octopaint_tree::FREE
+                        && tree.first_child()[c] == NONE
+                        && u32::from(tree.depth()[c]) <= cap
+                        && f64::from(tree.sigma()[c]) >= iso
                         && crop.is_none_or(|k| k.contains(tree.centre(c as u32)))
                 })
-                .map(|c| tree.lat.size_canvas[tree.depth[c] as usize].powi(3))
+                .map(|c| tree.lat.size_canvas[tree.depth()[c] as usize].powi(3))
                 .sum();
             if cap == dmax && inside > 0.0 {
                 // Measured on these traces: 0.95 to 1.16.

@@ -28,7 +28,7 @@ fn painted(name: &str) -> (Canvas, Painting) {
 }
 
 fn leaves(tree: &Tree) -> impl Iterator<Item = u32> + '_ {
-    (0..tree.n_used()).filter(|&c| tree.depth[c as usize] != FREE && tree.first_child[c as usize] == NONE)
+    (0..tree.n_used()).filter(|&c| tree.depth()[c as usize] != FREE && tree.first_child()[c as usize] == NONE)
 }
 
 /// Export `tree` at its deepest leaf depth (every voxel then holds one
@@ -37,7 +37,7 @@ fn leaves(tree: &Tree) -> impl Iterator<Item = u32> + '_ {
 fn round_trip(name: &str, placement: Placement, colour: ColourSpace) {
     let (canvas, p) = painted(name);
     let tree = &p.tree;
-    let e = leaves(tree).map(|c| u32::from(tree.depth[c as usize])).max().unwrap();
+    let e = leaves(tree).map(|c| u32::from(tree.depth()[c as usize])).max().unwrap();
     let grid = VoxelGrid::build(tree, &voxels::plan(tree, Some(e), None, 1 << 40).unwrap(), colour, placement, &mut |_| {});
     let mut file = Cursor::new(Vec::new());
     vdb::write_vdb(&mut file, &grid, "test").unwrap();
@@ -55,7 +55,7 @@ fn round_trip(name: &str, placement: Placement, colour: ColourSpace) {
     for c in leaves(tree) {
         let x = tree.centre(c);
         let got = t2.leaf_at(x.to_array()).unwrap() as usize;
-        let (s0, s1) = (tree.sigma[c as usize], t2.sigma[got]);
+        let (s0, s1) = (tree.sigma()[c as usize], t2.sigma()[got]);
         if s0 == 0.0 {
             assert_eq!(s1, 0.0, "{name}: an empty leaf at {x} came back painted");
             continue;
@@ -68,9 +68,9 @@ fn round_trip(name: &str, placement: Placement, colour: ColourSpace) {
             assert!(((s1 - s0) / s0).abs() <= 2.0 * f32::EPSILON, "{name}: sigma {s0} came back {s1} at {x}");
         }
         for a in 0..3 {
-            let (c0, c1) = (i32::from(tree.rgb[c as usize][a]), i32::from(t2.rgb[got][a]));
+            let (c0, c1) = (i32::from(tree.rgb()[c as usize][a]), i32::from(t2.rgb()[got][a]));
             let step = if colour == ColourSpace::Srgb { 0 } else { 1 };
-            assert!((c0 - c1).abs() <= step, "{name}: colour {:?} came back {:?} at {x}", tree.rgb[c as usize], t2.rgb[got]);
+            assert!((c0 - c1).abs() <= step, "{name}: colour {:?} came back {:?} at {x}", tree.rgb()[c as usize], t2.rgb()[got]);
         }
     }
     assert!(painted > 50, "{name}: only {painted} painted leaves compared");
@@ -127,7 +127,7 @@ fn a_closed_mesh_becomes_the_voxels_whose_centres_it_encloses() {
     let t = &p.tree;
     for (x, inside) in [(DVec3::splat(0.5), true), (DVec3::splat(0.27), true), (DVec3::splat(0.2), false), (DVec3::new(0.5, 0.5, 0.8), false)] {
         let c = t.leaf_at(x.to_array()).unwrap() as usize;
-        assert_eq!(t.sigma[c] > 0.0, inside, "at {x}");
+        assert_eq!(t.sigma()[c] > 0.0, inside, "at {x}");
     }
     // Shifted and scaled: the file's unit cube at --origin 0.25,0.25,0.25 and --scale 2.
     std::fs::write(&path, cube_obj(0.0, 1.0, false)).unwrap();

@@ -71,12 +71,12 @@ pub fn stage_into(tree: &Tree, first: u64, len: usize, cells: &mut Vec<GpuCell>)
     let n = tree.n_used() as usize;
     let end = (start + len).min(n.max(start));
     for c in start..end {
-        let [r, g, b] = tree.rgb[c];
+        let [r, g, b] = tree.rgb()[c];
         cells.push(GpuCell {
-            parent: tree.parent[c],
-            first_child: tree.first_child[c],
-            rgbd: u32::from(r) | u32::from(g) << 8 | u32::from(b) << 16 | u32::from(tree.depth[c]) << 24,
-            sigma: tree.sigma[c],
+            parent: tree.parent()[c],
+            first_child: tree.first_child()[c],
+            rgbd: u32::from(r) | u32::from(g) << 8 | u32::from(b) << 16 | u32::from(tree.depth()[c]) << 24,
+            sigma: tree.sigma()[c],
         });
     }
     cells.resize(len, GpuCell::FREE);

@@ -90,10 +90,10 @@ fn cells_with_broken_links_are_skipped_alike() {
     // Break one unit's links as a half-finished upload would: its children
     // point to no parent. Both ray casters must skip it the same way.
     let t = &mut painting.tree;
-    let parent = (t.lat.padded..t.n_used()).find(|&c| t.first_child[c as usize] != NONE && t.depth[c as usize] >= 3).unwrap();
-    let unit = t.first_child[parent as usize];
+    let parent = (t.lat.padded..t.n_used()).find(|&c| t.first_child()[c as usize] != NONE && t.depth()[c as usize] >= 3).unwrap();
+    let unit = t.first_child()[parent as usize];
     for c in unit..unit + 8 {
-        t.parent[c as usize] = NONE;
+        t.break_parent_link(c, NONE);
     }
     t.mark_everything_dirty();
     let gpu = r.render(&mut painting.tree, &camera, Precision::F32).unwrap();

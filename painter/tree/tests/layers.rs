@@ -58,12 +58,12 @@ fn merge_down_holds_both_layers_composited_at_every_point() {
             .iter()
             .map(|&p| {
                 let (ca, cb) = (a.leaf_at(p).unwrap() as usize, b.leaf_at(p).unwrap() as usize);
-                let (wa, wb) = (f64::from(a.sigma[ca]), f64::from(0.6f32) * f64::from(b.sigma[cb]));
+                let (wa, wb) = (f64::from(a.sigma()[ca]), f64::from(0.6f32) * f64::from(b.sigma()[cb]));
                 let w = wa + wb;
                 let rgb = if w > 0.0 {
-                    [0, 1, 2].map(|k| ((wa * f64::from(a.rgb[ca][k]) + wb * f64::from(b.rgb[cb][k])) / w + 0.5).floor() as u8)
+                    [0, 1, 2].map(|k| ((wa * f64::from(a.rgb()[ca][k]) + wb * f64::from(b.rgb()[cb][k])) / w + 0.5).floor() as u8)
                 } else {
-                    a.rgb[ca]
+                    a.rgb()[ca]
                 };
                 (w as f32, rgb)
             })
@@ -74,7 +74,7 @@ fn merge_down_holds_both_layers_composited_at_every_point() {
     assert_eq!(doc.layer(0).opacity, 1.0);
     for (p, (sigma, rgb)) in probes.iter().zip(&want) {
         let c = m.leaf_at(*p).unwrap() as usize;
-        assert_eq!((m.sigma[c].to_bits(), m.rgb[c]), (sigma.to_bits(), *rgb), "{p:?}");
+        assert_eq!((m.sigma()[c].to_bits(), m.rgb()[c]), (sigma.to_bits(), *rgb), "{p:?}");
     }
     assert!(octopaint_tree::clean::collapsible_anywhere(m).is_empty());
     assert!(octopaint_tree::check::check_tree(m).is_empty());

@@ -155,13 +155,13 @@ fn check_values(pre: &Tree, post: &Tree, s: &StrokeSpec) -> Result<(), TestCaseE
         let bi = before as usize;
         let (rgb, sigma) = blend(
             &BlendOf { mode: b.mode, sigma_b, alpha: b.opacity, mix_ratio: b.mix_ratio },
-            pre.rgb[bi].map(|v| f64::from(v) / 255.0),
-            f64::from(pre.sigma[bi]),
+            pre.rgb()[bi].map(|v| f64::from(v) / 255.0),
+            f64::from(pre.sigma()[bi]),
             prims[k].colour,
             a,
         );
-        prop_assert_eq!(post.rgb[c as usize], quantize_rgb(rgb), "rgb of leaf {}", c);
-        prop_assert_eq!(post.sigma[c as usize].to_bits(), quantize_sigma(sigma).to_bits(), "sigma of leaf {}", c);
+        prop_assert_eq!(post.rgb()[c as usize], quantize_rgb(rgb), "rgb of leaf {}", c);
+        prop_assert_eq!(post.sigma()[c as usize].to_bits(), quantize_sigma(sigma).to_bits(), "sigma of leaf {}", c);
     }
     Ok(())
 }
@@ -286,8 +286,8 @@ fn same_values_at_centres(a: &Tree, b: &Tree) -> Result<(), TestCaseError> {
         }
         let x = a.centre(c).to_array();
         let other = b.leaf_at(x).expect("a leaf's centre is inside the canvas") as usize;
-        prop_assert_eq!(a.rgb[c as usize], b.rgb[other], "rgb at the centre of leaf {} ({:?})", c, x);
-        prop_assert_eq!(a.sigma[c as usize].to_bits(), b.sigma[other].to_bits(), "sigma at the centre of leaf {} ({:?})", c, x);
+        prop_assert_eq!(a.rgb()[c as usize], b.rgb()[other], "rgb at the centre of leaf {} ({:?})", c, x);
+        prop_assert_eq!(a.sigma()[c as usize].to_bits(), b.sigma()[other].to_bits(), "sigma at the centre of leaf {} ({:?})", c, x);
     }
     Ok(())
 }

@@ -107,11 +107,14 @@ pub struct Tree {
     pub lat: Lattice,
     /// The cell budget: `n_used + 8 <= capacity` after any allocation.
     pub capacity: u32,
-    pub parent: Vec<u32>,
-    pub first_child: Vec<u32>,
-    pub depth: Vec<u8>,
-    pub rgb: Vec<[u8; 3]>,
-    pub sigma: Vec<f32>,
+    /// The five pools: private to the crate, whose writes keep the undo
+    /// journal and the change log; read elsewhere through [`Tree::parent`]
+    /// and its siblings.
+    pub(crate) parent: Vec<u32>,
+    pub(crate) first_child: Vec<u32>,
+    pub(crate) depth: Vec<u8>,
+    pub(crate) rgb: Vec<[u8; 3]>,
+    pub(crate) sigma: Vec<f32>,
     /// Free units below the used length (first cells), lowest first.
     pub(crate) free_units: BTreeSet<u32>,
     pub(crate) changes: Changes,
@@ -142,6 +145,60 @@ impl Tree {
             t.depth[r] = 0;
         }
         t
+    }
+
+    /// Each cell's parent (NONE for a root or a free cell), `n_used` long.
+    #[inline]
+    pub fn parent(&self) -> &[u32] {
+        &self.parent
+    }
+
+    /// Each cell's first child (NONE for a leaf or a free cell).
+    #[inline]
+    pub fn first_child(&self) -> &[u32] {
+        &self.first_child
+    }
+
+    /// Each cell's depth (FREE for a free cell).
+    #[inline]
+    pub fn depth(&self) -> &[u8] {
+        &self.depth
+    }
+
+    /// Each cell's stored colour (spec 5).
+    #[inline]
+    pub fn rgb(&self) -> &[[u8; 3]] {
+        &self.rgb
+    }
+
+    /// Each cell's stored density (spec 5).
+    #[inline]
+    pub fn sigma(&self) -> &[f32] {
+        &self.sigma
+    }
+
+    /// The cells the pools have room for before they grow again.
+    pub fn pool_capacity(&self) -> usize {
+        self.parent.capacity()
+    }
+
+    /// Every cell's density through `f` (a copy for export scaled by its
+    /// layer's opacity): not journalled, and the next publication covers
+    /// everything.
+    pub fn map_sigma(&mut self, f: impl Fn(f32) -> f32) {
+        for s in &mut self.sigma {
+            *s = f(*s);
+        }
+        self.mark_everything_dirty();
+    }
+
+    /// Point cell `c` at `parent` without any check, leaving a tree that
+    /// is not valid: for the tests of the readers that must survive one
+    /// (a half-finished upload: the ray casters skip such cells alike).
+    #[doc(hidden)]
+    pub fn break_parent_link(&mut self, c: u32, parent: u32) {
+        self.touch(c);
+        self.parent[c as usize] = parent;
     }
 
     /// A tree with this one's records and lattice and nothing else: no
