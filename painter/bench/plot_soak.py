@@ -37,6 +37,8 @@ def main() -> int:
     ax.plot(x, [p["trace_kib"] / 1024 for p in pts], lw=1, label="trace in memory")
     if "gpu_mib" in pts[0]:
         ax.plot(x, [p["gpu_mib"] for p in pts], lw=1, label="GPU pages (host memory on lavapipe)")
+    if pts[0].get("heap_in_use_mib") is not None:
+        ax.plot(x, [p["heap_in_use_mib"] for p in pts], lw=1, ls="--", label="C heap in use (glibc)")
     ax.axhline(run["undo_budget_mib"], color="tab:orange", lw=0.6, ls="--", label=f"undo budget ({run['undo_budget_mib']:.0f} MiB)")
     if run.get("budget_reached_at") is not None:
         ax.axvline(run["budget_reached_at"], color="tab:orange", lw=0.6, ls=":", label="history reaches the budget")

@@ -228,6 +228,10 @@ struct Point {
     records: usize,
     /// The GPU's pages: cells they hold, MiB (16 + 12 bytes a cell).
     gpu_mib: f64,
+    /// The C allocator (glibc; NaN elsewhere): MiB in live allocations,
+    /// and free but kept in its heaps (resident until reused or trimmed).
+    heap_in_use_mib: f64,
+    heap_free_mib: f64,
 }
 
 /// What the stroke thread reports of the document for a point.
@@ -363,6 +367,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         if stamps >= next_point || stamps >= a.stamps {
             settle(&p, &mut said);
             let h = asked(p.engine(), held)?;
+            let heap = octopaint_platform::memory::heap();
             if budget_reached_at.is_none() && (h.forgotten > 0 || h.undo_bytes >= undo_bytes) {
                 budget_reached_at = Some(stamps);
             }
@@ -381,11 +386,23 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 trace_kib: h.trace_bytes as f64 / 1024.0,
                 records: p.engine().records_held(),
                 gpu_mib: mib((p.engine().gpu_cells_held() * 28) as f64),
+                heap_in_use_mib: heap.map_or(f64::NAN, |h| mib(h.in_use as f64)),
+                heap_free_mib: heap.map_or(f64::NAN, |h| mib(h.free as f64)),
             });
             let last = points.last().expect("pushed");
             eprintln!(
-                "{:>8} stamps  {:>7.0} s  rss {:>7.1} MiB  cells {:>8}  gpu {:>6.0} MiB  undo {:>7.1} MiB  journal {:>7.1} KiB  trace {:>7.1} KiB  records {}",
-                last.stamps, last.wall_s, last.rss_mib, last.cells_used, last.gpu_mib, last.undo_mib, last.journal_kib, last.trace_kib, last.records
+                "{:>8} stamps  {:>7.0} s  rss {:>7.1} MiB  cells {:>8}  gpu {:>6.0} MiB  undo {:>7.1} MiB  journal {:>7.1} KiB  trace {:>7.1} KiB  records {}  heap {:.0} + {:.0} free MiB",
+                last.stamps,
+                last.wall_s,
+                last.rss_mib,
+                last.cells_used,
+                last.gpu_mib,
+                last.undo_mib,
+                last.journal_kib,
+                last.trace_kib,
+                last.records,
+                last.heap_in_use_mib,
+                last.heap_free_mib
             );
             next_point += a.stamps.div_ceil(a.points);
             if stamps >= a.stamps {
@@ -517,12 +534,15 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         budget
     );
     println!(
-        "undo budget reached at {} stamps; history {:.1} MiB at the end, {} steps forgotten; cells {} used, {} allocated; trace in memory {:.1} KiB ({:.1} bytes a stamp over the last half); engine records {}",
+        "undo budget reached at {} stamps; history {:.1} MiB at the end, {} steps forgotten; cells {} used, {} allocated; GPU pages {:.0} MiB; C heap {:.1} MiB in use, {:.1} MiB free; trace in memory {:.1} KiB ({:.1} bytes a stamp over the last half); engine records {}",
         results.budget_reached_at.map_or("no".to_string(), |s| format!("{s}")),
         last.undo_mib,
         last.forgotten,
         last.cells_used,
         last.cells_allocated,
+        last.gpu_mib,
+        last.heap_in_use_mib,
+        last.heap_free_mib,
         last.trace_kib,
         results.trace_bytes_per_stamp,
         last.records

@@ -30,6 +30,79 @@ pub fn populate_for_write(addr: usize, len: usize) -> bool {
     imp::populate_for_write(addr, len)
 }
 
+/// What the C allocator holds, in bytes: `in_use` by live allocations,
+/// `free` in its heaps but not given back to the system (resident until
+/// reused or trimmed), `mapped` in blocks of their own (`mmap`). glibc
+/// only (`mallinfo2`, summed over every arena); None elsewhere.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Heap {
+    pub in_use: u64,
+    pub free: u64,
+    pub mapped: u64,
+}
+
+/// [`Heap`] now, where the allocator reports it (glibc).
+pub fn heap() -> Option<Heap> {
+    heap_imp::heap()
+}
+
+/// Give the allocator's free memory back to the system (`malloc_trim(0)`:
+/// the free pages inside every arena, not only its top), so that a
+/// transient peak (a save's buffers, a big layer operation) does not stay
+/// resident for the session's life. glibc only; elsewhere nothing is done.
+/// Returns whether the call could release anything; it takes milliseconds
+/// on a heap of gigabytes, so callers make it after rare, long work.
+pub fn release_free_heap() -> bool {
+    heap_imp::release()
+}
+
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+mod heap_imp {
+    /// glibc's `struct mallinfo2` (2.33 and later): ten `size_t`.
+    #[repr(C)]
+    struct MallInfo2 {
+        arena: usize,
+        ordblks: usize,
+        smblks: usize,
+        hblks: usize,
+        hblkhd: usize,
+        usmblks: usize,
+        fsmblks: usize,
+        uordblks: usize,
+        fordblks: usize,
+        keepcost: usize,
+    }
+
+    unsafe extern "C" {
+        fn mallinfo2() -> MallInfo2;
+        fn malloc_trim(pad: usize) -> i32;
+    }
+
+    pub fn heap() -> Option<super::Heap> {
+        // SAFETY: mallinfo2 takes no argument and returns plain data.
+        let m = unsafe { mallinfo2() };
+        let _ = (m.arena, m.ordblks, m.smblks, m.hblks, m.usmblks, m.fsmblks, m.keepcost);
+        Some(super::Heap { in_use: m.uordblks as u64 + m.hblkhd as u64, free: m.fordblks as u64, mapped: m.hblkhd as u64 })
+    }
+
+    pub fn release() -> bool {
+        // SAFETY: malloc_trim only gives free pages back; no allocation
+        // changes.
+        unsafe { malloc_trim(0) == 1 }
+    }
+}
+
+#[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+mod heap_imp {
+    pub fn heap() -> Option<super::Heap> {
+        None
+    }
+
+    pub fn release() -> bool {
+        false
+    }
+}
+
 #[cfg(target_os = "linux")]
 mod imp {
     fn status_kib(field: &str) -> Option<u64> {
@@ -120,9 +193,12 @@ mod imp {
 
 #[cfg(test)]
 mod tests {
+    /// The tests measure the whole process's memory: one at a time.
+    static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
     #[cfg(any(target_os = "linux", windows))]
     #[test]
     fn peak_grows_with_a_touched_allocation() {
+        let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         let before = super::peak_rss_kib().unwrap();
         let v = vec![1u8; 64 << 20];
         std::hint::black_box(&v);
@@ -138,6 +214,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn populated_pages_are_resident_and_keep_their_bytes() {
+        let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
         unsafe extern "C" {
             fn mincore(addr: *mut std::ffi::c_void, len: usize, vec: *mut u8) -> i32;
         }
@@ -163,5 +240,24 @@ mod tests {
         // A range with no whole page inside; a range not mapped at all.
         assert!(super::populate_for_write(v.as_ptr() as usize + 1, 100));
         assert!(!super::populate_for_write(8 * PAGE, PAGE), "an unmapped page");
+    }
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    #[test]
+    fn freed_heap_memory_is_counted_and_released() {
+        let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
+        // Many small blocks (below the mmap threshold, so in an arena),
+        // then every other one freed: free memory the heap keeps.
+        let blocks: Vec<Vec<u8>> = (0..4096).map(|i| vec![i as u8; 16 << 10]).collect();
+        let held = super::heap().unwrap();
+        assert!(held.in_use >= 64 << 20, "{held:?} while 64 MiB are live");
+        let kept: Vec<Vec<u8>> = blocks.into_iter().enumerate().filter(|(i, _)| i % 2 == 0).map(|(_, b)| b).collect();
+        let freed = super::heap().unwrap();
+        assert!(freed.free >= 24 << 20, "{freed:?} after freeing 32 MiB in holes");
+        let rss_before = super::rss_kib().unwrap();
+        super::release_free_heap();
+        let rss_after = super::rss_kib().unwrap();
+        // The holes' pages go back; the kept blocks keep their bytes.
+        assert!(rss_after + 16 * 1024 <= rss_before, "resident {rss_before} KiB, then {rss_after} KiB after the trim");
+        assert!(kept.iter().enumerate().all(|(i, b)| b.iter().all(|&x| x == (2 * i) as u8)));
     }
 }

@@ -577,6 +577,9 @@ impl Session {
         let (bytes, crc) = written.map_err(io(&self.path))?;
         durable::write(&self.path, &bytes).map_err(io(&self.path))?;
         drop(bytes);
+        // The document's bytes were a transient peak as large as the
+        // document: give the allocator's free pages back (bench soak).
+        octopaint_platform::memory::release_free_heap();
         self.trace.saved();
         // The new journal extends the new document; until it exists, the
         // old one's events are all in the document (recover() sees that).
