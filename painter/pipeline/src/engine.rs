@@ -532,27 +532,28 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
             // of blocks, and the lock is held until the last is copied (on
             // an H100 host, 16 ms at p99 one after another).
             let doc = canvas.document();
-            let staged: Vec<(u64, Vec<GpuCell>)> = taken
+            let staged: Vec<(u64, u64, Vec<GpuCell>)> = taken
                 .par_iter()
                 .map(|t| {
                     let mut cells = shared.staged.spare();
                     // A layer the history no longer holds: nothing to copy
                     // (its blocks still count as uploaded).
-                    let Some(layer) = doc.layer_by_id(t.layer) else { return (0, cells) };
+                    let Some(layer) = doc.layer_by_id(t.layer) else { return (0, 0, cells) };
                     let tree = layer.tree();
                     let (first, len) = group_range(settings.block, t.group, tree.n_used());
                     stage_into(tree, first, len, &mut cells);
-                    (first, cells)
+                    (first, u64::from(tree.n_used()), cells)
                 })
                 .collect();
             drop(guard);
             let mut copies = Vec::with_capacity(taken.len());
-            for (t, (first, cells)) in taken.into_iter().zip(staged) {
+            for (t, (first, length, cells)) in taken.into_iter().zip(staged) {
                 version += 1;
                 copies.push(StagedCopy {
                     layer: t.layer,
                     group: t.group,
                     first,
+                    length,
                     cells,
                     covered_pub: covered,
                     mask: t.mask,
@@ -573,9 +574,9 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
         let w0 = Instant::now();
         let mut guard = shared.canvas.lock().expect("canvas");
         let t0 = Instant::now();
-        let mut first = 0;
-        let mut len = 0;
+        let (mut first, mut len, mut length) = (0, 0, 0);
         if let Some(layer) = open(&mut guard).document().layer_by_id(t.layer) {
+            length = u64::from(layer.tree().n_used());
             (first, len) = group_range(settings.block, t.group, layer.tree().n_used());
             stage_into(layer.tree(), first, len, &mut cells);
         }
@@ -587,7 +588,8 @@ fn staging_thread(shared: &Shared, settings: &Settings) -> Vec<StagingRecord> {
         records.push(StagingRecord { cells: len as u64, seconds: (t1 - t0).as_secs_f64(), wait_seconds: (t0 - w0).as_secs_f64() });
         crate::settings::trim_records(&mut records, settings.keep_records);
         version += 1;
-        let copy = StagedCopy { layer: t.layer, group: t.group, first, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t1 };
+        let copy =
+            StagedCopy { layer: t.layer, group: t.group, first, length, cells, covered_pub: covered, mask: t.mask, blocks: t.blocks, version, staged_at: t1 };
         shared.staged.push(StagedItem::One(copy));
     }
     shared.staged.close();

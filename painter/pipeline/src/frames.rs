@@ -161,21 +161,49 @@ impl Frames {
             .collect();
         // Where each copy goes: its layer's range, grown or moved first
         // (copies on the GPU), then the pages that hold them.
-        let mut write = Vec::with_capacity(copies.len());
-        let mut moves = Vec::new();
-        for c in &copies {
-            let last = self.uploaded_version.entry((c.layer, c.group)).or_insert(0);
-            let fresh = c.version > *last && !c.cells.is_empty();
-            if fresh {
-                *last = c.version;
-                let m = layout.fit(c.layer, c.first + c.cells.len() as u64).map_err(GpuError::TooBig)?;
-                moves.extend(m.into_iter().map(|m| (m.from, m.to, m.cells)));
+        let write: Vec<bool> = copies
+            .iter()
+            .map(|c| {
+                let last = self.uploaded_version.entry((c.layer, c.group)).or_insert(0);
+                let fresh = c.version > *last && !c.cells.is_empty();
+                if fresh {
+                    *last = c.version;
+                }
+                fresh
+            })
+            .collect();
+        // What each layer uses once they are written: its newest copy's
+        // tree length, and every copy written. Only grouped staging (the
+        // default) says so: it uploads copies in the order they were
+        // staged, so the newest length is the layer's. The LIFO order of
+        // the other strategy may write an older copy last; there a range
+        // keeps its room.
+        if self.settings.strategy.grouped {
+            let mut lengths: HashMap<u32, (u64, u64)> = HashMap::new();
+            for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
+                let e = lengths.entry(c.layer).or_insert((0, 0));
+                if c.version > e.1 {
+                    *e = (c.length, c.version);
+                }
             }
-            write.push(fresh);
+            for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
+                let e = lengths.get_mut(&c.layer).expect("counted above");
+                e.0 = e.0.max(c.first + c.cells.len() as u64);
+            }
+            for (id, (n, _)) in lengths {
+                layout.set_length(id, n);
+            }
+        }
+        for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
+            let moves = layout.fit(c.layer, c.first + c.cells.len() as u64).map_err(GpuError::TooBig)?;
+            // Each fit's moves read the ranges as the one before left them.
+            if !moves.is_empty() {
+                r.pools.ensure(&r.gpu, layout.end())?;
+                r.pools.move_ranges(&r.gpu, &moves.iter().map(|m| (m.from, m.to, m.cells)).collect::<Vec<_>>());
+            }
         }
         r.pools.ensure(&r.gpu, layout.end())?;
         self.shared.gpu_cells.store(r.pools.cells_held(), Ordering::Release);
-        r.pools.move_ranges(&r.gpu, &moves);
         let (mut uploads, mut cells_uploaded) = (0u32, 0u64);
         let mut covered: Vec<(Vec<u64>, u64)> = Vec::new();
         let mut masks: HashMap<u32, NeighbourMask> = HashMap::new();

@@ -11,8 +11,16 @@
 //! gap large enough, with room to double; when no gap is left the ranges
 //! are packed from cell 0. A move is a copy on the GPU (cells and g3: g3
 //! holds the tree's own indices, so it stays valid), never an upload.
+//!
+//! Ranges never shrink on their own (a layer that shrank by undo grows
+//! back by redo), but the pages never shrink at all: so when a fit would
+//! grow them, the ranges are packed instead, each keeping its room when
+//! they all fit in the pages so, else each cut to the cells its layer
+//! uses ([`Layout::set_length`]), and the pages grow only by what the
+//! layers themselves need beyond them. Without the cut, reserves doubled
+//! over a long session held twice the cells the layers used (bench soak).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 use octopaint_tree::dirty::BLOCK_CELLS;
 
@@ -35,6 +43,8 @@ pub struct Layout {
     /// packed, so that layers added, deleted and grown over a long
     /// session do not grow the pages (which never shrink) with gaps.
     held: u64,
+    /// Per layer: the cells its tree uses, as the caller last said.
+    lengths: HashMap<u32, u64>,
 }
 
 fn whole_blocks(cells: u64) -> u64 {
@@ -43,7 +53,7 @@ fn whole_blocks(cells: u64) -> u64 {
 
 impl Layout {
     pub fn new(limit: u64) -> Layout {
-        Layout { ranges: BTreeMap::new(), limit, held: 0 }
+        Layout { ranges: BTreeMap::new(), limit, held: 0, lengths: HashMap::new() }
     }
 
     /// The pages hold `cells` cells now.
@@ -70,11 +80,19 @@ impl Layout {
         self.ranges.iter().next_back().map_or(0, |(&b, &(_, r))| b + r)
     }
 
+    /// Layer `id` uses `cells` cells now: what its range is cut to when
+    /// the ranges are packed tight. The caller says so before fitting the
+    /// layer's copies, counting every copy it is about to write.
+    pub fn set_length(&mut self, id: u32, cells: u64) {
+        self.lengths.insert(id, cells);
+    }
+
     /// Forget layer `id`'s range (no longer listed).
     pub fn free(&mut self, id: u32) {
         if let Some((b, _)) = self.find(id) {
             self.ranges.remove(&b);
         }
+        self.lengths.remove(&id);
     }
 
     /// The layers that have ranges.
@@ -101,21 +119,42 @@ impl Layout {
     /// Make layer `id`'s range hold `cells` cells. Returns the copies to
     /// make on the GPU, all sources read before any destination is written
     /// (`GpuPools::move_ranges`); Err when the pages cannot hold every
-    /// layer even packed.
+    /// layer even packed tight.
     pub fn fit(&mut self, id: u32, cells: u64) -> Result<Vec<Move>, String> {
         let before = self.clone();
-        let moves = self.fit_somewhere(id, cells)?;
-        let grows = self.end() > self.held.max(before.end());
-        if !grows || self.reserved() > self.held {
+        let tried = self.fit_somewhere(id, cells);
+        if tried.is_ok() && self.end() <= self.held.max(before.end()) {
+            return tried;
+        }
+        // The pages would grow: packed, every range keeping its room if
+        // that fits in the pages; else cut to its layer's cells, unless
+        // that grows the pages no less than the fit did.
+        let fitted = std::mem::replace(self, before);
+        let cells = whole_blocks(cells);
+        let grower = self.find(id).map(|_| (id, cells));
+        if self.packed(grower, false) + if grower.is_none() { cells } else { 0 } <= self.held {
+            return self.pack_adding(id, cells, false);
+        }
+        let tight = self.packed(grower, true) + if grower.is_none() { cells } else { 0 };
+        if let Ok(moves) = tried
+            && fitted.end() <= tight
+        {
+            *self = fitted;
             return Ok(moves);
         }
-        // The pages would grow, but every range fits in them packed.
-        *self = before;
-        let cells = whole_blocks(cells);
-        if self.find(id).is_some() {
-            return self.pack(Some((id, cells)));
+        if tight > self.limit {
+            return Err(self.full(tight));
         }
-        let moves = self.pack(None)?;
+        self.pack_adding(id, cells, true)
+    }
+
+    /// [`Layout::pack`], layer `id` last with `cells` cells (added after
+    /// the others when it has no range yet).
+    fn pack_adding(&mut self, id: u32, cells: u64, tight: bool) -> Result<Vec<Move>, String> {
+        if self.find(id).is_some() {
+            return self.pack(Some((id, cells)), tight);
+        }
+        let moves = self.pack(None, tight)?;
         let at = self.end();
         self.ranges.insert(at, (id, cells));
         Ok(moves)
@@ -133,7 +172,7 @@ impl Layout {
             let (at, moves) = match self.gap(cells, None) {
                 Some(at) => (at, Vec::new()),
                 None => {
-                    let moves = self.pack(None)?;
+                    let moves = self.pack(None, false)?;
                     (self.end(), moves)
                 }
             };
@@ -157,30 +196,46 @@ impl Layout {
             self.ranges.insert(to, (id, want));
             return Ok(vec![Move { from: base, to, cells: have }]);
         }
-        let moves = self.pack(Some((id, cells)))?;
-        Ok(moves)
+        self.pack(Some((id, cells)), false)
+    }
+
+    /// The size of layer `id`'s range of `reserved` cells once packed:
+    /// its reserve, or (`tight`) the whole blocks its layer uses; `grow`'s
+    /// layer at least its new size.
+    fn packed_size(&self, id: u32, reserved: u64, grow: Option<(u32, u64)>, tight: bool) -> u64 {
+        let kept = if tight { self.lengths.get(&id).map_or(reserved, |&n| whole_blocks(n).min(reserved)) } else { reserved };
+        match grow {
+            Some((g, cells)) if g == id => kept.max(cells),
+            _ => kept,
+        }
+    }
+
+    /// Cells every range takes packed ([`Layout::pack`]).
+    fn packed(&self, grow: Option<(u32, u64)>, tight: bool) -> u64 {
+        self.ranges.values().map(|&(id, r)| self.packed_size(id, r, grow, tight)).sum()
     }
 
     /// Pack every range from cell 0 in order, `grow`'s layer last with its
-    /// new size.
-    fn pack(&mut self, grow: Option<(u32, u64)>) -> Result<Vec<Move>, String> {
+    /// new size; `tight`, each cut to the cells its layer uses (only those
+    /// are copied).
+    fn pack(&mut self, grow: Option<(u32, u64)>, tight: bool) -> Result<Vec<Move>, String> {
         let mut order: Vec<(u64, u32, u64)> = self.ranges.iter().map(|(&b, &(id, r))| (b, id, r)).collect();
         if let Some((gid, _)) = grow {
             let k = order.iter().position(|o| o.1 == gid).expect("growing a layer with a range");
             let g = order.remove(k);
             order.push(g);
         }
-        let total: u64 = order.iter().map(|o| if grow.is_some_and(|g| g.0 == o.1) { grow.expect("some").1.max(o.2) } else { o.2 }).sum();
+        let total = self.packed(grow, tight);
         if total > self.limit {
             return Err(self.full(total));
         }
+        let sizes: Vec<u64> = order.iter().map(|&(_, id, r)| self.packed_size(id, r, grow, tight)).collect();
         let mut moves = Vec::new();
         let mut at = 0u64;
         self.ranges.clear();
-        for (b, id, r) in order {
-            let size = if grow.is_some_and(|g| g.0 == id) { grow.expect("some").1.max(r) } else { r };
+        for ((b, id, r), size) in order.into_iter().zip(sizes) {
             if b != at {
-                moves.push(Move { from: b, to: at, cells: r });
+                moves.push(Move { from: b, to: at, cells: r.min(size) });
             }
             self.ranges.insert(at, (id, size));
             at += size;
@@ -211,6 +266,7 @@ mod tests {
     #[test]
     fn the_last_range_grows_in_place_and_others_move_or_pack() {
         let mut l = Layout::new(16 * B);
+        l.hold(16 * B);
         assert_eq!(l.fit(0, 10), Ok(vec![]));
         assert_eq!(l.range(0), Some((0, B)));
         // One tree: always in place, however far it grows.
@@ -263,5 +319,101 @@ mod tests {
         l.fit(100, 6 * B).unwrap();
         assert!(l.end() > 8 * B);
         disjoint(&l);
+    }
+
+    #[test]
+    fn ranges_are_cut_to_their_layers_cells_rather_than_grow_the_pages() {
+        // A layer that grew to 6 blocks, then shrank (undo) to half a
+        // block; a new layer of 4 does not fit after it in the 8 blocks
+        // held: the first is cut to its one block, in place.
+        let mut l = Layout::new(64 * B);
+        l.hold(8 * B);
+        l.fit(0, 6 * B).unwrap();
+        l.set_length(0, B / 2);
+        assert_eq!(l.fit(1, 4 * B), Ok(vec![]));
+        assert_eq!((l.range(0), l.range(1), l.end()), (Some((0, B)), Some((B, 4 * B)), 5 * B));
+        // Two layers fill the pages; the first grows when the second uses
+        // a block of its five: packed, the second cut to its block and
+        // only that copied, the grower last.
+        let mut l = Layout::new(64 * B);
+        l.hold(8 * B);
+        l.fit(0, 2 * B).unwrap();
+        l.fit(1, 5 * B).unwrap();
+        l.set_length(1, B);
+        l.set_length(0, 4 * B);
+        let moves = l.fit(0, 4 * B).unwrap();
+        assert_eq!(moves, vec![Move { from: 2 * B, to: 0, cells: B }, Move { from: 0, to: B, cells: 2 * B }]);
+        assert_eq!((l.range(1), l.range(0), l.end()), (Some((0, B)), Some((B, 4 * B)), 5 * B));
+        // With room in the pages, reserves are kept: the second layer's
+        // five blocks stay though it uses one.
+        let mut l = Layout::new(64 * B);
+        l.hold(16 * B);
+        l.fit(0, 2 * B).unwrap();
+        l.fit(1, 5 * B).unwrap();
+        l.set_length(1, B);
+        l.fit(0, 4 * B).unwrap();
+        assert_eq!(l.range(1), Some((2 * B, 5 * B)));
+        disjoint(&l);
+    }
+
+    /// A long session on a model of the pages: layers added, grown,
+    /// shrunk (undo) and deleted at random, each fit's moves applied to
+    /// the model (sources read before destinations written) before the
+    /// next, the pages growing exactly to the ranges' end. Every layer's
+    /// cells stay where its range says, and the pages never hold more than
+    /// the most the layers used at once, in whole blocks.
+    #[test]
+    fn a_long_session_keeps_every_layer_and_the_pages_within_what_layers_use() {
+        let mut l = Layout::new(1 << 30);
+        let mut pages: Vec<(u32, u64)> = Vec::new();
+        let mut lengths: BTreeMap<u32, u64> = BTreeMap::new();
+        let (mut seed, mut most, mut cut) = (7u64, 0u64, 0);
+        let mut next = |n: u64| {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 33) % n
+        };
+        for round in 0..1500u32 {
+            let id = next(6) as u32;
+            let n = match lengths.get(&id) {
+                Some(&n) if next(4) == 0 => n / 2,
+                Some(&n) => n + next(2 * B),
+                None => 1 + next(2 * B),
+            };
+            if next(40) == 0 && lengths.len() > 1 {
+                lengths.remove(&id);
+                l.free(id);
+                continue;
+            }
+            lengths.insert(id, n);
+            l.set_length(id, n);
+            most = most.max(lengths.values().map(|&n| whole_blocks(n)).sum());
+            let packed_before = l.reserved();
+            let moves = l.fit(id, n).unwrap();
+            if l.reserved() < packed_before {
+                cut += 1;
+            }
+            let read: Vec<Vec<(u32, u64)>> = moves.iter().map(|m| pages[m.from as usize..(m.from + m.cells) as usize].to_vec()).collect();
+            if l.end() > pages.len() as u64 {
+                pages.resize(l.end() as usize, (u32::MAX, 0));
+            }
+            for (m, cells) in moves.iter().zip(read) {
+                pages[m.to as usize..(m.to + m.cells) as usize].copy_from_slice(&cells);
+            }
+            // The layer's cells are written at its range (an upload).
+            let (base, have) = l.range(id).unwrap();
+            assert!(have >= n);
+            for k in 0..n {
+                pages[(base + k) as usize] = (id, k);
+            }
+            l.hold(pages.len() as u64);
+            disjoint(&l);
+            for (&lid, &ln) in &lengths {
+                let (b, r) = l.range(lid).unwrap();
+                assert!(r >= ln, "round {round}: layer {lid} has {r} cells for {ln}");
+                assert!((0..ln).all(|k| pages[(b + k) as usize] == (lid, k)), "round {round}: layer {lid} lost a cell");
+            }
+            assert!(pages.len() as u64 <= most, "round {round}: the pages hold {} cells, the layers used at most {most}", pages.len());
+        }
+        assert!(cut > 0, "the session never cut a range to its layer's cells");
     }
 }

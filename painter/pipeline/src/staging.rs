@@ -166,6 +166,9 @@ pub struct StagedCopy {
     pub group: u32,
     /// First cell of the copy, in its layer's tree.
     pub first: u64,
+    /// The cells its layer's tree used when it was staged (`n_used`): its
+    /// range of the GPU's pages need hold no more ([`crate::layout`]).
+    pub length: u64,
     pub cells: Vec<GpuCell>,
     /// Every publication up to this one is in the copy.
     pub covered_pub: u64,
@@ -352,6 +355,7 @@ mod tests {
             layer,
             group,
             first: u64::from(group) * 4,
+            length: u64::from(group) * 4 + 4,
             cells: vec![GpuCell::FREE; 4],
             covered_pub: version,
             mask,

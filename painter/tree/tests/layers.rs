@@ -126,3 +126,37 @@ fn the_march_of_an_empty_layer_or_two_halves_is_the_single_image() {
     let none = render_layers(&[], &params(t));
     assert!(none.chunks(3).all(|p| p == [13, 13, 20]), "{:?}", &none[..3]);
 }
+
+#[test]
+fn the_undo_budget_counts_the_layers_only_the_history_holds() {
+    let mut doc = Document::new(&CANVAS);
+    paint(&mut doc, [0.5, 0.5, 0.5], 0.3, [0.9, 0.2, 0.1]);
+    assert!(doc.apply(&op(LayerOpKind::Add, None, Some("top")), 2));
+    paint(&mut doc, [0.3, 0.5, 0.5], 0.03, [0.1, 0.2, 0.9]);
+    let (big, strokes_only) = (doc.layer(0).tree().pool_bytes_allocated(), doc.history_bytes());
+    // Deleting the big layer keeps its whole tree for undo: the history
+    // holds (and counts) it.
+    assert!(doc.apply(&op(LayerOpKind::Delete, Some("Layer 1"), None), 3));
+    assert_eq!(doc.history_bytes(), strokes_only + big);
+    let held = doc.history_bytes();
+    for k in 0..3 {
+        paint(&mut doc, [0.3 + 0.1 * f64::from(k), 0.4, 0.5], 0.03, [0.2, 0.9, 0.2]);
+    }
+    let three = doc.history_bytes() - held;
+    // A budget below the deleted tree forgets the steps up to and including
+    // the deletion, and with it the tree; the newer strokes stay undoable.
+    let within = three + big / 2;
+    let forgotten = doc.trim_to(within);
+    assert!(doc.history_bytes() <= within, "{} bytes over a budget of {within}", doc.history_bytes());
+    assert_eq!(forgotten, 4, "the two strokes, the add and the deletion");
+    let after = doc.dump_bytes();
+    for _ in 0..3 {
+        assert!(doc.undo());
+    }
+    assert!(!doc.undo(), "the deletion was forgotten");
+    assert_eq!(doc.len(), 1);
+    for _ in 0..3 {
+        assert!(doc.redo());
+    }
+    assert_eq!(doc.dump_bytes(), after);
+}

@@ -334,25 +334,34 @@ impl Document {
         self.arena.retain(|id, _| keep.contains(id));
     }
 
-    /// Bytes the history holds: every layer's undo steps (layer operations'
-    /// own steps are a few rows each).
+    /// Bytes the history holds: every layer's undo steps, and the whole of
+    /// every layer only the history still holds (deleted, merged, or added
+    /// by an undone step: its pools as allocated). A layer operation's own
+    /// step is a few rows; the trees it keeps are not.
     pub fn history_bytes(&self) -> usize {
-        self.arena.values().map(|l| l.painting.history.bytes()).sum()
+        let steps: usize = self.arena.values().map(|l| l.painting.history.bytes()).sum();
+        let unlisted: usize = self.arena.iter().filter(|(id, _)| !self.order.contains(id)).map(|(_, l)| l.tree().pool_bytes_allocated()).sum();
+        steps + unlisted
     }
 
     /// Forget the oldest steps until the history takes at most `max_bytes`
     /// (the newest step and every redo step are kept). A forgotten stroke
-    /// takes its layer's oldest undo step with it; layers only a forgotten
-    /// step still held (deleted, merged) are dropped. Returns how many
-    /// steps were forgotten.
+    /// takes its layer's oldest undo step with it; a forgotten layer
+    /// operation drops at once the layers only it still held (deleted,
+    /// merged), whose bytes the history counted. Returns how many steps
+    /// were forgotten.
     pub fn trim_to(&mut self, max_bytes: usize) -> usize {
         let mut dropped = 0;
         while self.history_bytes() > max_bytes && self.done.len() > 1 {
-            if let DocumentStep::Stroke(id) = self.done.remove(0)
-                && let Some(l) = self.arena.get_mut(&id)
-                && !l.painting.history.done.is_empty()
-            {
-                l.painting.history.done.remove(0);
+            match self.done.remove(0) {
+                DocumentStep::Stroke(id) => {
+                    if let Some(l) = self.arena.get_mut(&id)
+                        && !l.painting.history.done.is_empty()
+                    {
+                        l.painting.history.done.remove(0);
+                    }
+                }
+                DocumentStep::Layers(_) => self.forget_unreferenced(),
             }
             dropped += 1;
         }
