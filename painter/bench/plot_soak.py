@@ -55,7 +55,8 @@ def main() -> int:
         f"{run['rss_slope_mib']:+.2f} MiB per 10^5 stamps ({run['rss_slope_percent_of_budget']:+.2f} % of the budget)",
         fontsize=8,
     )
-    ax.legend(fontsize=7, loc="center right")
+    # Below the resident memory and above the pools, where the lines leave room.
+    ax.legend(fontsize=7, loc="center right", bbox_to_anchor=(1.0, 0.42), ncol=2)
     fig.tight_layout()
     os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
     fig.savefig(out, dpi=110)
