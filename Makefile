@@ -100,7 +100,7 @@ check-circles:
 # The fast lane: what fails in minutes fails first. rustfmt and clippy come
 # with rustup's default profile; `rustup component add` is for a minimal one.
 # Clippy's allowances are in painter/Cargo.toml ([workspace.lints]), each
-# with its reason. The unit tests: the model, trace and tree crates' own
+# with its reason. The unit tests: the model, trace, octree, paint and tree crates' own
 # (`--lib`; the tree's integration tests run in test-painter) and the
 # reference's fast files (REFERENCE_UNIT; test-reference runs the rest).
 REFERENCE_UNIT := tests/test_arith.py tests/test_brush.py tests/test_trace.py tests/test_tree.py tests/test_layers.py tests/test_imports.py tests/test_mirror.py
@@ -111,7 +111,7 @@ check: setup check-circles
 	cd painter && cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 	$(VENV)/bin/ruff check .
 	$(CARGO) clippy --release --locked --manifest-path painter/Cargo.toml --workspace --all-targets -- -D warnings
-	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml -p octopaint-model -p octopaint-trace -p octopaint-tree --lib
+	$(CARGO) test --release --locked --manifest-path painter/Cargo.toml -p octopaint-model -p octopaint-trace -p octopaint-octree -p octopaint-paint -p octopaint-tree --lib
 	cd reference && ../$(PY) -m pytest -q -p no:cacheprovider --durations=10 $(REFERENCE_UNIT)
 
 # The reference's own tests need no painter.

@@ -2,7 +2,7 @@
 // regions the neighbour mask marks, from parent, first_child and depth
 // alone. A document's layer lives in its own range of the pages (spec 6.2):
 // its cells are read and its g3 written at `base` plus the tree's own
-// index, and g3 holds the tree's own indices (one tree: base 0). CPU port: painter/tree/src/g3.rs (g3_cell, g3_row), kept line for
+// index, and g3 holds the tree's own indices (one tree: base 0). CPU port: painter/octree/src/g3.rs (g3_cell, g3_row), kept line for
 // line; reference: reference/octopaint_ref/g3.py. Host side:
 // painter/gpu/src/g3.rs. Prepended with shared/pools.wgsl.
 

@@ -1,6 +1,6 @@
 // Ray casting in cell-local coordinates (docs/spec.md 6 and 7), one pixel
 // per invocation, writing 8-bit sRGB pixels. CPU port:
-// painter/tree/src/raycast.rs, kept line for line; reference:
+// painter/tree/src/raycast/, kept line for line; reference:
 // reference/octopaint_ref/raycast.py (the f64 oracle). Host side:
 // painter/gpu/src/raycast.rs. Prepended with a precision prelude
 // (`alias real = f32;`, or `enable f16; alias real = f16;` for the f16
@@ -150,7 +150,7 @@ fn to_line(v: f32) -> f32 {
 // and the ray going down, the floor plane y = 0 of the canvas: a faint
 // tint, lines every spacing and brighter ones every ten, fading with
 // distance; a thin horizon line where the ray is level. Kept line for line
-// with painter/tree/src/raycast.rs `ground`.
+// with painter/tree/src/raycast/ `ground`.
 fn ground(dir: vec3<f32>) -> vec3<f32> {
     let bg = params.background.xyz;
     let g = params.grid;
@@ -187,7 +187,7 @@ fn inv_edge(depth: u32) -> f32 {
 // of the cell. A same-depth leaf: its sigma at 1; a same-depth cell with
 // children: the mean of its four children on the face at 3/4; a coarser
 // leaf: its sigma at 3/2; nothing (outside the canvas, another depth): an
-// empty cell at 1. Kept line for line with painter/tree/src/raycast.rs
+// empty cell at 1. Kept line for line with painter/tree/src/raycast/
 // `face` and reference/octopaint_ref/raycast.py `_face`.
 fn face(cell: u32, depth: u32, origin: vec3<u32>, a: u32, side: i32) -> vec2<f32> {
     var nb = NONE;
@@ -656,7 +656,7 @@ struct March {
 // The march of spec 6.2 along d from the cursors `cur0` (status RUNNING:
 // inside the canvas): every step composites the interval up to the
 // nearest boundary of any layer. shadow: only attenuate. Kept line for line
-// with painter/tree/src/raycast.rs `march`.
+// with painter/tree/src/raycast/layers.rs `march`.
 fn march(cur0: array<Cur, 16>, d: vec3<real>, shadow: bool) -> March {
     let n = layer_table.count.x;
     var cur = cur0;

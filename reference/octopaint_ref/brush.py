@@ -2,7 +2,7 @@
 
 Every function takes `xp` (numpy or jax.numpy). The host calls the numpy
 versions for topology decisions (reach, target depth), which must be exact
-f64 and identical to the painter's (painter/tree/src/brush.rs); the stroke
+f64 and identical to the painter's (painter/paint/src/brush.rs); the stroke
 code calls the jitted JAX versions (`jax_*` below) for coverage and blending,
 which are pure functions of brush parameters, sample positions and cell
 values, and so differentiable with respect to colour, opacity, radius and

@@ -9,7 +9,7 @@ the parents of cells the stroke touched can start a collapse, and a collapse
 of P can only unblock the parent of P and that parent's same-depth face
 neighbours: a work list finds the same fixpoint. Each pass collapses a
 batch; collapses in one batch never invalidate each other. Painter twin:
-painter/tree/src/clean.rs.
+painter/octree/src/clean.rs.
 """
 
 from __future__ import annotations

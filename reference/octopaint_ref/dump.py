@@ -4,7 +4,7 @@ trace's `snapshot` events and the conformance driver compares.
 The file is a zip (zipfile) of .npy entries (numpy's format.write_array),
 stored without compression, entries in the order of DUMP_ARRAYS, every
 timestamp 1980-01-01 00:00:00, so the same tree gives the same bytes here.
-The painter's dumps (painter/tree/src/dump.rs, other zip and npy libraries)
+The painter's dumps (painter/octree/src/dump.rs, other zip and npy libraries)
 hold the same arrays in other bytes: dumps are compared by content.
 """
 

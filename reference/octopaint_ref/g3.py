@@ -1,7 +1,7 @@
 """G3: the one stored neighbour per axis of every non-root cell (spec 3.3).
 
 Computed from parent/first_child alone, as the GPU pass (shaders/g3.wgsl) and
-the painter's CPU port (painter/tree/src/g3.rs) do; plus a brute-force version
+the painter's CPU port (painter/octree/src/g3.rs) do; plus a brute-force version
 from lattice geometry that `check` and the tests compare against.
 """
 

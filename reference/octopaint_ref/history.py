@@ -4,7 +4,7 @@ At stroke begin the used part of every pool is copied; at commit (after
 topology cleaning) the cells that differ are kept as an undo record with
 their old and new values. Undo writes the old values back, so the tree is
 byte-identical to the one before the stroke, indices included; redo writes
-the new ones. Painter twin: painter/tree/src/history.rs.
+the new ones. Painter twin: painter/octree/src/history/.
 """
 
 from __future__ import annotations

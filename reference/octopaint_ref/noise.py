@@ -1,6 +1,6 @@
 """Improved Perlin noise (Perlin 2002) with a permutation built from a seed by
 hashing indices, so that Python, JAX and Rust produce identical values
-(spec 8.6; painter twin: painter/tree/src/noise.rs).
+(spec 8.6; painter twin: painter/paint/src/noise.rs).
 
 Functions take `xp` (numpy or jax.numpy) so the same source serves the exact
 host code and the differentiable JAX stamping.

@@ -9,7 +9,7 @@ the same expressions differently for different batch shapes (an ulp here
 and there), which once made colours differ by a step and, through the
 equality test of cleaning, topology too. The same brush.py functions run
 under JAX for differentiable painting (diffpaint.py). Painter twin:
-painter/tree/src/paint/ (its mod.rs has a table of which file holds what).
+painter/paint/src/paint/ (its mod.rs has a table of which file holds what).
 """
 
 from __future__ import annotations

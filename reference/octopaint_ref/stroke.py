@@ -4,7 +4,7 @@ A sphere stroke is a chain of tapered capsules, one per segment between
 consecutive samples (the first sample alone is a sphere). Every other shape
 is stamped along the path every `spacing * r` of arc length. Each `sample`
 event produces one segment: a `Prims` batch of one capsule or of zero or more
-stamps. Painter twin: painter/tree/src/stroke.rs.
+stamps. Painter twin: painter/paint/src/stroke.rs.
 """
 
 from __future__ import annotations

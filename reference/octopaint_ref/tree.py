@@ -1,7 +1,7 @@
 """The octree: pools, the allocator, refinement with 2:1 face balance, coarsening.
 
-Rules: docs/spec.md sections 2-4. The painter's twin is painter/tree/src/pool/mod.rs
-and painter/tree/src/balance.rs; both must produce identical indices.
+Rules: docs/spec.md sections 2-4. The painter's twin is painter/octree/src/pool/mod.rs
+and painter/octree/src/balance.rs; both must produce identical indices.
 
 Pools are numpy arrays in structure-of-arrays layout, grown by doubling:
 

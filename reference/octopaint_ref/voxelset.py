@@ -5,7 +5,7 @@ module reads and checks one against a canvas, writes one (the trace
 generator and the tests make them), and indexes one for the import's
 decisions: which cells it reaches, the value at a cell's centre, and
 whether a leaf is settled (15.3). Painter twins: painter/trace/src/voxels.rs
-(the file) and painter/tree/src/voxels.rs (painting it).
+(the file) and painter/paint/src/voxels.rs (painting it).
 """
 
 from __future__ import annotations

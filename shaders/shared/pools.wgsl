@@ -1,6 +1,6 @@
 // The pools on the GPU, shared by every stage (docs/spec.md 2.2; the byte
 // layout is drawn in docs/buffer-layouts.md). Kept in sync with
-// painter/gpu/src/pools.rs (GpuCell, PAGES) and painter/tree/src/pool.rs;
+// painter/gpu/src/pools.rs (GpuCell, PAGES) and painter/octree/src/pool.rs;
 // a stride test in painter/gpu checks the Rust copy.
 //
 // One cell, 16 bytes:

@@ -47,7 +47,7 @@ pub struct Args {
     #[arg(long)]
     no_settling: bool,
     /// Value a unit's children one at a time instead of in vector lanes
-    /// (tree/src/lanes.rs): the same tree, for timing the kernels.
+    /// (paint/src/lanes/): the same tree, for timing the kernels.
     #[arg(long)]
     no_lanes: bool,
     /// Write the stroke set here (text: `stroke R hardness opacity r g b`,

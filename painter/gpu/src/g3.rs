@@ -1,6 +1,6 @@
 //! The g3 pass (docs/spec.md 3.3-3.5): recompute g3 for every cell of the
 //! regions the neighbour mask marks. Shader: shaders/g3.wgsl; CPU port:
-//! painter/tree/src/g3.rs.
+//! painter/octree/src/g3.rs.
 
 use bytemuck::{Pod, Zeroable};
 use octopaint_tree::dirty::{NeighbourMask, REGIONS, region_cells};

@@ -6,9 +6,9 @@
 //! | module | what it holds | shader | CPU port |
 //! | --- | --- | --- | --- |
 //! | [`context`] | adapter and device | | |
-//! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | tree/src/pool/mod.rs |
-//! | [`g3`] | the g3 pass | g3.wgsl | tree/src/g3.rs |
-//! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast.rs |
+//! | [`pools`] | pools in pages, staged blocks, uploads, g3 read-back | shared/pools.wgsl | octree/src/pool/mod.rs |
+//! | [`g3`] | the g3 pass | g3.wgsl | octree/src/g3.rs |
+//! | [`raycast`] | the ray caster | raycast.wgsl | tree/src/raycast/ |
 //! | [`digest`] | a cast image's 64-bit digest, for frame-by-frame comparisons | digest.wgsl | digest.rs (`rgb_digest`) |
 //! | [`frame`] | one frame: uploads, mask, g3 pass, ray cast | | |
 //! | [`blit`] | a cast image drawn into a colour target | (in blit.rs) | |

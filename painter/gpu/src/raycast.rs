@@ -1,6 +1,6 @@
 //! The ray caster (docs/spec.md 6, 7): one invocation per pixel, writing
 //! 8-bit sRGB. Shader: shaders/raycast.wgsl (f32, and f16 where the adapter
-//! has SHADER_F16); CPU port: painter/tree/src/raycast.rs, whose
+//! has SHADER_F16); CPU port: painter/tree/src/raycast/, whose
 //! [`RayParams`] the host computes for both.
 
 use bytemuck::{Pod, Zeroable};

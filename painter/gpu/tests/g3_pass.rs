@@ -1,4 +1,4 @@
-//! The g3 pass on a real adapter equals the CPU port (painter/tree/src/g3.rs)
+//! The g3 pass on a real adapter equals the CPU port (painter/octree/src/g3.rs)
 //! for every cell, after a whole trace and after every level of painting,
 //! where only the dirty blocks are uploaded and only the regions the
 //! neighbour mask marks are recomputed.

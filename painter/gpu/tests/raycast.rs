@@ -1,4 +1,4 @@
-//! The GPU ray caster against its CPU port (painter/tree/src/raycast.rs):
+//! The GPU ray caster against its CPU port (painter/tree/src/raycast/):
 //! the same images within a step, in f32 on Vulkan and GL, in f16 within
 //! the image tolerance of spec 13; cells with broken links are skipped by
 //! both in the same way.

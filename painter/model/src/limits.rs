@@ -1,5 +1,6 @@
 //! The limits a trace's values are read against (spec 12.2), shared by the
-//! reader and the tree that must never see more.
+//! reader and the tree that must never see more, and the spec's constants
+//! that the tree's lattice and the brushes both use.
 
 /// The deepest `max_depth` a canvas may have (spec 12.2).
 pub const MAX_DEPTH_LIMIT: i64 = 28;
@@ -15,3 +16,8 @@ pub const MAX_STAMPS_PER_SEGMENT: f64 = 65536.0;
 pub const LIGHT_INTENSITY_MAX: f64 = 16.0;
 /// Smallest normal f64; smaller magnitudes read as +0 (spec 8.9).
 pub const TINY: f64 = 2.2250738585072014e-308;
+/// √3/2, half a unit cube's diagonal: the reach radius's factor (spec 8.1,
+/// 8.7).
+pub const HALF_DIAG: f64 = 0.8660254037844386;
+/// Cells across a brush's radius at its target depth (spec 8.1, 8.7).
+pub const CELLS_PER_RADIUS: f64 = 10.0;

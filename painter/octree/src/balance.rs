@@ -234,8 +234,7 @@ impl Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::noise::hash32;
-    use crate::trace::Canvas;
+    use octopaint_model::Canvas;
 
     /// Random rounds over random leaves (runs of siblings among them, as
     /// the paint pass gives them): the refinements with each parent's
@@ -244,9 +243,12 @@ mod tests {
     /// neighbour is `neighbour` itself on every outward face of the tree).
     #[test]
     fn a_parents_neighbours_give_its_childrens() {
+        // Marsaglia's xorshift32: any spread of cells will do.
         let mut seed = 5u32;
         let mut next = |n: u32| {
-            seed = hash32(seed);
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
             seed % n
         };
         for roots in [[1, 1, 1], [2, 1, 3]] {

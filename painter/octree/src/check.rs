@@ -5,7 +5,7 @@
 use crate::g3::{g3_brute_force, g3_table, g3_table_per_cell};
 use crate::lattice::FACES;
 use crate::pool::{FREE, NONE, Tree, UNIT, origins};
-use crate::trace::Canvas;
+use octopaint_model::Canvas;
 
 /// Every problem found, in the order of spec 11.2; empty for a valid tree.
 pub fn check_tree(t: &Tree) -> Vec<String> {

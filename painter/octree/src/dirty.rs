@@ -147,7 +147,7 @@ impl Tree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trace::Canvas;
+    use octopaint_model::Canvas;
 
     #[test]
     fn nothing_is_recorded_cell_by_cell_until_a_publication_is_taken() {

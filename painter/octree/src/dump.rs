@@ -62,11 +62,11 @@ pub fn read_dump(bytes: &[u8]) -> Result<Tree, String> {
     let (_, root_size) = read_entry::<f64>(&mut zip, "root_size", "<f8", &[])?;
     let (sh, parent) = read_entry::<u32>(&mut zip, "parent", "<u4", &[None])?;
     let n = sh[0];
-    if n > crate::trace::MAX_CAPACITY as u64 {
-        return Err(format!("{n} cells are more than the {} a canvas may hold", crate::trace::MAX_CAPACITY));
+    if n > octopaint_model::MAX_CAPACITY as u64 {
+        return Err(format!("{n} cells are more than the {} a canvas may hold", octopaint_model::MAX_CAPACITY));
     }
     let header = serde_json::json!({"roots": roots, "max_depth": max_depth[0], "root_size": root_size[0], "capacity": n});
-    let canvas = crate::trace::parse_canvas(0, &header).map_err(|e| format!("the dump's canvas: {}", e.message))?;
+    let canvas = octopaint_trace::parse_canvas(0, &header).map_err(|e| format!("the dump's canvas: {}", e.message))?;
     let (_, first_child) = read_entry::<u32>(&mut zip, "first_child", "<u4", &[Some(n)])?;
     let (_, depth) = read_entry::<u8>(&mut zip, "depth", "|u1", &[Some(n)])?;
     let (_, rgb) = read_entry::<u8>(&mut zip, "rgb", "|u1", &[Some(n), Some(3)])?;
@@ -184,7 +184,7 @@ mod tests {
 
     #[test]
     fn a_dump_holds_every_array_with_its_dtype_and_shape() {
-        let tree = Tree::new(&crate::trace::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 64 });
+        let tree = Tree::new(&octopaint_model::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 64 });
         let bytes = dump_bytes(&tree);
         let entries = read_npz(&bytes);
         let n = tree.n_used() as u64;
@@ -215,7 +215,7 @@ mod tests {
 
     #[test]
     fn a_dump_reads_back_as_the_same_tree_and_bad_dumps_are_refused() {
-        let canvas = crate::trace::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 256 };
+        let canvas = octopaint_model::Canvas { roots: [2, 1, 1], max_depth: 4, root_size: 0.5, capacity: 256 };
         let mut tree = Tree::new(&canvas);
         let u = tree.allocate_unit().unwrap();
         tree.make_children(0, u);

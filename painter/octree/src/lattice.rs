@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use crate::trace::Canvas;
+use octopaint_model::Canvas;
 
 /// Deepest `max_depth` a canvas may have (spec 1.2).
 pub const DEPTH_LIMIT: u32 = 28;
@@ -55,7 +55,7 @@ impl Lattice {
         }
         let mut reach_radius = [0.0; DEPTH_LIMIT as usize + 1];
         for depth in 0..=d as usize {
-            reach_radius[depth] = crate::brush::HALF_DIAG * (size_canvas[depth] - size_canvas[d as usize]);
+            reach_radius[depth] = octopaint_model::HALF_DIAG * (size_canvas[depth] - size_canvas[d as usize]);
         }
         Lattice {
             roots: c.roots,
@@ -138,14 +138,14 @@ impl Lattice {
     /// than `r/10`, and no depth is below D's target when `d = D`.
     #[inline]
     pub fn coarser_than_target(&self, d: u32, r: f64) -> bool {
-        d < self.max_depth && self.size_canvas[d as usize] > r / crate::brush::CELLS_PER_RADIUS
+        d < self.max_depth && self.size_canvas[d as usize] > r / octopaint_model::CELLS_PER_RADIUS
     }
 
     /// Target depth of radius `r` (spec 8.7): the smallest `d` in [0, D] with
     /// `root_size · 2^-d <= r / 10`, or D if there is none.
     #[inline]
     pub fn target_depth(&self, r: f64) -> u32 {
-        let t = r / crate::brush::CELLS_PER_RADIUS;
+        let t = r / octopaint_model::CELLS_PER_RADIUS;
         let mut d = 0;
         while d < self.max_depth && self.root_size * exp2i(-(d as i32)) > t {
             d += 1;

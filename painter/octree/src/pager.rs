@@ -70,7 +70,7 @@ pub fn spare<T>(v: &Vec<T>) -> (usize, usize) {
 #[cfg(test)]
 mod tests {
     use crate::pool::{Tree, UNIT};
-    use crate::trace::Canvas;
+    use octopaint_model::Canvas;
 
     /// `f` on a new tree of one root and `capacity` cells, in a pool of
     /// `threads` threads (which decides whether growths start jobs).

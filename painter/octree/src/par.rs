@@ -10,11 +10,55 @@
 //! [`crate::team`], which stay awake between the many short passes of a
 //! stroke. On one thread, and for batches smaller than the grain,
 //! everything runs serially with no hand-off at all.
+//!
+//! [`Disjoint`] is the one way a pass writes in place from several threads:
+//! the paint pass's runs write the pools' values through it
+//! ([`crate::pool::InPlaceValues`]) and their stroke's slots.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use crate::team;
+
+/// A vector's elements, written by a parallel pass through a raw pointer:
+/// each worker touches elements no other worker touches (the paint pass:
+/// the cells of its run's own subtrees and their slots).
+#[derive(Clone, Copy)]
+pub struct Disjoint<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+// SAFETY: the pointer is only dereferenced at elements one worker owns
+// (the contract of `Disjoint::at`).
+unsafe impl<T: Send> Send for Disjoint<T> {}
+unsafe impl<T: Send> Sync for Disjoint<T> {}
+
+impl<T> Disjoint<T> {
+    pub fn new(v: &mut [T]) -> Self {
+        Disjoint { ptr: v.as_mut_ptr(), len: v.len() }
+    }
+
+    /// Elements in the vector.
+    pub fn len(self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.len == 0
+    }
+
+    /// Element `i` (checked against the length: an index past it panics).
+    ///
+    /// # Safety
+    /// No other thread accesses element `i` while the pointer is used, and
+    /// the vector is neither resized nor otherwise borrowed meanwhile.
+    #[inline]
+    pub unsafe fn at(self, i: usize) -> *mut T {
+        assert!(i < self.len, "element {i} out of range");
+        unsafe { self.ptr.add(i) }
+    }
+}
 
 /// Batches below this many items run serially: handing a batch to awake
 /// helpers costs a microsecond or two, which a few hundred cells repay.

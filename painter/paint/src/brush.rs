@@ -10,13 +10,11 @@
 use glam::{DMat3, DVec3};
 
 use crate::noise;
-use crate::trace::{Brush, Mode, Shape};
+use octopaint_model::{Brush, Mode, Shape};
 
-pub const HALF_DIAG: f64 = 0.8660254037844386;
-pub const CELLS_PER_RADIUS: f64 = 10.0;
+pub use octopaint_model::limits::{CELLS_PER_RADIUS, HALF_DIAG, TINY};
 pub const RADIUS_PRESSURE_FLOOR: f64 = 0.25;
 pub const OPACITY_CLAMP: f64 = 0.999;
-pub const TINY: f64 = 2.2250738585072014e-308;
 
 /// Radius of a sample of the given pressure (spec 8.1).
 #[inline]

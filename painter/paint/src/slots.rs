@@ -9,7 +9,7 @@
 //! to NONE) for the next stroke. The map takes memory for the pages one
 //! stroke touches, not for the canvas.
 
-use crate::pool::NONE;
+use octopaint_octree::pool::NONE;
 
 /// Cells a page: 4 KiB of entries.
 pub const PAGE: usize = 1024;

@@ -9,7 +9,7 @@
 use glam::DVec3;
 
 use crate::brush::{Capsule, Stamp, nlerp, pressure_radius, quat_to_matrix, stamp_extent};
-use crate::trace::{Brush, Sample, Shape};
+use octopaint_model::{Brush, Sample, Shape};
 
 #[derive(Clone, Copy, Debug)]
 pub enum Geometry {
@@ -158,7 +158,7 @@ impl StrokePath {
 mod tests {
     use super::*;
     use crate::brush::Stamp;
-    use crate::trace::Mode;
+    use octopaint_model::Mode;
 
     #[test]
     fn stamps_are_spaced_along_the_path_with_carry() {
@@ -181,7 +181,7 @@ mod tests {
     #[test]
     fn mirrored_copies_are_placed_and_turned_as_mirror_images() {
         let mut b = Brush::new(Shape::Box, Mode::Paint, 0.1, [1.0; 3], 1.0, 0.5);
-        b.mirror = Some(crate::trace::Mirror { axes: [true, false, true], centre: [0.5, 0.25, 0.5] });
+        b.mirror = Some(octopaint_model::Mirror { axes: [true, false, true], centre: [0.5, 0.25, 0.5] });
         let paths = StrokePath::all(b);
         assert_eq!(paths.iter().map(|p| p.mask).collect::<Vec<_>>(), vec![0, 1, 4, 5]);
         let q = [0.2, 0.3, 0.1, 0.9];

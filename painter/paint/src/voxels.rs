@@ -9,7 +9,7 @@
 pub use octopaint_model::voxel_set::{MAX_VOXELS, VoxelSet};
 pub use octopaint_trace::voxels::{parse_voxel_set, sha256_hex, voxel_set_bytes};
 
-use crate::pool::{NONE, Tree, UNIT};
+use octopaint_octree::pool::{NONE, Tree, UNIT};
 
 /// Sort key of a coordinate: (z, y, x).
 #[inline]
@@ -138,11 +138,11 @@ pub(crate) fn paint_voxels(tree: &mut Tree, vs: &VoxelSet, line: usize, warnings
     while !frontier.is_empty() {
         let mut next = Vec::new();
         for (c, o) in frontier {
-            let e = u32::from(tree.depth[c as usize]);
+            let e = u32::from(tree.depth()[c as usize]);
             if !index.reached(o, e) {
                 continue;
             }
-            let fc = tree.first_child[c as usize];
+            let fc = tree.first_child()[c as usize];
             if fc == NONE {
                 paint.push((c, o, e));
             } else {
@@ -157,7 +157,7 @@ pub(crate) fn paint_voxels(tree: &mut Tree, vs: &VoxelSet, line: usize, warnings
         tree.set_value(c, rgb, sigma);
     };
     for &(c, o, e) in &paint {
-        let b = (tree.rgb[c as usize], tree.sigma[c as usize]);
+        let b = (tree.rgb()[c as usize], tree.sigma()[c as usize]);
         before.insert(c, b);
         work.touched.push(c);
         write(tree, c, o, e, b);
@@ -182,8 +182,8 @@ pub(crate) fn paint_voxels(tree: &mut Tree, vs: &VoxelSet, line: usize, warnings
         let mut next = Vec::new();
         for &(parent, unit) in &units {
             let po = tree.origin(parent);
-            let pe = u32::from(tree.depth[parent as usize]);
-            let b = before.get(&parent).copied().unwrap_or((tree.rgb[parent as usize], tree.sigma[parent as usize]));
+            let pe = u32::from(tree.depth()[parent as usize]);
+            let b = before.get(&parent).copied().unwrap_or((tree.rgb()[parent as usize], tree.sigma()[parent as usize]));
             for k in 0..UNIT {
                 let (c, o, e) = (unit + k, tree.child_origin(po, pe, k), pe + 1);
                 before.insert(c, b);

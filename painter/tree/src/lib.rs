@@ -1,63 +1,39 @@
-//! Octopaint's CPU octree (the painter core): a root array of 2:1-balanced
-//! octrees in pooled arrays, the brushes that paint it, topology cleaning,
-//! undo, the g3 CPU port, tree dumps and documents of layers, over
-//! octopaint-model's vocabulary and octopaint-trace's reader. No GPU
-//! dependency. Everything follows docs/spec.md, whose sections the comments
-//! cite as "spec N.M"; reference/octopaint_ref is the oracle it is checked
-//! against, index for index.
+//! Octopaint's documents of layers, over the painting core: a document of
+//! up to 16 layers under one cell budget and one history, merge down,
+//! document dumps, replaying a trace, the ray caster's CPU port and orbit
+//! cameras. The core is two crates below it, which Cargo keeps from
+//! importing upward: octopaint-octree (the pools, their one journalled
+//! writer, balance, cleaning, undo, g3, tree dumps) and octopaint-paint
+//! (brushes, strokes, the paint pass, imports, over the octree). This crate
+//! re-exports their modules, so `octopaint_tree::pool`, `::paint` and the
+//! rest name the same items for every crate above (docs/architecture.md,
+//! "The crates"). No GPU dependency. Everything follows docs/spec.md
+//! ("spec N.M"); reference/octopaint_ref is the oracle it is checked
+//! against.
 //!
 //! | module | what it holds | reference twin |
 //! | --- | --- | --- |
-//! | [`lattice`] | root array, lattice, canvas units, target depth | tree.py |
-//! | [`pool`] | pools, allocator, cell writes with their undo journal and change log | tree.py, history.py (the journal) |
-//! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
-//! | [`g3`] | g3, shader-shaped, plus brute force | g3.py |
+//! | [`layers`] | documents of layers, merge down, document dumps (the rules: octopaint-model) | layers.py |
+//! | [`replay`] | replaying a trace | replay.py |
 //! | [`raycast`] | the ray caster's CPU port, shader-shaped | raycast.py |
 //! | [`view`] | orbit cameras, the view framing the painting | camera.py (orbit_camera) |
-//! | [`dirty`] | publications: dirty blocks, dirty cells, neighbour mask | tree.py |
-//! | [`brush`] | primitives, reach, coverage, blend modes | brush.py |
-//! | [`noise`] | hashed permutation, improved Perlin noise | noise.py |
-//! | [`stroke`] | samples to capsules and stamps | stroke.py |
-//! | [`paint`] | per-segment levels, per-stroke maximum | paint.py |
-//! | [`clean`] | topology cleaning | clean.py |
-//! | [`history`] | undo and redo | history.py |
-//! | [`lanes`] | a unit's 8 children against capsules in vector registers | — |
-//! | [`par`] | parallel passes, the same bytes on any pool; a radix sort of cell lists | — |
-//! | [`layers`] | documents of layers, merge down, document dumps (the rules: octopaint-model) | layers.py |
-//! | [`voxels`] | imports painted into a tree | paint.py (`import_voxels`), voxelset.py (`VoxelIndex`) |
-//! | [`check`] | whether pools form a valid tree; a tree from pools | check.py |
-//! | [`dump`] | `.npz` tree dumps | dump.py |
+//! | [`fuzz_harness`] | the fuzz targets' bodies for traces and replays; a deterministic mutator | — |
 //! | [`trace`] | octopaint-model's events and octopaint-trace's reader, re-exported | trace.py |
 //! | [`trace_write`] | octopaint-trace's writer, re-exported | — |
-//! | [`replay`] | replaying a trace | replay.py |
+//! | octopaint-octree's | [`lattice`], [`pool`], [`pager`], [`balance`], [`dirty`], [`clean`], [`history`], [`g3`], [`check`], [`dump`], [`par`], [`team`] | tree.py, history.py, clean.py, g3.py, check.py, dump.py |
+//! | octopaint-paint's | [`brush`], [`noise`], [`stroke`], [`paint`], [`lanes`], [`slots`], [`voxels`] | brush.py, noise.py, stroke.py, paint.py, voxelset.py |
 
-pub mod balance;
-pub mod brush;
-pub mod check;
-pub mod clean;
-pub mod dirty;
-pub mod dump;
 pub mod fuzz_harness;
-pub mod g3;
-pub mod history;
-pub mod lanes;
-pub mod lattice;
 pub mod layers;
-pub mod noise;
-pub mod pager;
-pub mod paint;
-pub mod par;
-pub mod pool;
 pub mod raycast;
 pub mod replay;
-pub mod slots;
-pub mod stroke;
-pub mod team;
 pub mod trace;
 pub mod trace_write;
 pub mod view;
-pub mod voxels;
 
-pub use paint::Painting;
-pub use pool::{FREE, NONE, Tree, UNIT};
+pub use octopaint_octree::{balance, check, clean, dirty, dump, g3, history, lattice, pager, par, pool, team};
+pub use octopaint_paint::{brush, lanes, noise, paint, slots, stroke, voxels};
+
+pub use octopaint_octree::pool::{FREE, NONE, Tree, UNIT};
+pub use octopaint_paint::Painting;
 pub use trace::{Trace, TraceError, read_trace};

@@ -158,7 +158,7 @@ pub fn replay_document_within(
     writer.finish()?;
     stats.seconds = t0.elapsed().as_secs_f64();
     stats.cells = doc.used().min(u64::from(u32::MAX)) as u32;
-    stats.deepest = doc.layers().flat_map(|l| l.tree().depth.iter()).filter(|&&d| d != FREE).map(|&d| u32::from(d)).max().unwrap_or(0);
+    stats.deepest = doc.layers().flat_map(|l| l.tree().depth().iter()).filter(|&&d| d != FREE).map(|&d| u32::from(d)).max().unwrap_or(0);
     Ok((stats, doc))
 }
 

@@ -82,7 +82,7 @@ fn frame_box(tree: &Tree, lo: DVec3, hi: DVec3) -> OrbitCamera {
 /// around every painted leaf of any of them (the first tree's whole canvas
 /// when none is painted).
 pub fn frame_trees(trees: &[&Tree]) -> OrbitCamera {
-    let painted: Vec<&&Tree> = trees.iter().filter(|t| t.sigma.iter().any(|&s| s > 0.0)).collect();
+    let painted: Vec<&&Tree> = trees.iter().filter(|t| t.sigma().iter().any(|&s| s > 0.0)).collect();
     let Some(first) = painted.first() else { return frame_painting(trees[0]) };
     let (mut lo, mut hi) = first.painted_bounds();
     for t in &painted[1..] {
@@ -173,7 +173,7 @@ pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
         }
         let p = eye + dir * t;
         let c = tree.leaf_at(p.to_array())?;
-        let d = u32::from(tree.depth[c as usize]);
+        let d = u32::from(tree.depth()[c as usize]);
         let s = tree.lat.size_canvas[d as usize];
         let lo = DVec3::from_array(tree.origin(c).map(|o| f64::from(o) * tree.lat.lattice_unit));
         let mut exit = f64::INFINITY;
@@ -185,7 +185,7 @@ pub fn pick(tree: &Tree, eye: DVec3, dir: DVec3) -> Option<f64> {
             }
         }
         let len = exit.max(0.0);
-        let sigma = f64::from(tree.sigma[c as usize]);
+        let sigma = f64::from(tree.sigma()[c as usize]);
         if sigma > 0.0 {
             if tau + sigma * len >= 0.7 {
                 return Some(t + (0.7 - tau) / sigma);

@@ -1,4 +1,4 @@
-//! The vector kernels of tree/src/lanes.rs give the same bytes as the
+//! The vector kernels of paint/src/lanes/ give the same bytes as the
 //! per-cell path: every checked-in trace is replayed with them on and off,
 //! and the snapshot dumps, the document's dump, every layer's undo and redo
 //! steps and the warnings must be equal. Its own test binary, so that the

@@ -1,4 +1,4 @@
-//! The painter core's parallel passes (tree/src/par.rs) give the same bytes
+//! The painter core's parallel passes (octree/src/par.rs) give the same bytes
 //! for any number of threads: every checked-in trace is replayed on pools
 //! of 1, 2 and 7 threads with every batch split (grain 1), and the snapshot
 //! dumps, the document's dump, every layer's undo and redo steps (record by

@@ -1,4 +1,4 @@
-//! The parallel passes at the production grain (tree/src/par.rs): strokes
+//! The parallel passes at the production grain (octree/src/par.rs): strokes
 //! like `octopaint bench tree`'s, smaller, whose large batches (new cells of
 //! a round, cleaning, the undo step) are split across the pool, give the
 //! same dump and undo steps on 1, 2 and 7 threads. Its own test binary, so

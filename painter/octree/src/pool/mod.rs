@@ -25,15 +25,20 @@
 //! pools: the undo journal ([`journal`]) saves a cell's old record before
 //! its first write in a stroke, and the change log ([`changes`]) marks the
 //! cell's block dirty and records topology changes for g3. The writes
-//! through this module's methods do both. One writer bypasses them: the
-//! paint pass's runs (paint/runs.rs, `Disjoint`, on several threads) write in
-//! place the colour and density of leaves the stroke has journalled
-//! already, and hand back their blocks and the leaves' first writes, which
-//! the pass marks and writes through [`Tree::set_value`] in order on one
-//! thread.
+//! through this module's methods do both, and the pools are private to
+//! the crate: painting (octopaint-paint) writes through them. One writer
+//! does neither itself: [`InPlaceValues`] ([`in_place`]), through which
+//! the paint pass's runs write on several threads, in place, the colour
+//! and density of leaves the stroke has journalled already; they hand back
+//! their blocks and the leaves' first writes, which the pass marks
+//! ([`Tree::mark_block_written`]) and writes ([`Tree::set_value`]) in
+//! order on one thread.
 
 pub(crate) mod changes;
+pub mod in_place;
 pub(crate) mod journal;
+
+pub use in_place::InPlaceValues;
 
 use std::collections::BTreeSet;
 
@@ -42,7 +47,7 @@ use journal::Journal;
 
 use crate::lattice::Lattice;
 use crate::pager::{Pager, spare};
-use crate::trace::Canvas;
+use octopaint_model::Canvas;
 
 /// "No cell".
 pub const NONE: u32 = u32::MAX;
@@ -368,7 +373,7 @@ impl Tree {
     /// its journal entry and dirty block are in place already, and no
     /// publication has been taken since.
     #[inline]
-    pub(crate) fn set_new_child_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
+    pub fn set_new_child_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
         debug_assert!(self.journal.as_ref().is_none_or(|j| !j.needs_save(c)));
         self.rgb[c as usize] = rgb;
         self.sigma[c as usize] = sigma;

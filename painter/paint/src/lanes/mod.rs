@@ -188,8 +188,6 @@ fn centre_box(xs: &[DVec3; LANES]) -> (DVec3, DVec3) {
     (lo, hi)
 }
 
-/// The lane operations at AVX: 8 lanes in two registers of 4, a mask a
-/// vector whose lanes are all ones or all zeros.
 #[cfg(target_arch = "x86_64")]
 mod avx;
 

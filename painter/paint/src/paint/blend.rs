@@ -5,7 +5,7 @@
 
 use super::StrokeState;
 use crate::brush::{BlendOf, TINY, blend, quantize_rgb, quantize_sigma};
-use crate::trace::Mode;
+use octopaint_model::Mode;
 
 /// `v / 255.0` for every stored channel value, computed once (the same
 /// correctly rounded quotients the blend would compute each time).
@@ -91,7 +91,7 @@ mod tests {
     use super::*;
     use crate::noise::hash32;
     use crate::paint::Painting;
-    use crate::trace::{Brush, Canvas, Shape};
+    use octopaint_model::{Brush, Canvas, Shape};
 
     /// The blends of `StrokeState::stored`, computed channel by channel,
     /// store the same bytes and f32 as the general form through

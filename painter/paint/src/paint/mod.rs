@@ -30,14 +30,14 @@ mod walks;
 pub(crate) use settle::settle_bounds;
 
 use crate::brush::{self, StampReach};
-use crate::clean::clean;
-use crate::history::History;
 use crate::noise::permutation;
-use crate::par;
-use crate::pool::{NONE, Tree};
 use crate::slots::SlotMap;
 use crate::stroke::{Prim, StrokePath};
-use crate::trace::{Brush, Canvas, Mode, Sample, Shape};
+use octopaint_model::{Brush, Canvas, Mode, Sample, Shape};
+use octopaint_octree::clean::clean;
+use octopaint_octree::history::History;
+use octopaint_octree::par;
+use octopaint_octree::pool::{NONE, Tree};
 
 use pass::SplitChoice;
 use runs::Run;
@@ -263,9 +263,9 @@ impl Painting {
         let st = self.stroke.as_mut().expect("sample outside a stroke");
         if st.brush.mode == Mode::Pickup
             && let Some(c) = tree.leaf_at(sample.p)
-            && tree.sigma[c as usize] > 0.0
+            && tree.sigma()[c as usize] > 0.0
         {
-            let canvas = tree.rgb[c as usize].map(|v| f64::from(v) / 255.0);
+            let canvas = tree.rgb()[c as usize].map(|v| f64::from(v) / 255.0);
             let rate = st.brush.pickup_rate;
             st.colour = [0, 1, 2].map(|i| st.colour[i] + (canvas[i] - st.colour[i]) * rate);
         }
@@ -415,7 +415,7 @@ impl Painting {
     /// stroke touched it, else its stored value.
     fn before_value(&self, c: u32) -> ([u8; 3], f32) {
         match self.slot_of.get(c) {
-            NONE => (self.tree.rgb[c as usize], self.tree.sigma[c as usize]),
+            NONE => (self.tree.rgb()[c as usize], self.tree.sigma()[c as usize]),
             s => {
                 let s = &self.stroke.as_ref().expect("stroke").slots[s as usize];
                 (s.before_rgb, s.before_sigma)

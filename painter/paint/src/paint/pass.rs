@@ -5,14 +5,15 @@
 
 use glam::DVec3;
 
-use super::runs::{Disjoint, Run, RunContext, SPARE_RUN_ITEMS, walk_run};
+use super::runs::{Run, RunContext, SPARE_RUN_ITEMS, walk_run};
 use super::walks::{SegmentWalk, StampWalk, Walk};
 use super::{Painting, StrokeState};
 use crate::lanes::LANES;
-use crate::par;
-use crate::pool::NONE;
 use crate::stroke::{Geometry, Prim};
-use crate::trace::{Mode, Shape};
+use octopaint_model::{Mode, Shape};
+use octopaint_octree::par;
+use octopaint_octree::par::Disjoint;
+use octopaint_octree::pool::NONE;
 
 /// The capsule paint pass splits across threads when the cells its box
 /// spans, over this, reach the grain: a split walk builds a front of
@@ -208,7 +209,7 @@ impl Painting {
         let parallel = worth && (!measured || choice.choose());
         // What a measured pass took, from here to its lists joined.
         let start = measured.then(|| (std::time::Instant::now(), self.counters.leaves_visited));
-        let (depth, first_child) = (&self.tree.depth, &self.tree.first_child);
+        let (depth, first_child) = (self.tree.depth(), self.tree.first_child());
         // 1. The front, in visiting order, and its runs (parallel only).
         let mut front: Vec<(u32, [u32; 3])> = Vec::new();
         let mut bounds = vec![0];
@@ -262,8 +263,7 @@ impl Painting {
         let slot_a = Disjoint::new(&mut st.slot_a);
         let slots = Disjoint::new(&mut st.slots);
         let st: &StrokeState = st;
-        let tree = &mut self.tree;
-        let (rgb, sigma) = (Disjoint::new(&mut tree.rgb), Disjoint::new(&mut tree.sigma));
+        let (tree, values) = self.tree.in_place_values();
         let ctx = RunContext {
             tree,
             st,
@@ -272,8 +272,7 @@ impl Painting {
             prim,
             hardness: st.brush.hardness,
             sigma_gate: matches!(st.brush.mode, Mode::Erase | Mode::Recolor),
-            rgb,
-            sigma,
+            values,
             slot_a,
             slots,
         };
@@ -296,7 +295,7 @@ impl Painting {
         let mut maybe = Vec::new();
         for mut run in runs {
             for &b in &run.blocks {
-                self.tree.changes.mark_block(b * crate::dirty::BLOCK_CELLS);
+                self.tree.mark_block_written(b);
             }
             self.counters.cells_written += run.written + run.fresh.len() as u64;
             for f in &run.fresh {

@@ -10,10 +10,10 @@ use glam::DVec3;
 use super::walks::{segment_reach, stroke_maximum_with};
 use super::{FirstWrite, Painting, Slot, StrokeState};
 use crate::lanes::{self, LANES};
-use crate::par;
-use crate::pool::{Tree, UNIT};
 use crate::stroke::{Geometry, Prim};
-use crate::trace::{Mode, Shape};
+use octopaint_model::{Mode, Shape};
+use octopaint_octree::par;
+use octopaint_octree::pool::{Tree, UNIT};
 
 /// What the pass over a round's new children reads
 /// ([`Painting::paint_new_cells`]).
@@ -83,11 +83,11 @@ impl Painting {
         // (a walk up the parent chain) is then found once.
         let mut grand: Option<(u32, [u32; 3])> = None;
         for &(parent, unit) in &units {
-            let d = u32::from(self.tree.depth[parent as usize]);
+            let d = u32::from(self.tree.depth()[parent as usize]);
             let o = if d == 0 {
                 self.tree.origin(parent)
             } else {
-                let g = self.tree.parent[parent as usize];
+                let g = self.tree.parent()[parent as usize];
                 let og = match grand {
                     Some((c, o)) if c == g => o,
                     _ => {
@@ -149,7 +149,7 @@ impl Painting {
                 let mut out = vec![FirstWrite::NONE; cells.len()];
                 par::for_groups(cells, &mut out, LANES, |u, out| {
                     let (c0, _, d) = u[0];
-                    let before = self.before_value(self.tree.parent[c0 as usize]);
+                    let before = self.before_value(self.tree.parent()[c0 as usize]);
                     let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
                     let h = lat.reach_radius[d as usize];
                     let m = lanes::unit_maximum(&near, hardness, &cap, seg_is_last_near, &xs, h).expect("lanes available");
@@ -177,7 +177,7 @@ impl Painting {
                 let mut out = vec![FirstWrite::NONE; cells.len()];
                 par::for_groups(cells, &mut out, LANES, |u, out| {
                     let (c0, _, d) = u[0];
-                    let before = self.before_value(self.tree.parent[c0 as usize]);
+                    let before = self.before_value(self.tree.parent()[c0 as usize]);
                     let xs: [DVec3; LANES] = std::array::from_fn(|l| u[l].1);
                     let (a, k) = lanes::unit_stamp_maximum(&near, b.shape, b.aspect, b.hardness, &xs).expect("lanes available");
                     let h = lat.reach_radius[d as usize];
@@ -192,7 +192,7 @@ impl Painting {
             }
             _ => {
                 per_cell = par::map(cells, |&(c, x, d)| {
-                    let before = self.before_value(self.tree.parent[c as usize]);
+                    let before = self.before_value(self.tree.parent()[c as usize]);
                     let cp = seg_cap.map(|cap| cap.project(x));
                     let last = if seg_is_last_near { cp.as_ref() } else { None };
                     let (a, k) = if near.is_empty() { (0.0, 0) } else { stroke_maximum_with(st, &near, x, last) };

@@ -1,8 +1,9 @@
 //! One run of the paint pass, walked as the serial pass walks it: the only
-//! unsafe code of the painter core. A run writes in place the leaves the
+//! unsafe code of the painting. A run writes in place the leaves the
 //! stroke has touched before (their cells and slots belong to that run
-//! alone, through [`Disjoint`]) and hands back the first writes, the dirty
-//! blocks and the candidates for refinement.
+//! alone: the pools through octopaint-octree's [`InPlaceValues`], the
+//! slots through its [`Disjoint`]) and hands back the first writes, the
+//! dirty blocks and the candidates for refinement.
 
 use glam::DVec3;
 
@@ -10,40 +11,10 @@ use super::walks::Walk;
 use super::{FirstWrite, Slot, StrokeState};
 use crate::brush::TINY;
 use crate::lanes::LANES;
-use crate::pool::{NONE, Tree, UNIT};
 use crate::slots::SlotMap;
 use crate::stroke::Prim;
-
-/// A vector's elements, written by the parallel paint pass through a raw
-/// pointer: each run touches only the cells of its own subtrees and their
-/// slots, so no element is accessed by two threads.
-#[derive(Clone, Copy)]
-pub(super) struct Disjoint<T> {
-    ptr: *mut T,
-    pub(super) len: usize,
-}
-
-// SAFETY: the pointer is only dereferenced at elements one run owns (see
-// `Painting::paint_pass_walk`).
-unsafe impl<T: Send> Send for Disjoint<T> {}
-unsafe impl<T: Send> Sync for Disjoint<T> {}
-
-impl<T> Disjoint<T> {
-    pub(super) fn new(v: &mut [T]) -> Self {
-        Disjoint { ptr: v.as_mut_ptr(), len: v.len() }
-    }
-
-    /// Element `i` (checked against the length: an index past it panics).
-    ///
-    /// # Safety
-    /// No other thread accesses element `i` while the pointer is used, and
-    /// the vector is not resized meanwhile.
-    #[inline]
-    pub(super) unsafe fn at(self, i: usize) -> *mut T {
-        assert!(i < self.len, "cell or slot {i} out of range");
-        unsafe { self.ptr.add(i) }
-    }
-}
+use octopaint_octree::par::Disjoint;
+use octopaint_octree::pool::{InPlaceValues, NONE, Tree, UNIT};
 
 /// What a run of the capsule paint pass reads, and the vectors it writes
 /// in place (see [`Painting::paint_pass_walk`]).
@@ -55,8 +26,7 @@ pub(super) struct RunContext<'a, W> {
     pub(super) prim: &'a Prim,
     pub(super) hardness: f64,
     pub(super) sigma_gate: bool,
-    pub(super) rgb: Disjoint<[u8; 3]>,
-    pub(super) sigma: Disjoint<f32>,
+    pub(super) values: InPlaceValues,
     pub(super) slot_a: Disjoint<f64>,
     pub(super) slots: Disjoint<Slot>,
 }
@@ -87,8 +57,8 @@ pub(super) fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
     // Entries below `untested` are the run's subtrees, not tested yet.
     let mut untested = stack.len();
     while let Some((c, o)) = stack.pop() {
-        let d = u32::from(tree.depth[c as usize]);
-        let fc = tree.first_child[c as usize];
+        let d = u32::from(tree.depth()[c as usize]);
+        let fc = tree.first_child()[c as usize];
         let tested = stack.len() >= untested;
         if !tested {
             untested = stack.len(); // what this cell pushes is tested
@@ -109,7 +79,7 @@ pub(super) fn walk_run<W: Walk>(ctx: &RunContext<W>, mut out: Run) -> Run {
         let d1 = d + 1;
         let h1 = lat.reach_radius[d1 as usize];
         let xs: [DVec3; LANES] = std::array::from_fn(|k| lat.centre(tree.child_origin(o, d, k as u32), d1));
-        let unit = &tree.first_child[fc as usize..(fc + UNIT) as usize];
+        let unit = &tree.first_child()[fc as usize..(fc + UNIT) as usize];
         if unit.iter().any(|&g| g != NONE) {
             let reach = walk.unit_reach(&xs, h1);
             for k in 0..UNIT {
@@ -163,12 +133,12 @@ struct Leaf {
 fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
     let Leaf { cell: c, slot, depth: d, centre: x, radius: r, reach_radius: h, a } = leaf;
     out.visited += 1;
-    // SAFETY (every `Disjoint` access here): `c` is a live cell of this
+    // SAFETY (every in-place access here): `c` is a live cell of this
     // run's subtrees, which no other run holds, and its slot is its own;
     // the vectors do not change length while the runs go on.
     // Its stored sigma, read where it is needed: a leaf that is neither
     // new to the stroke nor written leaves its pools unread.
-    let sigma_now = || unsafe { *ctx.sigma.at(c as usize) };
+    let sigma_now = || unsafe { ctx.values.sigma(c) };
     let needs = ctx.tree.lat.coarser_than_target(d, r) && !(ctx.sigma_gate && !(sigma_now() > 0.0));
     if a >= TINY {
         out.hit += 1;
@@ -176,22 +146,20 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
         match slot {
             NONE => {
                 let before_sigma = sigma_now();
-                let before_rgb = unsafe { *ctx.rgb.at(c as usize) };
+                let before_rgb = unsafe { ctx.values.rgb(c) };
                 let (rgb, sigma) = ctx.st.stored(before_rgb, before_sigma, colour, a);
                 out.fresh.push(FirstWrite { c, before_rgb, before_sigma, a, rgb, sigma, next: false });
             }
             s => unsafe {
                 // Touched before in this stroke, so written and journalled.
-                debug_assert!(ctx.tree.journal.as_ref().is_none_or(|j| !j.needs_save(c)));
                 let sa = &mut *ctx.slot_a.at(s as usize);
                 if a > *sa {
                     *sa = a;
                     let slot = &*ctx.slots.at(s as usize);
                     let (rgb, sigma) = ctx.st.stored(slot.before_rgb, slot.before_sigma, colour, a);
-                    *ctx.rgb.at(c as usize) = rgb;
-                    *ctx.sigma.at(c as usize) = sigma;
+                    ctx.values.set(ctx.tree, c, rgb, sigma);
                     out.written += 1;
-                    let block = c / crate::dirty::BLOCK_CELLS;
+                    let block = c / octopaint_octree::dirty::BLOCK_CELLS;
                     if out.blocks.last() != Some(&block) {
                         out.blocks.push(block);
                     }

@@ -9,9 +9,9 @@ use glam::DVec3;
 use super::Painting;
 use crate::brush::TINY;
 use crate::lanes::{self, LANES};
-use crate::par;
-use crate::pool::NONE;
 use crate::stroke::{Geometry, Prim};
+use octopaint_octree::par;
+use octopaint_octree::pool::NONE;
 
 /// The capsules among `prims` whose boxes meet the bounds of the balls
 /// `(centre, radius)` (the only ones that cover any point of them), with

@@ -9,9 +9,9 @@ use glam::DVec3;
 use super::StrokeState;
 use crate::brush::{self, Capsule, CapsulePoint, Stamp, StampReach, TINY};
 use crate::lanes::{self, LANES};
-use crate::pool::Tree;
 use crate::stroke::{Geometry, Prim};
-use crate::trace::{Brush, Shape};
+use octopaint_model::{Brush, Shape};
+use octopaint_octree::pool::Tree;
 
 /// [`Walk::within_reach`] of the 8 centres `xs`, one at a time, as a mask
 /// (bit k: lane k): the walk's test where no kernel does it.

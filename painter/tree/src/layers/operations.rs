@@ -160,10 +160,10 @@ pub fn merge_trees(lower: &Layer, upper: &Layer, limit: u64) -> Option<Tree> {
         let n = m.n_used() as usize;
         let origins = crate::dump::origins(&m);
         let mut cand: Vec<u32> = (0..n)
-            .filter(|&c| u32::from(m.depth[c]) == d && m.first_child[c] == NONE)
+            .filter(|&c| u32::from(m.depth()[c]) == d && m.first_child()[c] == NONE)
             .filter(|&c| {
                 let bc = b.cell_at(origins[c], d) as usize;
-                u32::from(b.depth[bc]) == d && b.first_child[bc] != NONE
+                u32::from(b.depth()[bc]) == d && b.first_child()[bc] != NONE
             })
             .map(|c| c as u32)
             .collect();
@@ -184,22 +184,22 @@ pub fn merge_trees(lower: &Layer, upper: &Layer, limit: u64) -> Option<Tree> {
     let o_b = if upper.visible { f64::from(upper.opacity) } else { 0.0 };
     let mut leaves = Vec::new();
     for c in 0..n {
-        if m.depth[c] == FREE || m.first_child[c] != NONE {
+        if m.depth()[c] == FREE || m.first_child()[c] != NONE {
             continue;
         }
-        let bc = b.cell_at(origins[c], u32::from(m.depth[c])) as usize;
-        let w_a = o_a * f64::from(m.sigma[c]);
-        let w_b = o_b * f64::from(b.sigma[bc]);
+        let bc = b.cell_at(origins[c], u32::from(m.depth()[c])) as usize;
+        let w_a = o_a * f64::from(m.sigma()[c]);
+        let w_b = o_b * f64::from(b.sigma()[bc]);
         let w = w_a + w_b;
-        let mut rgb = m.rgb[c];
+        let mut rgb = m.rgb()[c];
         if w > 0.0 {
             for ch in 0..3 {
-                let v = ((w_a * f64::from(m.rgb[c][ch]) + w_b * f64::from(b.rgb[bc][ch])) / w + 0.5).floor();
+                let v = ((w_a * f64::from(m.rgb()[c][ch]) + w_b * f64::from(b.rgb()[bc][ch])) / w + 0.5).floor();
                 rgb[ch] = v.clamp(0.0, 255.0) as u8;
             }
         }
         m.set_value(c as u32, rgb, crate::brush::quantize_sigma(w));
-        if m.depth[c] > 0 {
+        if m.depth()[c] > 0 {
             leaves.push(c as u32);
         }
     }

@@ -5,133 +5,17 @@
 //! and 7). The host-side camera set-up shared with the GPU is
 //! [`RayParams::new`].
 
-use crate::brush::quat_to_rows;
-use crate::lattice::Lattice;
-use crate::pool::{FREE, NONE};
-use crate::trace::{Camera, Light};
+mod layers;
+mod params;
 
-/// The per-frame constants of the ray caster, as the shader's uniform
-/// holds them (painter/gpu/src/raycast.rs uploads exactly these fields).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RayParams {
-    /// The eye's lattice point clamped into the canvas.
-    pub eye_cell: [u32; 3],
-    /// The eye minus `eye_cell` in lattice units (the fraction when inside).
-    pub eye_rel: [f32; 3],
-    pub lattice_unit: f32,
-    pub roots: [u32; 3],
-    pub max_depth: u32,
-    pub extent: [f32; 3],
-    pub extent_max: [u32; 3],
-    pub tan_fov: [f32; 4],
-    pub rot: [[f32; 3]; 3],
-    pub background: [f32; 3],
-    pub width: u32,
-    pub height: u32,
-    pub max_steps: u32,
-    pub n_roots: u32,
-    pub inside: bool,
-    /// Skip cells whose parent/child links disagree (spec 7). Off only for
-    /// the real-time benchmark's strategies that measure the difference.
-    pub skip_invalid: bool,
-    /// The ground grid behind everything, a view aid (see
-    /// [`RayParams::with_grid`]); spacing 0: none, the background alone.
-    pub grid: [f32; 4],
-    /// 0 unlit, 1 lit, 2 lit with a shadow ray (spec 6.1; see
-    /// [`RayParams::with_light`]).
-    pub lit: u32,
-    /// The unit direction towards the light, and its intensity.
-    pub light: [f32; 4],
-    pub ambient: f32,
-}
+pub use layers::{LayerInput, render_layers, trace_pixel_layers};
+pub use params::RayParams;
+
+use crate::pool::{FREE, NONE};
 
 /// Steps before a ray gives up (a broken tree caught mid-upload).
 pub const MAX_STEPS: u32 = 1 << 16;
 const T_MIN: f32 = 1.0 / 256.0;
-
-impl RayParams {
-    /// The frame constants of `camera` over `tree`'s canvas, computed in
-    /// f64 on the host (spec 6, 7: the eye split into a lattice point and a
-    /// fraction) and rounded once to f32.
-    pub fn new(lat: &Lattice, camera: &Camera) -> Self {
-        let lu = lat.lattice_unit;
-        let mut eye_cell = [0u32; 3];
-        let mut eye_rel = [0f32; 3];
-        let mut inside = true;
-        for a in 0..3 {
-            let x = camera.eye[a] / lu;
-            let e = x.floor();
-            let phi = x - e;
-            let top = (lat.extent[a] - 1) as f64;
-            let clamped = e.clamp(0.0, top);
-            inside &= e == clamped;
-            eye_cell[a] = clamped as u32;
-            eye_rel[a] = ((e - clamped) + phi) as f32;
-        }
-        let rows = quat_to_rows(camera.q);
-        let [l, r, u, d] = camera.fov;
-        RayParams {
-            eye_cell,
-            eye_rel,
-            lattice_unit: lu as f32,
-            roots: lat.roots,
-            max_depth: lat.max_depth,
-            extent: lat.extent.map(|e| e as f32),
-            extent_max: lat.extent.map(|e| (e - 1) as u32),
-            tan_fov: [l.tan() as f32, r.tan() as f32, u.tan() as f32, d.tan() as f32],
-            rot: rows.map(|row| row.map(|v| v as f32)),
-            background: camera.background.map(|v| v as f32),
-            width: camera.size[0],
-            height: camera.size[1],
-            max_steps: MAX_STEPS,
-            n_roots: lat.n_roots,
-            inside,
-            skip_invalid: true,
-            grid: [0.0; 4],
-            lit: 0,
-            light: [0.0; 4],
-            ambient: 0.0,
-        }
-    }
-
-    /// These constants lit by `light` (spec 6.1): its direction normalised
-    /// in f64 and rounded once to f32. None or off: unlit.
-    pub fn with_light(mut self, light: Option<&Light>) -> Self {
-        match light {
-            Some(l) if l.on => {
-                let [x, y, z] = l.dir;
-                let n = (x * x + y * y + z * z).sqrt();
-                self.lit = if l.shadows { 2 } else { 1 };
-                self.light = [(x / n) as f32, (y / n) as f32, (z / n) as f32, l.intensity as f32];
-                self.ambient = l.ambient as f32;
-            }
-            _ => {
-                self.lit = 0;
-                self.light = [0.0; 4];
-                self.ambient = 0.0;
-            }
-        }
-        self
-    }
-
-    /// These constants with the ground grid on the canvas floor (y = 0) for
-    /// a camera at `eye` (canvas units): lines every power of ten of
-    /// canvas units at or below the eye's height, brighter ones every ten
-    /// of those. The eye's x and z are reduced modulo ten spacings in f64,
-    /// so the shader's f32 arithmetic sees small numbers anywhere on a
-    /// 40 km canvas. No grid with the eye at or below the floor.
-    pub fn with_grid(mut self, eye: [f64; 3]) -> Self {
-        let h = eye[1];
-        if !(h > 0.0 && h.is_finite()) {
-            self.grid = [0.0; 4];
-            return self;
-        }
-        let s = 10f64.powf(h.log10().floor());
-        let m = 10.0 * s;
-        self.grid = [eye[0].rem_euclid(m) as f32, h as f32, eye[2].rem_euclid(m) as f32, s as f32];
-        self
-    }
-}
 
 /// Distance of v (in spacings) to the nearest whole number; `v -
 /// floor(v)` is WGSL's `fract` (Rust's keeps the sign).
@@ -176,7 +60,7 @@ pub struct RayInput<'a> {
 impl<'a> RayInput<'a> {
     /// The pools of `tree` with its g3 table.
     pub fn of(tree: &'a crate::pool::Tree, g3: &'a [[u32; 3]]) -> Self {
-        RayInput { parent: &tree.parent, first_child: &tree.first_child, depth: &tree.depth, rgb: &tree.rgb, sigma: &tree.sigma, g3 }
+        RayInput { parent: tree.parent(), first_child: tree.first_child(), depth: tree.depth(), rgb: tree.rgb(), sigma: tree.sigma(), g3 }
     }
 }
 
@@ -618,154 +502,6 @@ pub fn trace_pixel(inp: &RayInput, params: &RayParams, x: u32, y: u32) -> [u8; 3
     colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
 }
 
-// ---------------------------------------------------------------- layers
-
-/// One contributing layer of a document (spec 6.2): its pools and opacity.
-pub struct LayerInput<'a> {
-    pub inp: RayInput<'a>,
-    pub opacity: f32,
-}
-
-/// What a march of several layers leaves (spec 6.2).
-struct March {
-    colour: [f32; 3],
-    direct: [f32; 3],
-    trans: f32,
-    found: bool,
-    s_cur: Vec<Cursor>,
-    s_active: Vec<bool>,
-}
-
-/// The march of spec 6.2 along `d` from the cursors `cur` (those `active`
-/// inside the canvas): every step composites the interval up to the
-/// nearest boundary of any layer; `shadow`: only attenuate.
-fn march(layers: &[LayerInput], pr: &RayParams, mut cur: Vec<Cursor>, mut active: Vec<bool>, d: [f32; 3], shadow: bool) -> March {
-    let n = layers.len();
-    let root_size = ldexp(pr.lattice_unit, pr.max_depth as i32);
-    let mut out = March { colour: [0.0; 3], direct: [0.0; 3], trans: 1.0, found: false, s_cur: cur.clone(), s_active: vec![false; n] };
-    let mut exits = vec![(0f32, 0usize, [0f32; 3]); n];
-    let mut u_k = vec![f32::INFINITY; n];
-    let mut sig_k = vec![0f32; n];
-    let mut steps = 0u32;
-    while active.iter().any(|&a| a) {
-        let mut u = f32::INFINITY;
-        let mut sig = 0f32;
-        for k in 0..n {
-            u_k[k] = f32::INFINITY;
-            sig_k[k] = 0.0;
-            if active[k] {
-                exits[k] = exit(cur[k].p, d);
-                u_k[k] = exits[k].0 * ldexp(1.0, -(cur[k].depth as i32));
-                u = u.min(u_k[k]);
-                if cur[k].visible {
-                    sig_k[k] = layers[k].opacity * layers[k].inp.sigma_of(cur[k].cell);
-                }
-            }
-            sig += sig_k[k];
-        }
-        let ext = (-sig * (u * root_size)).exp();
-        if !shadow && sig > 0.0 {
-            let w = out.trans * (1.0 - ext);
-            for k in 0..n {
-                if sig_k[k] == 0.0 {
-                    continue;
-                }
-                let c = &cur[k];
-                let share = sig_k[k] / sig;
-                let rgb = layers[k].inp.rgb.get(c.cell as usize).copied().unwrap_or([0; 3]).map(|v| v as f32 / 255.0);
-                if pr.lit == 0 {
-                    for i in 0..3 {
-                        out.colour[i] += w * share * rgb[i];
-                    }
-                } else {
-                    let f = shade(&layers[k].inp, pr, c.cell, c.depth, c.origin, layers[k].inp.sigma_of(c.cell));
-                    for i in 0..3 {
-                        out.colour[i] += w * share * f[0] * rgb[i];
-                        out.direct[i] += w * share * f[1] * rgb[i];
-                    }
-                }
-            }
-            if pr.lit != 0 && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5 {
-                let per_unit = sig * root_size;
-                let t_half = ((2.0 * out.trans).ln() / per_unit).min(u);
-                out.found = true;
-                for k in 0..n {
-                    let c = cur[k];
-                    let t = t_half * ldexp(1.0, c.depth as i32);
-                    out.s_cur[k] = Cursor { p: [0, 1, 2].map(|a| (c.p[a] + t * d[a]).clamp(-0.5, 0.5)), ..c };
-                    out.s_active[k] = active[k];
-                }
-            }
-        }
-        out.trans *= ext;
-        steps += 1;
-        if out.trans < T_MIN || steps >= pr.max_steps {
-            break;
-        }
-        for k in 0..n {
-            if !active[k] {
-                continue;
-            }
-            let (t, axis, bound) = exits[k];
-            if u_k[k] == u {
-                match next_cell(&layers[k].inp, pr, &cur[k], t, axis, bound[axis], d) {
-                    Some(next) => cur[k] = next,
-                    None => active[k] = false,
-                }
-            } else {
-                let t = u * ldexp(1.0, cur[k].depth as i32);
-                let c = &mut cur[k];
-                c.p = [0, 1, 2].map(|a| (c.p[a] + t * d[a]).clamp(-0.5, 0.5));
-            }
-        }
-    }
-    out
-}
-
-/// One pixel of several layers (spec 6.2), bottom first.
-pub fn trace_pixel_layers(layers: &[LayerInput], params: &RayParams, x: u32, y: u32) -> [u8; 3] {
-    let pr = params;
-    let rs = ray_start(pr, x, y);
-    let d = rs.dir;
-    let cur: Vec<Cursor> = layers.iter().map(|l| start_cursor(&l.inp, pr, &rs)).collect();
-    let ray = march(layers, pr, cur, vec![rs.running; layers.len()], d, false);
-    let mut colour = ray.colour;
-    if pr.lit == 1 {
-        for i in 0..3 {
-            colour[i] += ray.direct[i];
-        }
-    } else if pr.lit == 2 {
-        let l = [pr.light[0], pr.light[1], pr.light[2]];
-        let s = if ray.found { march(layers, pr, ray.s_cur.clone(), ray.s_active.clone(), l, true).trans } else { 1.0 };
-        for i in 0..3 {
-            colour[i] += s * ray.direct[i];
-        }
-    }
-    let back = ground(pr, d);
-    for i in 0..3 {
-        colour[i] += ray.trans * back[i];
-    }
-    colour.map(|c| (c * 255.0 + 0.5).floor().clamp(0.0, 255.0) as u8)
-}
-
-/// A whole image of several layers (spec 6.2), row 0 at the top: one layer
-/// at opacity 1 is the one-tree image ([`render`], spec 14.6), any other
-/// set the march. No layer: the background (and the grid) alone.
-pub fn render_layers(layers: &[LayerInput], params: &RayParams) -> Vec<u8> {
-    if let [one] = layers
-        && one.opacity == 1.0
-    {
-        return render(&one.inp, params);
-    }
-    let mut out = Vec::with_capacity((params.width * params.height * 3) as usize);
-    for y in 0..params.height {
-        for x in 0..params.width {
-            out.extend_from_slice(&trace_pixel_layers(layers, params, x, y));
-        }
-    }
-    out
-}
-
 /// A whole image, row 0 at the top: `width·height·3` bytes of sRGB.
 pub fn render(inp: &RayInput, params: &RayParams) -> Vec<u8> {
     let mut out = Vec::with_capacity((params.width * params.height * 3) as usize);
@@ -778,39 +514,4 @@ pub fn render(inp: &RayInput, params: &RayParams) -> Vec<u8> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::trace::Canvas;
-
-    fn params() -> RayParams {
-        let lat = Lattice::new(&Canvas { roots: [4, 4, 4], max_depth: 25, root_size: 10_000.0, capacity: 1 << 20 });
-        let camera = Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.4, -0.4], size: [8, 6], background: [0.1, 0.2, 0.3] };
-        RayParams::new(&lat, &camera)
-    }
-
-    #[test]
-    fn the_grid_spacing_follows_the_eye_height_and_the_eye_is_reduced() {
-        assert_eq!(params().grid, [0.0; 4]);
-        assert_eq!(params().with_grid([0.25, 1.15, -3.5]).grid, [0.25, 1.15, 6.5, 1.0]);
-        assert_eq!(params().with_grid([12_345.625, 40.0, 7.0]).grid, [45.625, 40.0, 7.0, 10.0]);
-        let g = params().with_grid([0.0, 0.05, 0.0]).grid;
-        assert!((g[3] - 0.01).abs() < 1e-9, "{g:?}");
-        // At or below the floor, or not finite: no grid.
-        for h in [0.0, -2.0, f64::NAN, f64::INFINITY] {
-            assert_eq!(params().with_grid([1.0, h, 1.0]).grid[3], 0.0, "{h}");
-        }
-    }
-
-    #[test]
-    fn without_the_grid_a_ray_leaving_everything_sees_the_background() {
-        let p = params();
-        for dir in [[0.0, -1.0, 0.0], [0.6, 0.0, -0.8], [0.0, 1.0, 0.0]] {
-            assert_eq!(ground(&p, dir), p.background);
-        }
-        let g = p.with_grid([0.5, 2.0, 0.5]);
-        // Straight up: the sky; straight down: the floor, tinted.
-        assert_eq!(ground(&g, [0.0, 1.0, 0.0]), g.background);
-        let down = ground(&g, [0.0, -1.0, 0.0]);
-        assert!(down.iter().zip(g.background).all(|(a, b)| *a > b), "{down:?}");
-    }
-}
+mod tests;

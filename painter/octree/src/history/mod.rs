@@ -22,6 +22,10 @@
 //! [`History::full_steps`] rebuilds every step's records for a document or
 //! a comparison.
 
+mod packed;
+
+use packed::{CellRun, Packed};
+
 use crate::par;
 use crate::pool::{CellRecord, FREE, NONE, Tree, UNIT};
 
@@ -100,145 +104,6 @@ impl Kind {
         } else {
             Kind::Other
         }
-    }
-}
-
-/// The records of consecutive cells, packed: rgb and sigma for every cell,
-/// the parent and depth once for each span of cells that share them (a
-/// unit's 8 siblings do), and first_child only where it is not NONE (most
-/// cells a stroke makes are leaves). About 9 bytes a cell for a stroke's new
-/// units, where the pools take 16.
-#[derive(Clone, Debug, Default)]
-struct Packed {
-    rgb: Vec<[u8; 3]>,
-    sigma: Vec<f32>,
-    /// Each span's first cell (its index in the run), parent and depth;
-    /// a span runs to the next one's first cell.
-    span_at: Vec<u32>,
-    span_parent: Vec<u32>,
-    span_depth: Vec<u8>,
-    /// The cells whose first_child is not NONE, ascending, and theirs.
-    child_at: Vec<u32>,
-    child: Vec<u32>,
-}
-
-impl Packed {
-    fn len(&self) -> usize {
-        self.rgb.len()
-    }
-
-    fn push(&mut self, r: CellRecord) {
-        let i = self.rgb.len() as u32;
-        if self.span_parent.last() != Some(&r.parent) || self.span_depth.last() != Some(&r.depth) {
-            self.open_span(i, r.parent, r.depth);
-        }
-        if r.first_child != NONE {
-            self.add_child(i, r.first_child);
-        }
-        self.rgb.push(r.rgb);
-        self.sigma.push(r.sigma);
-    }
-
-    /// A span of cells with this parent and depth starts at cell `i`.
-    #[inline]
-    fn open_span(&mut self, i: u32, parent: u32, depth: u8) {
-        self.span_at.push(i);
-        self.span_parent.push(parent);
-        self.span_depth.push(depth);
-    }
-
-    /// Cell `i`'s first_child is `fc` (not NONE).
-    #[inline]
-    fn add_child(&mut self, i: u32, fc: u32) {
-        self.child_at.push(i);
-        self.child.push(fc);
-    }
-
-    /// The pools' records of `cells`: rgb and sigma copied slice by slice,
-    /// the spans and children found by a scan of their columns each (the
-    /// last span kept in a local: this runs over every new cell of a
-    /// stroke).
-    fn from_pools(tree: &Tree, cells: std::ops::Range<usize>) -> Packed {
-        let mut p = Packed { rgb: tree.rgb[cells.clone()].to_vec(), sigma: tree.sigma[cells.clone()].to_vec(), ..Packed::default() };
-        let mut last = None;
-        for (i, (&parent, &depth)) in tree.parent[cells.clone()].iter().zip(&tree.depth[cells.clone()]).enumerate() {
-            if last != Some((parent, depth)) {
-                last = Some((parent, depth));
-                p.open_span(i as u32, parent, depth);
-            }
-        }
-        for (i, &fc) in tree.first_child[cells].iter().enumerate() {
-            if fc != NONE {
-                p.add_child(i as u32, fc);
-            }
-        }
-        p
-    }
-
-    /// Every record in order.
-    fn records(&self) -> impl Iterator<Item = CellRecord> + '_ {
-        let (mut span, mut child) = (0usize, 0usize);
-        (0..self.len()).map(move |i| {
-            let at = i as u32;
-            while span + 1 < self.span_at.len() && self.span_at[span + 1] <= at {
-                span += 1;
-            }
-            let first_child = if self.child_at.get(child) == Some(&at) {
-                child += 1;
-                self.child[child - 1]
-            } else {
-                NONE
-            };
-            CellRecord { parent: self.span_parent[span], first_child, depth: self.span_depth[span], rgb: self.rgb[i], sigma: self.sigma[i] }
-        })
-    }
-
-    /// How many records are `CellRecord::FREE` bit for bit: looked for only
-    /// in the spans whose parent and depth are a free record's.
-    fn free_records(&self) -> usize {
-        let free = CellRecord::FREE;
-        let mut n = 0;
-        for (k, (&parent, &depth)) in self.span_parent.iter().zip(&self.span_depth).enumerate() {
-            if (parent, depth) != (free.parent, free.depth) {
-                continue;
-            }
-            let from = self.span_at[k] as usize;
-            let to = self.span_at.get(k + 1).map_or(self.len(), |&e| e as usize);
-            let (lo, hi) = (self.child_at.partition_point(|&i| (i as usize) < from), self.child_at.partition_point(|&i| (i as usize) < to));
-            let with_children = &self.child_at[lo..hi];
-            n += (from..to)
-                .filter(|&i| self.rgb[i] == free.rgb && self.sigma[i].to_bits() == free.sigma.to_bits() && with_children.binary_search(&(i as u32)).is_err())
-                .count();
-        }
-        n
-    }
-
-    /// What the vectors hold, in bytes.
-    fn bytes(&self) -> usize {
-        self.len() * (3 + 4) + self.span_at.len() * (4 + 4 + 1) + self.child_at.len() * (4 + 4)
-    }
-
-    fn shrink(&mut self) {
-        self.rgb.shrink_to_fit();
-        self.sigma.shrink_to_fit();
-        self.span_at.shrink_to_fit();
-        self.span_parent.shrink_to_fit();
-        self.span_depth.shrink_to_fit();
-        self.child_at.shrink_to_fit();
-        self.child.shrink_to_fit();
-    }
-}
-
-/// Consecutive cells of a step's tail: the first and their records.
-#[derive(Clone, Debug)]
-struct CellRun {
-    first: u32,
-    cols: Packed,
-}
-
-impl CellRun {
-    fn end(&self) -> u32 {
-        self.first + self.cols.len() as u32
     }
 }
 
@@ -374,7 +239,7 @@ impl UndoStep {
     /// Copy after-records left in the pools out of `tree`, which holds
     /// them (this is the newest done step there): the step then holds
     /// every record.
-    pub(crate) fn take_after_from_pools(&mut self, tree: &Tree) {
+    pub fn take_after_from_pools(&mut self, tree: &Tree) {
         if !self.after_in_pools {
             return;
         }
@@ -571,7 +436,7 @@ impl History {
 
 impl Tree {
     /// Start saving records for an undo step.
-    pub(crate) fn begin_journal(&mut self) {
+    pub fn begin_journal(&mut self) {
         // The last stroke's vectors, emptied: a stroke saves about as many
         // cells as the one before, and fresh vectors cost page faults and
         // copies as they grow.
@@ -584,7 +449,7 @@ impl Tree {
     /// record changed (each once, so the order of writing them back does
     /// not matter): the saved cells, then the cells past the old used
     /// length, which were free.
-    pub(crate) fn commit_journal(&mut self) -> UndoStep {
+    pub fn commit_journal(&mut self) -> UndoStep {
         let j = self.journal.take().expect("commit without begin");
         let n_used = self.n_used();
         let tree = &*self;
@@ -646,7 +511,7 @@ impl Tree {
     /// Write one side of an undo step: the records and the used length.
     /// Marks the rewritten cells dirty, and the cells that gained or lost
     /// children as topology changes (spec 10, 3.4).
-    pub(crate) fn apply_step(&mut self, step: &UndoStep, forward: bool) {
+    pub fn apply_step(&mut self, step: &UndoStep, forward: bool) {
         assert!(!step.after_in_pools, "apply_step of a step whose after-records are in the pools");
         let n = if forward { step.n_after } else { step.n_before };
         self.set_used_length(step.n_before.max(step.n_after));
@@ -665,114 +530,4 @@ impl Tree {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn rec(parent: u32, first_child: u32, depth: u8, rgb: [u8; 3], sigma: f32) -> CellRecord {
-        CellRecord { parent, first_child, depth, rgb, sigma }
-    }
-
-    #[test]
-    fn a_step_keeps_every_change_in_its_cheapest_form() {
-        let leaf = |rgb, sigma| rec(0, NONE, 3, rgb, sigma);
-        let cases = [
-            (8, leaf([1, 2, 3], 0.5), leaf([4, 5, 6], 0.75)),              // value: 23 bytes
-            (9, CellRecord::FREE, leaf([7, 8, 9], 1.0)),                   // born: 20
-            (10, leaf([1, 1, 1], 2.0), CellRecord::FREE),                  // freed: 20
-            (11, leaf([1, 1, 1], 2.0), rec(0, 16, 3, [1, 1, 1], 2.0)),     // refined: 36
-            (12, rec(0, 16, 3, [0; 3], 0.0), rec(0, 16, 3, [0; 3], -0.0)), // internal: 36
-            (13, leaf([1, 1, 1], 2.0), rec(5, NONE, 3, [1, 1, 1], 2.0)),   // reparented: 36
-        ];
-        let mut step = UndoStep::new(16, 24);
-        for (c, b, a) in cases {
-            step.push(c, b, a);
-        }
-        assert_eq!(step.len(), cases.len());
-        assert_eq!(step.bytes(), 23 + 20 + 20 + 36 + 36 + 36);
-        let mut got: Vec<_> = step.entries().collect();
-        got.sort_by_key(|e| e.0);
-        for ((c, b, a), (d, e, f)) in cases.iter().zip(&got) {
-            assert_eq!(c, d);
-            assert!(b.same_bits(e) && a.same_bits(f), "cell {c} came back changed");
-        }
-    }
-
-    #[test]
-    fn born_cells_from_the_old_length_on_go_to_the_tail_in_place() {
-        let leaf = |v| rec(0, NONE, 3, [v; 3], 1.0);
-        let free = CellRecord::FREE;
-        // Born cells one by one, as a document's step gives them; the old
-        // used length is 16, so the tail starts at cell 16.
-        let mut pushes = vec![
-            (8, leaf(1)),  // below the old length (a reused free unit): the list
-            (17, leaf(2)), // the tail's first run starts here
-            (16, leaf(3)), // before that run: the list
-            (18, free),    // free after: the list, where it stays an entry
-            (19, leaf(4)), // one past the run's end: a free record, then it
-            (28, leaf(5)), // 8 past it: 8 free records, then it
-        ];
-        pushes.extend((29..34).map(|c| (c, leaf(6)))); // the run holds 8 entries now
-        pushes.extend([
-            (43, leaf(7)),  // 9 past its end: a second run
-            (44, leaf(8)),  // right at its end
-            (20, leaf(9)),  // a free place in the first run: the list (runs grow at their end only)
-            (39, leaf(10)), // before the last run: the list
-            (60, leaf(11)), // a third run would make runs of fewer than 8 entries: the list
-        ]);
-        let mut step = UndoStep::new(16, 64);
-        for &(c, a) in &pushes {
-            step.push(c, free, a);
-        }
-        let runs: Vec<(u32, u32)> = step.tail.iter().map(|r| (r.first, r.end())).collect();
-        assert_eq!(runs, [(17, 34), (43, 45)]);
-        assert_eq!(step.len(), pushes.len());
-        // The list: 6 cells of 20 bytes. The runs: 17 + 2 cells of 7 bytes;
-        // spans of one parent and depth: leaf, free (18), leaf (19), free
-        // (20-27), leaf (28-33) in the first run, one in the second.
-        assert_eq!(step.bytes(), 6 * 20 + 19 * 7 + 6 * 9);
-        let got: Vec<u32> = step.entries().map(|e| e.0).collect();
-        assert_eq!(got, [8, 16, 18, 20, 39, 60, 17, 19, 28, 29, 30, 31, 32, 33, 43, 44], "the list in its order, then the tail in index order");
-        for (c, b, a) in step.entries() {
-            let want = pushes.iter().find(|p| p.0 == c).expect("pushed").1;
-            assert!(b.same_bits(&free) && a.same_bits(&want), "cell {c}");
-        }
-    }
-
-    #[test]
-    fn packed_runs_give_back_every_record() {
-        // Units of 8 siblings, a free unit, parents with children, and
-        // spans that change every cell.
-        let mut want = Vec::new();
-        for u in 0..6u32 {
-            for k in 0..8u32 {
-                want.push(if u == 2 {
-                    CellRecord::FREE
-                } else {
-                    rec(u * 3, if (u + k) % 5 == 0 { 100 + 8 * k } else { NONE }, 4 + (u % 2) as u8, [k as u8, u as u8, 7], k as f32 * 0.25)
-                });
-            }
-        }
-        want.extend((0..5u32).map(|i| rec(i, NONE, 9, [1; 3], -0.0)));
-        let mut p = Packed::default();
-        for &r in &want {
-            p.push(r);
-        }
-        assert_eq!(p.len(), want.len());
-        let got: Vec<CellRecord> = p.records().collect();
-        assert_eq!(got.len(), want.len());
-        for (i, (a, b)) in want.iter().zip(&got).enumerate() {
-            assert!(a.same_bits(b), "record {i}: {a:?} came back as {b:?}");
-        }
-        // 5 units and a free unit make 6 spans, then 5 more.
-        assert_eq!(p.span_at.len(), 11);
-        assert_eq!(p.child_at.len(), want.iter().filter(|r| r.first_child != NONE).count());
-        assert_eq!(p.bytes(), want.len() * 7 + 11 * 9 + p.child_at.len() * 8);
-        assert_eq!(p.free_records(), 8);
-        // A record with a free record's parent and depth but a colour, or
-        // children, is no free record.
-        p.push(CellRecord { rgb: [0, 0, 1], ..CellRecord::FREE });
-        p.push(CellRecord { first_child: 64, ..CellRecord::FREE });
-        p.push(CellRecord::FREE);
-        assert_eq!(p.free_records(), 9);
-    }
-}
+mod tests;
