@@ -39,15 +39,6 @@ impl<T> Disjoint<T> {
         Disjoint { ptr: v.as_mut_ptr(), len: v.len() }
     }
 
-    /// Elements in the vector.
-    pub fn len(self) -> usize {
-        self.len
-    }
-
-    pub fn is_empty(self) -> bool {
-        self.len == 0
-    }
-
     /// Element `i` (checked against the length: an index past it panics).
     ///
     /// # Safety

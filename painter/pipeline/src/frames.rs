@@ -178,24 +178,23 @@ impl Frames {
         // staged, so the newest length is the layer's. The LIFO order of
         // the other strategy may write an older copy last; there a range
         // keeps its room.
+        let fresh = || copies.iter().zip(&write).filter(|(_, w)| **w).map(|(c, _)| c);
         if self.settings.strategy.grouped {
-            let mut lengths: HashMap<u32, (u64, u64)> = HashMap::new();
-            for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
-                let e = lengths.entry(c.layer).or_insert((0, 0));
-                if c.version > e.1 {
-                    *e = (c.length, c.version);
+            // Per layer: the newest copy's version and length, the widest end.
+            let mut lengths: HashMap<u32, (u64, u64, u64)> = HashMap::new();
+            for c in fresh() {
+                let e = lengths.entry(c.layer).or_insert((0, 0, 0));
+                if c.version > e.0 {
+                    (e.0, e.1) = (c.version, c.length);
                 }
+                e.2 = e.2.max(c.end());
             }
-            for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
-                let e = lengths.get_mut(&c.layer).expect("counted above");
-                e.0 = e.0.max(c.first + c.cells.len() as u64);
-            }
-            for (id, (n, _)) in lengths {
-                layout.set_length(id, n);
+            for (id, (_, length, end)) in lengths {
+                layout.set_length(id, length.max(end));
             }
         }
-        for (c, _) in copies.iter().zip(&write).filter(|(_, w)| **w) {
-            let moves = layout.fit(c.layer, c.first + c.cells.len() as u64).map_err(GpuError::TooBig)?;
+        for c in fresh() {
+            let moves = layout.fit(c.layer, c.end()).map_err(GpuError::TooBig)?;
             // Each fit's moves read the ranges as the one before left them.
             if !moves.is_empty() {
                 r.pools.ensure(&r.gpu, layout.end())?;

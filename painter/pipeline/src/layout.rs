@@ -131,11 +131,10 @@ impl Layout {
         // that grows the pages no less than the fit did.
         let fitted = std::mem::replace(self, before);
         let cells = whole_blocks(cells);
-        let grower = self.find(id).map(|_| (id, cells));
-        if self.packed(grower, false) + if grower.is_none() { cells } else { 0 } <= self.held {
+        if self.packed_adding(id, cells, false) <= self.held {
             return self.pack_adding(id, cells, false);
         }
-        let tight = self.packed(grower, true) + if grower.is_none() { cells } else { 0 };
+        let tight = self.packed_adding(id, cells, true);
         if let Ok(moves) = tried
             && fitted.end() <= tight
         {
@@ -146,6 +145,14 @@ impl Layout {
             return Err(self.full(tight));
         }
         self.pack_adding(id, cells, true)
+    }
+
+    /// Cells [`Layout::pack_adding`] packs the ranges into.
+    fn packed_adding(&self, id: u32, cells: u64, tight: bool) -> u64 {
+        match self.find(id) {
+            Some(_) => self.packed(Some((id, cells)), tight),
+            None => self.packed(None, tight) + cells,
+        }
     }
 
     /// [`Layout::pack`], layer `id` last with `cells` cells (added after

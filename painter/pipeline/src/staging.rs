@@ -181,6 +181,13 @@ pub struct StagedCopy {
     pub staged_at: Instant,
 }
 
+impl StagedCopy {
+    /// One past its last cell, in its layer's tree.
+    pub fn end(&self) -> u64 {
+        self.first + self.cells.len() as u64
+    }
+}
+
 /// What the render thread takes in one go: a copy, or (grouped staging) a
 /// consistent batch to upload in one frame.
 #[expect(clippy::large_enum_variant, reason = "a copy is a buffer's handle and a few numbers, moved a few times a frame")]

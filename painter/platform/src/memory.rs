@@ -60,6 +60,7 @@ pub fn release_free_heap() -> bool {
 mod heap_imp {
     /// glibc's `struct mallinfo2` (2.33 and later): ten `size_t`.
     #[repr(C)]
+    #[allow(dead_code, reason = "the C struct's layout: only three of its fields are read")]
     struct MallInfo2 {
         arena: usize,
         ordblks: usize,
@@ -81,7 +82,6 @@ mod heap_imp {
     pub fn heap() -> Option<super::Heap> {
         // SAFETY: mallinfo2 takes no argument and returns plain data.
         let m = unsafe { mallinfo2() };
-        let _ = (m.arena, m.ordblks, m.smblks, m.hblks, m.usmblks, m.fsmblks, m.keepcost);
         Some(super::Heap { in_use: m.uordblks as u64 + m.hblkhd as u64, free: m.fordblks as u64, mapped: m.hblkhd as u64 })
     }
 
