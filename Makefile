@@ -103,7 +103,7 @@ check-circles:
 # with its reason. The unit tests: the model, trace, octree, paint and tree crates' own
 # (`--lib`; the tree's integration tests run in test-painter) and the
 # reference's fast files (REFERENCE_UNIT; test-reference runs the rest).
-REFERENCE_UNIT := tests/test_arith.py tests/test_brush.py tests/test_trace.py tests/test_tree.py tests/test_layers.py tests/test_imports.py tests/test_mirror.py
+REFERENCE_UNIT := tests/test_arith.py tests/test_brush.py tests/test_trace.py tests/test_tree.py tests/test_prefilter.py tests/test_layers.py tests/test_imports.py tests/test_mirror.py
 check: setup check-circles
 	@rustup component list --installed 2>/dev/null | grep -q '^rustfmt' || rustup component add rustfmt
 	@rustup component list --installed 2>/dev/null | grep -q '^clippy' || rustup component add clippy

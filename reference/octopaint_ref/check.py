@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .g3 import FREE, NONE, g3_brute_force, g3_from_links, neighbours
+from .prefilter import stale_cells
 
 MAX_LISTED = 5
 
@@ -140,4 +141,8 @@ def check_arrays(a: dict) -> list[str]:
     bad = np.any(from_links != brute, axis=1)
     if bad.any():
         problems.append(f"g3 from links differs from brute force over the lattice: cells {_cells(bad)}")
+    # Interior values: the prefilter of the children (spec 4.4).
+    bad = stale_cells(a["first_child"], a["depth"], a["rgb"], sigma)
+    if bad.any():
+        problems.append(f"cells with children whose value is not their children's prefilter (spec 4.4): {_cells(bad)}")
     return problems

@@ -18,6 +18,7 @@ import zipfile
 import numpy as np
 
 from .g3 import g3_from_links
+from .prefilter import prefiltered
 
 DUMP_ARRAYS = (
     ("parent", "<u4"),
@@ -64,12 +65,15 @@ def tree_arrays(tree) -> dict:
     parent = tree.parent[:n].copy()
     first_child = tree.first_child[:n].copy()
     depth = tree.depth[:n].copy()
+    # Interior cells hold their children's prefilter (spec 4.4), computed
+    # here: nothing else in the reference reads them.
+    rgb, sigma = prefiltered(first_child, depth, tree.rgb[:n], tree.sigma[:n])
     return {
         "parent": parent,
         "first_child": first_child,
         "depth": depth,
-        "rgb": tree.rgb[:n].copy(),
-        "sigma": tree.sigma[:n].copy(),
+        "rgb": rgb,
+        "sigma": sigma,
         "g3": g3_from_links(parent, first_child, depth, tree.roots),
         "origin": tree.origin[:n].copy(),
         "roots": np.array(tree.roots, np.uint32),

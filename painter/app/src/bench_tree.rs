@@ -257,6 +257,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             "{{\"impl\": \"octopaint\", \"shape\": \"{}\", \"mirror\": {}, \"radius_cells\": {}, \"strokes\": {}, \"samples\": {}, \"seconds\": {:.4}, ",
             "\"cell_updates\": {}, \"cell_updates_per_s\": {:.0}, \"leaves_in_reach\": {}, \"paint_pass_seconds\": {:.4}, ",
             "\"hardness\": {}, \"settling\": {}, \"lanes\": {}, \"leaves_settled\": {}, \"cells_created\": {}, \"cells_created_per_s\": {:.0}, \"refine_seconds\": {:.4}, \"stroke_end_seconds\": {:.4}, ",
+            "\"prefilter_seconds\": {:.4}, \"prefilter_cells\": {}, ",
             "\"overall_per_s\": {:.0}, \"cells_written\": {}, \"cells_used\": {}, \"cells_live\": {}, \"leaves\": {}, ",
             "\"deepest\": {}, \"bytes_per_cell_pools\": {}, \"bytes_per_cell_allocated\": {:.2}, \"history_bytes_per_cell\": {:.2}, \"history_bytes_per_changed_cell\": {:.2}, \"slot_map_mib\": {:.2}, ",
             "\"peak_rss_mib\": {:.1}, \"threads\": {}, \"grain\": {}, \"measured_split\": {}, \"tree_digest\": \"{:016x}\"}}"
@@ -279,6 +280,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
         per_s(c.cells_created, c.refine_ns),
         c.refine_ns as f64 * 1e-9,
         c.stroke_end_ns as f64 * 1e-9,
+        c.prefilter_ns as f64 * 1e-9,
+        c.prefilter_cells,
         (c.leaves_hit + c.cells_created) as f64 / seconds,
         c.cells_written,
         t.n_used(),

@@ -523,8 +523,9 @@ pub fn read(data: &[u8]) -> Result<Loaded, DocError> {
             if trace.version != 1 {
                 return Err(DocError::Corrupt("its session has layers but the file holds one tree".into()));
             }
-            let tree = decode_pools(&trace, &pools.ok_or_else(|| missing("POOL"))?)?;
+            let mut tree = decode_pools(&trace, &pools.ok_or_else(|| missing("POOL"))?)?;
             let history = decode_history(&tree, &hist.ok_or_else(|| missing("HIST"))?)?;
+            tree.prefilter_all();
             Content::Tree { tree, history }
         }
         Some(docu) => {
@@ -595,8 +596,9 @@ fn decode_document(trace: &Trace, docu: &[u8], layrs: &[Vec<u8>]) -> Result<laye
         if pools_len > (raw.len() - c.at) as u64 {
             return Err(c.too_big());
         }
-        let tree = decode_pools(trace, c.take(pools_len as usize)?)?;
+        let mut tree = decode_pools(trace, c.take(pools_len as usize)?)?;
         let history = decode_history(&tree, &raw[c.at..])?;
+        tree.prefilter_all();
         let mut layer = Layer::new(&name, Painting::from_parts(tree, history));
         layer.visible = visible;
         layer.locked = locked;
@@ -607,6 +609,10 @@ fn decode_document(trace: &Trace, docu: &[u8], layrs: &[Vec<u8>]) -> Result<laye
         .map_err(|e| DocError::Corrupt(format!("its layers do not fit together: {e}")))
 }
 
+/// The tree of a `POOL` section, its interior values as stored: its reader
+/// computes them afresh (spec 4.4) once the undo history has been checked
+/// against the stored ones, so that a document saved before the rule opens
+/// (its undo steps come back to the rule as they are applied).
 fn decode_pools(trace: &Trace, raw: &[u8]) -> Result<Tree, DocError> {
     let mut c = Cursor { data: raw, at: 0, what: "POOL" };
     let n = c.u32()? as usize;

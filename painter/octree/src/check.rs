@@ -8,7 +8,22 @@ use crate::pool::{FREE, NONE, Tree, UNIT, origins};
 use octopaint_model::Canvas;
 
 /// Every problem found, in the order of spec 11.2; empty for a valid tree.
+/// The interior values (check 8, spec 4.4) are checked once the structure
+/// is valid.
 pub fn check_tree(t: &Tree) -> Vec<String> {
+    let mut p = check_structure(t);
+    if p.is_empty() {
+        let stale = t.stale_interior_cells();
+        if let Some(&c) = stale.first() {
+            p.push(format!("{} cells with children do not hold their children's prefilter (spec 4.4), the first {c}", stale.len()));
+        }
+    }
+    p
+}
+
+/// The checks of spec 11.2 but the interior values: what a tree read from
+/// a file must pass before its interior values are computed afresh.
+pub fn check_structure(t: &Tree) -> Vec<String> {
     let mut p = Vec::new();
     let n = t.n_used();
     let lat = &t.lat;
@@ -90,8 +105,10 @@ pub fn check_tree(t: &Tree) -> Vec<String> {
 
 impl Tree {
     /// A tree from its pools (a saved document), refused unless it is a
-    /// valid tree for `canvas` (every check of [`check_tree`] and the
-    /// allocator's). The error names the first problem.
+    /// valid tree for `canvas` (every check of [`check_structure`] and the
+    /// allocator's). The error names the first problem. Its interior values
+    /// are as stored: a reader that keeps the tree calls
+    /// [`Tree::prefilter_all`] (a document saved before spec 4.4).
     pub fn from_pools(canvas: &Canvas, parent: Vec<u32>, first_child: Vec<u32>, depth: Vec<u8>, rgb: Vec<[u8; 3]>, sigma: Vec<f32>) -> Result<Tree, String> {
         let mut t = Tree::new(canvas);
         let n = parent.len();
@@ -107,7 +124,7 @@ impl Tree {
         t.rgb = rgb;
         t.sigma = sigma;
         t.rebuild_free_units();
-        let mut problems = check_tree(&t);
+        let mut problems = check_structure(&t);
         problems.extend(t.check_allocator());
         match problems.first() {
             None => Ok(t),

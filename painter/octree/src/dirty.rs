@@ -76,8 +76,11 @@ impl Tree {
     }
 
     /// Everything changed since the last call: dirty blocks, dirty cells and
-    /// the neighbour mask (spec 3.4, 3.5).
+    /// the neighbour mask (spec 3.4, 3.5). The interior values are brought
+    /// up to date first (spec 4.4), so that what is published keeps the rule
+    /// and their blocks are among the dirty ones.
     pub fn take_publication(&mut self) -> Publication {
+        self.update_prefilter();
         let ch = &mut self.changes;
         let mut blocks = Vec::new();
         if ch.any_block {

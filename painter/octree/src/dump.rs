@@ -97,6 +97,7 @@ fn dump_size(tree: &Tree) -> usize {
 /// cells' origins, on a second thread: the two are independent walks of
 /// the tree, each about 15 ms for the scene's million cells.
 pub fn write_dump<W: Write + Seek>(out: W, tree: &Tree, g3: Option<&[[u32; 3]]>) -> std::io::Result<W> {
+    debug_assert!(tree.prefilter_is_current(), "a dump before the interior values were updated (spec 4.4)");
     let names = TREE_ARRAYS.map(String::from);
     match g3 {
         Some(g3) => {
@@ -220,6 +221,7 @@ mod tests {
         let u = tree.allocate_unit().unwrap();
         tree.make_children(0, u);
         tree.set_value(u + 3, [10, 20, 30], 2.5);
+        tree.update_prefilter();
         let bytes = dump_bytes(&tree);
         let back = read_dump(&bytes).unwrap();
         assert_eq!((&back.parent, &back.first_child, &back.depth, &back.rgb), (&tree.parent, &tree.first_child, &tree.depth, &tree.rgb));

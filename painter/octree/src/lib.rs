@@ -12,6 +12,7 @@
 //! | [`lattice`] | root array, lattice, canvas units, target depth | tree.py |
 //! | [`pool`] | pools, allocator, cell writes with their undo journal and change log | tree.py, history.py (the journal) |
 //! | [`pager`] | the pools' pages made resident ahead of their first write | — |
+//! | [`prefilter`] | interior values: each cell with children holds its children's prefilter | prefilter.py |
 //! | [`balance`] | face neighbours, refinement rounds, coarsening test | tree.py |
 //! | [`dirty`] | publications: dirty blocks, dirty cells, neighbour mask | tree.py |
 //! | [`clean`] | topology cleaning | clean.py |
@@ -33,6 +34,7 @@ pub mod lattice;
 pub mod pager;
 pub mod par;
 pub mod pool;
+pub mod prefilter;
 pub mod team;
 
 pub use pool::{FREE, NONE, Tree, UNIT};

@@ -127,6 +127,10 @@ pub fn replay_document_within(
             }
             EventKind::Snapshot(name) => {
                 if let Some(d) = out_dir {
+                    // Inside a stroke its writes have not reached their
+                    // ancestors yet (spec 4.4); only the selected layer is
+                    // painted.
+                    doc.current_mut().painting.update_prefilter();
                     let path = d.join(format!("{name}.npz"));
                     if trace.version == 2 {
                         writer.write(path.clone(), doc.dump_bytes())?;

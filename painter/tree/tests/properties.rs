@@ -183,9 +183,11 @@ fn run(s: &Session) -> Result<(), TestCaseError> {
                         let level_before = painting.tree.clone();
                         let g3_before = g3_table(&level_before);
                         let finished = painting.advance_level();
+                        // Between levels the interior values are current
+                        // once published (spec 4.4).
+                        check_publication(&level_before, &g3_before, &mut painting.tree)?;
                         let problems = check_tree(&painting.tree);
                         prop_assert!(problems.is_empty(), "{problems:?}");
-                        check_publication(&level_before, &g3_before, &mut painting.tree)?;
                         if finished {
                             break;
                         }
@@ -248,10 +250,15 @@ fn paint_in_steps(s: &Session, max_units: Option<usize>, settling: bool) -> Resu
                         // quadratic: 7 s to 6 min per run, by the seed.)
                         steps += 1;
                         if steps.is_power_of_two() {
+                            // As a publication between steps leaves it.
+                            painting.tree.take_publication();
                             let problems = check_tree(&painting.tree);
                             prop_assert!(problems.is_empty(), "{problems:?}");
                         }
                     }
+                    // Inside the stroke the interior values wait for a
+                    // reader (spec 4.4): a snapshot would update them first.
+                    painting.update_prefilter();
                     let problems = check_tree(&painting.tree);
                     prop_assert!(problems.is_empty(), "{problems:?}");
                 }

@@ -518,6 +518,7 @@ impl Tree {
         for (c, before, after) in step.entries() {
             let (r, o) = if forward { (after, before) } else { (before, after) };
             self.write_record(c, r);
+            self.prefilter_due.push(c);
             self.changes.direct(c);
             if r.first_child != o.first_child {
                 let unit = if r.first_child != NONE { r.first_child } else { o.first_child };
@@ -526,6 +527,12 @@ impl Tree {
         }
         self.set_used_length(n);
         self.rebuild_free_units();
+        // The restored side kept spec 4.4 when it was recorded; the
+        // ancestors of its cells are recomputed all the same, so that a
+        // step recorded before the rule (a document from then) comes back
+        // to a tree that keeps it. On a step recorded since, nothing
+        // changes.
+        self.update_prefilter();
     }
 }
 

@@ -37,6 +37,7 @@
 pub(crate) mod changes;
 pub mod in_place;
 pub(crate) mod journal;
+mod values;
 
 pub use in_place::InPlaceValues;
 
@@ -126,6 +127,11 @@ pub struct Tree {
     pub(crate) journal: Option<Journal>,
     /// The last journal's vectors, empty, for the next stroke's.
     pub(crate) spare_journal: Journal,
+    /// Cells whose values were written since the interior values were last
+    /// brought up to date, and the per-depth lists that update climbs with,
+    /// kept empty between updates (spec 4.4, [`crate::prefilter`]).
+    pub(crate) prefilter_due: Vec<u32>,
+    pub(crate) prefilter_levels: Vec<Vec<u32>>,
 }
 
 impl Tree {
@@ -144,6 +150,8 @@ impl Tree {
             changes: Changes::new(canvas.capacity),
             journal: None,
             spare_journal: Journal::default(),
+            prefilter_due: Vec::new(),
+            prefilter_levels: Vec::new(),
             lat,
         };
         for r in 0..t.lat.n_roots as usize {
@@ -187,16 +195,6 @@ impl Tree {
         self.parent.capacity()
     }
 
-    /// Every cell's density through `f` (a copy for export scaled by its
-    /// layer's opacity): not journalled, and the next publication covers
-    /// everything.
-    pub fn map_sigma(&mut self, f: impl Fn(f32) -> f32) {
-        for s in &mut self.sigma {
-            *s = f(*s);
-        }
-        self.mark_everything_dirty();
-    }
-
     /// Point cell `c` at `parent` without any check, leaving a tree that
     /// is not valid: for the tests of the readers that must survive one
     /// (a half-finished upload: the ray casters skip such cells alike).
@@ -225,6 +223,8 @@ impl Tree {
             changes: Changes::new(0),
             journal: None,
             spare_journal: Journal::default(),
+            prefilter_due: Vec::new(),
+            prefilter_levels: Vec::new(),
         }
     }
 
@@ -341,7 +341,7 @@ impl Tree {
 
     /// Tell the journal and the change log that `c` is about to change.
     #[inline]
-    fn touch(&mut self, c: u32) {
+    pub(crate) fn touch(&mut self, c: u32) {
         if let Some(j) = self.journal.as_mut()
             && j.needs_save(c)
         {
@@ -359,24 +359,6 @@ impl Tree {
             j.save(c, rec);
         }
         self.changes.mark_block(c);
-    }
-
-    /// Write a cell's colour and density (painting).
-    #[inline]
-    pub fn set_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
-        self.touch(c);
-        self.rgb[c as usize] = rgb;
-        self.sigma[c as usize] = sigma;
-    }
-
-    /// Write the value of a cell that `make_children` made in this step:
-    /// its journal entry and dirty block are in place already, and no
-    /// publication has been taken since.
-    #[inline]
-    pub fn set_new_child_value(&mut self, c: u32, rgb: [u8; 3], sigma: f32) {
-        debug_assert!(self.journal.as_ref().is_none_or(|j| !j.needs_save(c)));
-        self.rgb[c as usize] = rgb;
-        self.sigma[c as usize] = sigma;
     }
 
     /// Overwrite a whole cell (undo/redo).

@@ -136,6 +136,10 @@ pub struct PaintCounters {
     pub paint_pass_ns: u64,
     pub refine_ns: u64,
     pub stroke_end_ns: u64,
+    /// Interior cells rewritten by the prefilter (spec 4.4) after the
+    /// levels, and the time that took (not in the times above).
+    pub prefilter_cells: u64,
+    pub prefilter_ns: u64,
 }
 
 /// A tree plus the strokes painted on it.
@@ -349,6 +353,7 @@ impl Painting {
     /// (spec 9), then the journal made one undo step (spec 10), which drops
     /// the redo history.
     fn clean_and_commit(&mut self, touched: impl IntoIterator<Item = u32>) {
+        self.update_prefilter();
         let collapses = clean(&mut self.tree, touched);
         self.counters.collapses += collapses as u64;
         let step = self.tree.commit_journal();
@@ -375,6 +380,17 @@ impl Painting {
     /// stroke: as many as the stroke that touched the most pages used).
     pub fn slot_map_bytes(&self) -> usize {
         self.slot_of.bytes()
+    }
+
+    /// Bring the interior values up to date (spec 4.4): the ancestors of
+    /// every cell written since the last update, each once. A stroke's
+    /// writes reach them at its end (and at every publication on the way,
+    /// [`Tree::take_publication`]); a reader of the tree inside a stroke
+    /// (a snapshot) calls this first. Counted in the paint counters.
+    pub fn update_prefilter(&mut self) {
+        let t0 = std::time::Instant::now();
+        self.counters.prefilter_cells += self.tree.update_prefilter() as u64;
+        self.counters.prefilter_ns += t0.elapsed().as_nanos() as u64;
     }
 
     /// Undo the last stroke; false if there is none.

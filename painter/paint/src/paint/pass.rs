@@ -195,7 +195,8 @@ impl Painting {
     ///    write. A leaf touched for the first time is only evaluated.
     /// 3. In the runs' order, serially: the first-touched leaves get their
     ///    slots and are written (journalled in the serial order), the dirty
-    ///    blocks are marked, and the candidates are joined.
+    ///    blocks are marked, the cells written in place are listed for the
+    ///    interior values (spec 4.4), and the candidates are joined.
     fn paint_pass_walk<W: Walk>(&mut self, walk: &W, prim: &Prim, mut stack: Vec<(u32, [u32; 3])>, candidates: &mut Vec<u32>) -> Vec<(u32, [u32; 3])> {
         let threads = rayon::current_num_threads();
         let lat = &self.tree.lat;
@@ -297,6 +298,7 @@ impl Painting {
             for &b in &run.blocks {
                 self.tree.mark_block_written(b);
             }
+            self.tree.note_values_written(&run.wrote);
             self.counters.cells_written += run.written + run.fresh.len() as u64;
             for f in &run.fresh {
                 self.first_write(f);
@@ -314,8 +316,9 @@ impl Painting {
             run.fresh.clear();
             run.needs.clear();
             run.blocks.clear();
+            run.wrote.clear();
             run.stack.clear();
-            let mut emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, stack: run.stack, ..Run::default() };
+            let mut emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, wrote: run.wrote, stack: run.stack, ..Run::default() };
             if parallel {
                 // A huge pass (a brush over millions of leaves) leaves no
                 // lasting claim on memory: a kept list holds at most
@@ -323,6 +326,7 @@ impl Painting {
                 emptied.fresh.shrink_to(SPARE_RUN_ITEMS);
                 emptied.needs.shrink_to(SPARE_RUN_ITEMS);
                 emptied.blocks.shrink_to(SPARE_RUN_ITEMS);
+                emptied.wrote.shrink_to(SPARE_RUN_ITEMS);
                 emptied.stack.shrink_to(SPARE_RUN_ITEMS);
                 spare_runs.push(emptied);
             } else {

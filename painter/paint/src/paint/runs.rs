@@ -3,7 +3,7 @@
 //! stroke has touched before (their cells and slots belong to that run
 //! alone: the pools through octopaint-octree's [`InPlaceValues`], the
 //! slots through its [`Disjoint`]) and hands back the first writes, the
-//! dirty blocks and the candidates for refinement.
+//! cells and dirty blocks it wrote and the candidates for refinement.
 
 use glam::DVec3;
 
@@ -159,6 +159,11 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
                     let (rgb, sigma) = ctx.st.stored(slot.before_rgb, slot.before_sigma, colour, a);
                     ctx.values.set(ctx.tree, c, rgb, sigma);
                     out.written += 1;
+                    // Its unit stands for it (the same parent; see
+                    // Tree::note_values_written), once for the unit's run.
+                    if out.wrote.last() != Some(&(c & !7)) {
+                        out.wrote.push(c & !7);
+                    }
                     let block = c / octopaint_octree::dirty::BLOCK_CELLS;
                     if out.blocks.last() != Some(&block) {
                         out.blocks.push(block);
@@ -185,6 +190,9 @@ pub(super) struct Run {
     pub(super) needs: Vec<(u32, DVec3, f64)>,
     /// Dirty blocks of the cells written in place, consecutive repeats dropped.
     pub(super) blocks: Vec<u32>,
+    /// The units of the cells written in place, consecutive repeats dropped
+    /// (their ancestors' values follow, spec 4.4).
+    pub(super) wrote: Vec<u32>,
     pub(super) visited: u64,
     pub(super) hit: u64,
     pub(super) written: u64,

@@ -203,6 +203,7 @@ pub fn merge_trees(lower: &Layer, upper: &Layer, limit: u64) -> Option<Tree> {
             leaves.push(c as u32);
         }
     }
+    m.update_prefilter();
     clean(&mut m, leaves);
     Some(m)
 }
