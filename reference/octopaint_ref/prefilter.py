@@ -37,31 +37,34 @@ def unit_value(rgb: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return out_rgb, out_sigma
 
 
+def _inner(first_child: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The live cells with children [m] and their children [m, 8]."""
+    inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
+    return inner, first_child[inner].astype(np.int64)[:, None] + np.arange(8)
+
+
 def prefiltered(first_child: np.ndarray, depth: np.ndarray, rgb: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Copies of the pools' rgb [N, 3] and sigma [N] with every live cell
     that has children given its prefiltered value, deepest cells first (a
     parent reads its children's values after they were computed)."""
     rgb, sigma = rgb.copy(), sigma.copy()
-    inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
+    inner, kids = _inner(first_child, depth)
     if not len(inner):
         return rgb, sigma
     d_inner = depth[inner]
     for d in range(int(d_inner.max()), -1, -1):
-        cells = inner[d_inner == d]
-        if not len(cells):
-            continue
-        kids = first_child[cells].astype(np.int64)[:, None] + np.arange(8)
-        rgb[cells], sigma[cells] = unit_value(rgb[kids], sigma[kids])
+        at = d_inner == d
+        if at.any():
+            rgb[inner[at]], sigma[inner[at]] = unit_value(rgb[kids[at]], sigma[kids[at]])
     return rgb, sigma
 
 
 def stale_cells(first_child: np.ndarray, depth: np.ndarray, rgb: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """Mask [N] of the cells with children whose stored value is not the
     prefilter of their children's stored values (sigma by its bits)."""
-    inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
+    inner, kids = _inner(first_child, depth)
     bad = np.zeros(len(depth), bool)
     if len(inner):
-        kids = first_child[inner].astype(np.int64)[:, None] + np.arange(8)
         want_rgb, want_sigma = unit_value(rgb[kids], sigma[kids])
         bad[inner] = np.any(rgb[inner] != want_rgb, axis=1) | (sigma[inner].view(np.uint32) != want_sigma.view(np.uint32))
     return bad

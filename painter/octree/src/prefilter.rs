@@ -47,8 +47,8 @@ pub fn unit_value(rgb: &[[u8; 3]; 8], sigma: &[f32; 8]) -> ([u8; 3], f32) {
     ([channel(sum[1]), channel(sum[2]), channel(sum[3])], mean)
 }
 
-/// Room kept in the list of written cells between levels (a level that
-/// wrote more gives the rest back).
+/// Room kept in the list of written cells between updates (an update of
+/// more gives the rest back).
 const SPARE_DUE: usize = 1 << 16;
 
 impl Tree {
@@ -70,14 +70,17 @@ impl Tree {
         self.sigma[c as usize] = sigma;
     }
 
-    /// The prefilter of `p`'s children (`p` has children).
+    /// The prefilter of `p`'s children when it is not the value `p` holds
+    /// (sigma by its bits); None when it is (`p` has children).
     #[inline]
-    fn children_value(&self, p: u32) -> ([u8; 3], f32) {
+    fn fresh_value(&self, p: u32) -> Option<([u8; 3], f32)> {
         let fc = self.first_child[p as usize] as usize;
         let u = UNIT as usize;
         let rgb: &[[u8; 3]; 8] = self.rgb[fc..fc + u].try_into().expect("a unit is 8 cells");
         let sigma: &[f32; 8] = self.sigma[fc..fc + u].try_into().expect("a unit is 8 cells");
-        unit_value(rgb, sigma)
+        let (rgb, sigma) = unit_value(rgb, sigma);
+        let i = p as usize;
+        (rgb != self.rgb[i] || sigma.to_bits() != self.sigma[i].to_bits()).then_some((rgb, sigma))
     }
 
     /// Cells whose values a parallel pass wrote in place
@@ -128,18 +131,14 @@ impl Tree {
             let mut cells = std::mem::take(&mut levels[d]);
             par::sort_dedup(&mut cells);
             for &p in &cells {
-                let i = p as usize;
-                if self.first_child[i] == NONE {
+                if self.first_child[p as usize] == NONE {
                     continue;
                 }
-                let (rgb, sigma) = self.children_value(p);
-                if rgb == self.rgb[i] && sigma.to_bits() == self.sigma[i].to_bits() {
-                    continue;
-                }
+                let Some((rgb, sigma)) = self.fresh_value(p) else { continue };
                 self.write_interior_value(p, rgb, sigma);
                 rewritten += 1;
                 if d > 0 {
-                    levels[d - 1].push(self.parent[i]);
+                    levels[d - 1].push(self.parent[p as usize]);
                 }
             }
             cells.clear();
@@ -167,9 +166,7 @@ impl Tree {
         let mut rewritten = 0;
         for cells in levels.iter().rev() {
             for &p in cells {
-                let (rgb, sigma) = self.children_value(p);
-                let i = p as usize;
-                if rgb != self.rgb[i] || sigma.to_bits() != self.sigma[i].to_bits() {
+                if let Some((rgb, sigma)) = self.fresh_value(p) {
                     self.write_interior_value(p, rgb, sigma);
                     rewritten += 1;
                 }
@@ -182,15 +179,7 @@ impl Tree {
     /// their children's stored values (sigma by its bits): empty in a tree
     /// that keeps spec 4.4. The tree's structure must be valid.
     pub fn stale_interior_cells(&self) -> Vec<u32> {
-        (0..self.n_used())
-            .filter(|&c| {
-                let i = c as usize;
-                self.depth[i] != FREE && self.first_child[i] != NONE && {
-                    let (rgb, sigma) = self.children_value(c);
-                    rgb != self.rgb[i] || sigma.to_bits() != self.sigma[i].to_bits()
-                }
-            })
-            .collect()
+        (0..self.n_used()).filter(|&c| self.depth[c as usize] != FREE && self.first_child[c as usize] != NONE && self.fresh_value(c).is_some()).collect()
     }
 }
 

@@ -518,7 +518,7 @@ impl Tree {
         for (c, before, after) in step.entries() {
             let (r, o) = if forward { (after, before) } else { (before, after) };
             self.write_record(c, r);
-            self.prefilter_due.push(c);
+            self.list_written(c);
             self.changes.direct(c);
             if r.first_child != o.first_child {
                 let unit = if r.first_child != NONE { r.first_child } else { o.first_child };

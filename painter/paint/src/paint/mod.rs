@@ -136,8 +136,10 @@ pub struct PaintCounters {
     pub paint_pass_ns: u64,
     pub refine_ns: u64,
     pub stroke_end_ns: u64,
-    /// Interior cells rewritten by the prefilter (spec 4.4) after the
-    /// levels, and the time that took (not in the times above).
+    /// Interior cells rewritten by the prefilter (spec 4.4) at stroke and
+    /// import ends and snapshots, and the time that took (also counted in
+    /// `stroke_end_ns` at a stroke's end; publications' updates are not
+    /// counted).
     pub prefilter_cells: u64,
     pub prefilter_ns: u64,
 }
