@@ -112,13 +112,21 @@ def test_traversal_rounds_like_numpy_scalars(graded, name):
 
 
 def _two_roots(values):
-    """Roots (2, 1, 1), D = 3; root 0 refined once. values: {cell: (rgb, sigma)}."""
+    """Roots (2, 1, 1), D = 3; root 0 refined once. values: {cell: (rgb, sigma)};
+    a value for root 0 overrides its prefilter."""
     t = Tree((2, 1, 1), 3, 1.0, 1024)
     t.refine_round(np.array([0]))
     for c, (rgb, sigma) in values.items():
         t.rgb[c] = rgb
         t.sigma[c] = sigma
-    return tree_arrays(t)
+    arrays = tree_arrays(t)
+    # tree_arrays stores root 0's prefilter (spec 4.4); a value given for it
+    # here is put back, so a test can tell the parent's own colour from its
+    # children's
+    if 0 in values:
+        arrays["rgb"][0] = values[0][0]
+        arrays["sigma"][0] = values[0][1]
+    return arrays
 
 
 CAM = Camera((-0.5, 0.3, 0.3), (0.0, -0.7071067811865476, 0.0, 0.7071067811865476), (-0.2, 0.2, 0.2, -0.2), (16, 16))
