@@ -68,10 +68,11 @@ def _fence(lines: list[str]) -> str:
     return "```\n" + "\n".join(lines) + "\n```"
 
 
-def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32", require_images: bool = False) -> TraceResult:
+def check_trace(trace: str, painter: str, work: str, report_dir: str, precision: str = "f32", require_images: bool = False, lods: str = "0,1") -> TraceResult:
     """Replay `trace` with both implementations and compare what they
     wrote; with `require_images`, an image the painter did not write is a
-    problem too."""
+    problem too. lods: the levels of detail (spec 7) every image is drawn
+    at by both (`--lod`: `<name>.png` at 0, `<name>.lod<k>.png` else)."""
     name = os.path.basename(trace)[: -len(".jsonl")]
     r = TraceResult(name)
     ref_dir = os.path.join(work, name, "reference")
@@ -79,8 +80,8 @@ def check_trace(trace: str, painter: str, work: str, report_dir: str, precision:
     for d in (ref_dir, pt_dir):
         shutil.rmtree(d, ignore_errors=True)
         os.makedirs(d)
-    ref_cmd = [os.path.join(REPO, ".venv", "bin", "octopaint-ref"), "replay", trace, "--out", ref_dir, "--quiet"]
-    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision]
+    ref_cmd = [os.path.join(REPO, ".venv", "bin", "octopaint-ref"), "replay", trace, "--out", ref_dir, "--quiet", "--lod", lods]
+    pt_cmd = [painter, "replay", trace, "--out", pt_dir, "--quiet", "--precision", precision, "--lod", lods]
     ref, r.ref_seconds = _run(ref_cmd)
     pt, r.painter_seconds = _run(pt_cmd)
     if ref.returncode != pt.returncode:
@@ -146,6 +147,7 @@ def main(argv=None) -> int:
     ap.add_argument("--generated", type=int, default=2000, help="generated trace variants for the reader comparison")
     ap.add_argument("--require-images", action="store_true", help="an image the painter does not write is a difference")
     ap.add_argument("--precision", choices=("f32", "f16"), default="f32", help="the painter's ray caster precision (and its image tolerance)")
+    ap.add_argument("--lod", default="0,1", metavar="K[,K...]", help="levels of detail every image is compared at (spec 7; default 0,1)")
     args = ap.parse_args(argv)
     traces = args.traces or sorted(glob.glob(os.path.join(REPO, "traces", "*.jsonl")))
     os.makedirs(args.report, exist_ok=True)
@@ -166,7 +168,7 @@ def main(argv=None) -> int:
     out += ["## Replays", "", "| trace | dumps | cells | images | reference (s) | painter (s) | speed-up | result |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     details = []
     for trace in traces:
-        r = check_trace(os.path.abspath(trace), args.painter, work, args.report, args.precision, args.require_images)
+        r = check_trace(os.path.abspath(trace), args.painter, work, args.report, args.precision, args.require_images, args.lod)
         ok = not r.problems
         failed |= not ok
         speed = r.ref_seconds / r.painter_seconds if r.painter_seconds > 0 else float("nan")

@@ -23,6 +23,11 @@ const T_MIN: f32 = 0.00390625; // 1/256 (spec 6)
 // of a branch its lanes disagree on, and cannot tell a uniform one apart).
 override LIT: u32 = 0u;
 
+// 1: walk the cut of a level of detail (spec 7 'Level of detail'; lod.xyz
+// the view axis, lod.w lam = min(k alpha, 1) > 0); 0: every ray walks to
+// the leaves, with none of the cut's code. A pipeline constant like LIT.
+override LOD: u32 = 0u;
+
 // Kept in sync with painter/gpu/src/raycast.rs (RayParams); a layout test
 // compares the two through naga.
 struct RayParams {
@@ -64,6 +69,9 @@ struct RayParams {
     light: vec4<f32>,
     // x: the ambient term; yzw unused.
     shade: vec4<f32>,
+    // The level of detail (spec 7), used when LOD is 1: xyz the camera's
+    // view axis M(q) (0, 0, -1) in canvas space, w lam = min(k alpha, 1).
+    lod: vec4<f32>,
 }
 
 @group(1) @binding(0) var<storage, read> g3_0: array<u32>;
@@ -319,9 +327,74 @@ fn exit_of(p: vec3<real>, d: vec3<real>) -> Exit {
     return Exit(t_axes[axis], axis, bound[axis]);
 }
 
+// a - b for lattice coordinates (each below 2^32), exact before its one
+// rounding to f32.
+fn lattice_diff(a: u32, b: u32) -> f32 {
+    return select(-f32(b - a), f32(a - b), a >= b);
+}
+
+// Whether the cell of `depth` at lattice `origin` is small (spec 7 'Level of
+// detail'): its edge S at most lam times its centre's view depth
+// z = sum_a f_a ((o_a - Ec_a) + S/2 - eye_rel_a), lattice units, summed in
+// axis order. CPU port: painter/tree/src/raycast/lod.rs.
+fn small(depth: u32, origin: vec3<u32>) -> bool {
+    let s = f32(1u << (params.roots.w - depth));
+    let f = params.lod.xyz;
+    var v = vec3<f32>(0.0);
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        v[a] = (lattice_diff(origin[a], params.eye_cell[a]) + s * 0.5) - params.eye_rel[a];
+    }
+    let z = (v.x * f.x + v.y * f.y) + v.z * f.z;
+    return s <= params.lod.w * z;
+}
+
+// From the cell a step entered (same depth or one coarser) to the cell of
+// the cut there: up while the cell is not a root and its parent is small,
+// then down while it has a consistent child at the point and is not small;
+// one level per round, so both loops end within D rounds.
+fn settle(c0: Cur) -> Cur {
+    let D = params.roots.w;
+    var c = c0;
+    loop {
+        if (c.cell < params.misc.z || c.depth == 0u) {
+            break;
+        }
+        let par = tcell(c.cell).parent;
+        let bits = vec3<u32>(c.cell & 1u, (c.cell >> 1u) & 1u, (c.cell >> 2u) & 1u);
+        let o_par = c.origin - bits * (1u << (D - c.depth));
+        if (par == NONE || !small(c.depth - 1u, o_par)) {
+            break;
+        }
+        c.p = c.p * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+        c.cell = par;
+        c.depth = c.depth - 1u;
+        c.origin = o_par;
+        c.visible = consistent(par);
+    }
+    loop {
+        if (!c.visible || c.depth >= D) {
+            break;
+        }
+        let fc = tcell(c.cell).first_child;
+        if (fc == NONE || small(c.depth, c.origin)) {
+            break;
+        }
+        let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), c.p >= vec3<real>(0.0)));
+        let child = fc + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+        if (params.flags.x != 0u && tcell(child).parent != c.cell) {
+            break;
+        }
+        c.p = c.p * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+        c.origin = c.origin + cbits * (1u << (D - c.depth - 1u));
+        c.cell = child;
+        c.depth = c.depth + 1u;
+    }
+    return c;
+}
+
 // The cell after `c` for a ray leaving it after `t` through `axis` (at
 // `bound`) along d, with the point in its frame (spec 7 'Next cell', one
-// descent at most): a sibling across an inward face, g3 across an outward
+// descent at most; with LOD the cell of the cut there): a sibling across an inward face, g3 across an outward
 // one, root-array arithmetic for roots. Status LEFT when the ray leaves the
 // canvas, LOST at a cell of a depth it cannot enter (only mid-upload).
 fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
@@ -373,6 +446,9 @@ fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
     }
     p_next[axis] = entry;
     out = Cur(nxt, dn, o_next, p_next, consistent(nxt), RUNNING);
+    if (LOD != 0u) {
+        return settle(out);
+    }
     // At most one descent, into the child holding the entry point.
     if (out.visible && next.first_child != NONE) {
         let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
@@ -556,7 +632,7 @@ fn start_cursor(rs: RayStart) -> Cur {
     var origin = root << vec3<u32>(D);
     for (var i = 0u; i < D; i = i + 1u) {
         let fc = tcell(cell).first_child;
-        if (fc == NONE) {
+        if (fc == NONE || (LOD != 0u && small(depth, origin))) {
             break;
         }
         let half = 1u << (D - depth - 1u);

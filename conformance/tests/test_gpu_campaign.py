@@ -30,6 +30,9 @@ def test_the_campaign_runs_every_step_at_toy_sizes(tmp_path):
     # Two trace cameras and two framed strokes, each mono and in both headsets.
     assert len({c["camera"] for c in scene["casts"]}) == 4
     assert ("stroke 6 (radius 0.003 m)", "quest3 stereo", "F32") in views
+    # Every cast at full depth and at level of detail 1 (spec 7).
+    assert {c["lod"] for c in scene["casts"]} == {0.0, 1.0}
+    assert len(scene["casts"]) == 2 * len({(c["camera"], c["view"], c["precision"], c["light"]) for c in scene["casts"]})
     for c in scene["casts"]:
         rays = c["width"] * c["height"] * c["eyes"]
         assert c["ms"] > 0 and abs(c["rays_per_s"] - rays / (c["ms"] / 1e3)) < 1e-6 * c["rays_per_s"]

@@ -17,12 +17,18 @@ def _cmd_replay(args) -> int:
     except TraceError as e:
         print(f"octopaint-ref: {args.trace}: {e}", file=sys.stderr)
         return 2
-    from .replay import print_stats, replay
+    from .replay import parse_lods, print_stats, replay
+
+    try:
+        lods = parse_lods(args.lod)
+    except ValueError as e:
+        print(f"octopaint-ref: {e}", file=sys.stderr)
+        return 2
 
     def warn(msg):
         print(f"octopaint-ref: warning: {args.trace}: {msg}", file=sys.stderr)
 
-    stats = replay(trace, args.out, warn=warn)
+    stats = replay(trace, args.out, warn=warn, lods=lods)
     if not args.quiet:
         print_stats(stats)
         for p in stats.written:
@@ -90,6 +96,13 @@ def main(argv=None) -> int:
     rp.add_argument("trace", help="a .jsonl trace")
     rp.add_argument("--out", required=True, help="output folder (created if missing)")
     rp.add_argument("--quiet", action="store_true", help="print nothing but warnings and errors")
+    rp.add_argument(
+        "--lod",
+        default="0",
+        metavar="K[,K...]",
+        help="levels of detail of every image (spec 7): 0 (the default) walks to the leaves and writes <name>.png; "
+        "any other k writes <name>.lod<k>.png, k as given",
+    )
     rp.set_defaults(func=_cmd_replay)
     ck = sub.add_parser("check", help="validate tree dumps: structure, balance, g3 against brute force")
     ck.add_argument("dumps", nargs="+", help=".npz tree dumps")

@@ -22,7 +22,7 @@ Shapes: N cells (padded to a power of two), R rays, K recorded steps.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 from typing import NamedTuple
 
@@ -33,78 +33,16 @@ from jax import lax
 
 from .arith import Arith, Format, format_of
 from .camera import pixel_directions, split_eye
-from .g3 import g3_from_links
-from .jax_setup import require_x64
+from .device import NONE, Canvas, DeviceTree, _bucket, device_tree
+from .lod import Cut, lam_of, small, view_axis
+from .shading import shading
 
-NONE = 0xFFFF_FFFF
 # Why a ray stopped.
 RUNNING, LEFT, OPAQUE, LOST, OVERFLOW = 0, 1, 2, 3, 4
 STATUS_NAMES = {LEFT: "left the canvas", OPAQUE: "opaque", LOST: "lost (broken depth)", OVERFLOW: "step limit"}
 T_MIN = 1.0 / 256.0  # spec 6: stop once transmittance falls below this
 MAX_STEPS = 1 << 16
 TILE_RAYS = 4096
-
-
-class Canvas(NamedTuple):
-    """The static description of the root array (hashable: a jit key)."""
-
-    roots: tuple
-    max_depth: int
-    root_size: float
-
-
-class DeviceTree(NamedTuple):
-    """The pools the ray caster reads, padded with free cells to a power of
-    two so that a replay compiles once per size class.
-
-    parent, first_child u32 [N]; depth i32 [N] (255 = free); g3 u32 [N, 3];
-    rgb f64 [N, 3] in [0, 1] (stored u8 / 255); sigma f64 [N] (per canvas unit).
-    """
-
-    parent: jax.Array
-    first_child: jax.Array
-    depth: jax.Array
-    g3: jax.Array
-    rgb: jax.Array
-    sigma: jax.Array
-
-
-def _bucket(n: int) -> int:
-    b = 1024
-    while b < n:
-        b *= 2
-    return b
-
-
-def device_tree(arrays: dict) -> tuple[DeviceTree, Canvas]:
-    """From tree-dump arrays (dump.tree_arrays or a loaded .npz; g3 is
-    recomputed from the links when absent)."""
-    require_x64()
-    parent = np.asarray(arrays["parent"], np.uint32)
-    first_child = np.asarray(arrays["first_child"], np.uint32)
-    depth = np.asarray(arrays["depth"], np.uint8)
-    roots = tuple(int(r) for r in np.asarray(arrays["roots"]).reshape(-1))
-    g3 = arrays.get("g3")
-    if g3 is None:
-        g3 = g3_from_links(parent, first_child, depth, roots)
-    n = len(parent)
-    m = _bucket(n)
-
-    def pad(a, fill):
-        out = np.full((m,) + a.shape[1:], fill, a.dtype)
-        out[:n] = a
-        return out
-
-    tree = DeviceTree(
-        parent=jnp.asarray(pad(parent, np.uint32(NONE))),
-        first_child=jnp.asarray(pad(first_child, np.uint32(NONE))),
-        depth=jnp.asarray(pad(depth.astype(np.int32), 255)),
-        g3=jnp.asarray(pad(np.asarray(g3, np.uint32), np.uint32(NONE))),
-        rgb=jnp.asarray(pad(np.asarray(arrays["rgb"], np.uint8).astype(np.float64) / 255.0, 0.0)),
-        sigma=jnp.asarray(pad(np.asarray(arrays["sigma"], np.float32).astype(np.float64), 0.0)),
-    )
-    canvas = Canvas(roots, int(np.asarray(arrays["max_depth"])), float(np.asarray(arrays["root_size"])))
-    return tree, canvas
 
 
 # ---------------------------------------------------------------- one ray
@@ -137,17 +75,6 @@ class State(NamedTuple):
     s_p: jax.Array  # f64 [3]: and the point in its frame
 
 
-class Lighting(NamedTuple):
-    """Per-cell factors of the emitted colour (spec 6.1), f64 [N]: a0 the
-    part that needs no light (unlit cells 1; lit ones the ambient), a1 the
-    direct part (w * intensity * max(n.l, 0)), scaled by the pixel's shadow
-    transmittance; and the unit direction towards the light, f64 [3]."""
-
-    a0: jax.Array
-    a1: jax.Array
-    to_light: jax.Array
-
-
 class Record(NamedTuple):
     """Per step k < steps: the cell left, its depth and origin, the exit
     point in that cell's frame (local: cell units; world: canvas units), the
@@ -176,6 +103,7 @@ class Setup:
     max_steps: int
     record: int  # K, 0 for none
     lit: int = 0  # 0 unlit (spec 6), 1 lit, 2 lit with a shadow ray (spec 6.1)
+    lod: bool = False  # walk the cut of a level of detail (spec 7, lod.py)
 
     @property
     def n_roots(self) -> int:
@@ -197,10 +125,11 @@ def _inv_size(setup: Setup, depth):
     return jnp.exp2(-(setup.canvas.max_depth - depth).astype(jnp.float64))
 
 
-def _locate(tree: DeviceTree, setup: Setup, q):
+def _locate(tree: DeviceTree, setup: Setup, q, cut=None):
     """The leaf containing lattice point q (i64 [3], inside the canvas) by
     descent from its root (spec 1.3), refusing a descent into a child whose
-    parent does not point back. Returns (cell, depth, origin)."""
+    parent does not point back; with a level of detail (setup.lod), not
+    descending below a small cell either. Returns (cell, depth, origin)."""
     D = setup.canvas.max_depth
     rx, ry, _ = setup.canvas.roots
     root = q >> D
@@ -215,6 +144,8 @@ def _locate(tree: DeviceTree, setup: Setup, q):
         k = (bits[0] | (bits[1] << 1) | (bits[2] << 2)).astype(jnp.uint32)
         child = fc + k
         ok = (fc != NONE) & (tree.parent[jnp.where(fc != NONE, child, 0)] == cell)
+        if setup.lod:
+            ok = ok & ~small(cut, D, depth, origin)
         return (
             jnp.where(ok, child, cell),
             jnp.where(ok, depth + 1, depth),
@@ -250,12 +181,12 @@ def _clip(setup: Setup, ray: Ray):
     return hit, jnp.where(inside, e, e2), jnp.where(inside, f, f2), jnp.where(inside, -1, axis)
 
 
-def _start(tree: DeviceTree, setup: Setup, ray: Ray, m: Arith, d):
+def _start(tree: DeviceTree, setup: Setup, ray: Ray, m: Arith, d, cut=None):
     """The first cell and the position in it (spec 7 'Start')."""
     extent = jnp.asarray(np.array(setup.canvas.roots, np.int64) << setup.canvas.max_depth)
     hit, e, f, entry_axis = _clip(setup, ray)
     q = jnp.clip(e, 0, extent - 1)
-    cell, depth, origin = _locate(tree, setup, q)
+    cell, depth, origin = _locate(tree, setup, q, cut)
     if setup.frame == "local":
         inv = _inv_size(setup, depth)
         # (E - o) is exact in integers; scaling it by 2^-(D-d) is exact in
@@ -291,7 +222,7 @@ def _exit(m: Arith, p, d, lo, hi):
     return t_axes[axis], axis, bound[axis]
 
 
-def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, shadow: bool = False):
+def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, shadow: bool = False, cut=None):
     """Composite the current cell over its exit distance, move to the exit
     point and into the next cell (spec 7 'Step' and 'Next cell'). Lit
     (setup.lit, spec 6.1): the emitted colour is split into C0 and C1 by the
@@ -376,25 +307,33 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
     o_next = jnp.where(coarser, s.origin - bits * size + step_vec * (2 * size), s.origin + step_vec * size)
     visible = _consistent(tree, setup, safe)
 
-    # At most one descent, into the child containing the entry point (on the
-    # entry axis the entry side, which the exact +-0.5 there gives).
-    fc = tree.first_child[safe]
-    if local:
-        cbits = (p_next >= 0).astype(jnp.int64)
+    if setup.lod:
+        # The cut (lod.py): up while the parent is small, down while the
+        # cell is not (the one descent below is the second loop's first).
+        moving = ~gone & ~lost
+        cell_n, depth_n, origin_n, p_next, visible_n = _settle(tree, setup, m, cut, moving, safe, dn, o_next, p_next, visible)
     else:
-        child_size = _size_lattice(setup, dn + 1)
-        centre = m.rnd((o_next + child_size).astype(jnp.float64) * lu)
-        cbits = jnp.where(on_axis, (sgn < 0).astype(jnp.int64), (p_next >= centre).astype(jnp.int64))
-    k = (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2)).astype(jnp.uint32)
-    child = fc + k
-    descend = visible & (fc != NONE) & (tree.parent[jnp.where(fc != NONE, child, 0)] == safe)
-    if local:
-        p_child = m.add(m.mul(p_next, 2.0), jnp.where(cbits == 1, -0.5, 0.5))
-        p_next = jnp.where(descend, p_child, p_next)
-        shift = jnp.where(descend, shift * 2.0 + jnp.where(cbits == 1, -0.5, 0.5), shift)
-        scale = jnp.where(descend, scale * 2.0, scale)
-    half_next = _size_lattice(setup, dn + 1)
-    o_next = jnp.where(descend, o_next + cbits * half_next, o_next)
+        # At most one descent, into the child containing the entry point (on
+        # the entry axis the entry side, which the exact +-0.5 there gives).
+        fc = tree.first_child[safe]
+        if local:
+            cbits = (p_next >= 0).astype(jnp.int64)
+        else:
+            child_size = _size_lattice(setup, dn + 1)
+            centre = m.rnd((o_next + child_size).astype(jnp.float64) * lu)
+            cbits = jnp.where(on_axis, (sgn < 0).astype(jnp.int64), (p_next >= centre).astype(jnp.int64))
+        k = (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2)).astype(jnp.uint32)
+        child = fc + k
+        descend = visible & (fc != NONE) & (tree.parent[jnp.where(fc != NONE, child, 0)] == safe)
+        if local:
+            p_child = m.add(m.mul(p_next, 2.0), jnp.where(cbits == 1, -0.5, 0.5))
+            p_next = jnp.where(descend, p_child, p_next)
+            shift = jnp.where(descend, shift * 2.0 + jnp.where(cbits == 1, -0.5, 0.5), shift)
+            scale = jnp.where(descend, scale * 2.0, scale)
+        cell_n = jnp.where(descend, child, safe)
+        depth_n = jnp.where(descend, dn + 1, dn)
+        origin_n = jnp.where(descend, o_next + cbits * _size_lattice(setup, dn + 1), o_next)
+        visible_n = visible | descend
 
     opaque = trans < T_MIN
     steps = s.steps + 1
@@ -404,11 +343,11 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
         jnp.where(gone, LEFT, jnp.where(lost, LOST, jnp.where(steps >= setup.max_steps, OVERFLOW, RUNNING))),
     ).astype(jnp.int32)
     new = State(
-        cell=jnp.where(descend, child, safe),
-        depth=jnp.where(descend, dn + 1, dn),
-        origin=o_next,
+        cell=cell_n,
+        depth=depth_n,
+        origin=origin_n,
         p=p_next,
-        visible=visible | descend,
+        visible=visible_n,
         colour=colour,
         trans=trans,
         steps=steps,
@@ -422,6 +361,54 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
         s_p=s_p,
     )
     return new, (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
+
+
+def _settle(tree: DeviceTree, setup: Setup, m: Arith, cut, moving, cell, depth, origin, p, visible):
+    """From the next cell of a step (same depth or one coarser) to the cell
+    of the cut there (spec 7 "Level of detail"): while the cell is not a
+    root and its parent is small, go up (p/2 + (bit - 1/2)/2 per axis, the
+    octant bits of the cell); then while it has a consistent child at p and
+    is not small, go down into it (2p -+ 1/2). Both loops end within D
+    rounds. Returns (cell, depth, origin, p, visible)."""
+    D = setup.canvas.max_depth
+    n_roots = setup.n_roots
+
+    def octant(c):
+        return jnp.stack([(c >> jnp.uint32(a)) & jnp.uint32(1) for a in range(3)]).astype(jnp.int64)
+
+    def up_ok(q):
+        c, dp, o, _, _ = q
+        par = tree.parent[c]
+        return moving & (c >= n_roots) & (par != NONE) & small(cut, D, dp - 1, o - octant(c) * _size_lattice(setup, dp))
+
+    def up(q):
+        c, dp, o, pp, _ = q
+        bits = octant(c)
+        par = tree.parent[c]
+        pp = m.add(m.mul(pp, 0.5), (bits.astype(jnp.float64) - 0.5) * 0.5)
+        return par, dp - 1, o - bits * _size_lattice(setup, dp), pp, _consistent(tree, setup, par)
+
+    def child_at(q):
+        c, _, _, pp, _ = q
+        fc = tree.first_child[c]
+        cbits = (pp >= 0).astype(jnp.int64)
+        k = (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2)).astype(jnp.uint32)
+        return fc, fc + k, cbits
+
+    def down_ok(q):
+        c, dp, o, _, vis = q
+        fc, child, _ = child_at(q)
+        linked = (fc != NONE) & (tree.parent[jnp.where(fc != NONE, child, 0)] == c)
+        return moving & vis & linked & ~small(cut, D, dp, o)
+
+    def down(q):
+        _, dp, o, pp, _ = q
+        _, child, cbits = child_at(q)
+        pp = m.add(m.mul(pp, 2.0), jnp.where(cbits == 1, -0.5, 0.5))
+        return child, dp + 1, o + cbits * _size_lattice(setup, dp + 1), pp, jnp.bool_(True)
+
+    q = lax.while_loop(up_ok, up, (cell, depth, origin, p, visible))
+    return lax.while_loop(down_ok, down, q)
 
 
 def _state(tree: DeviceTree, setup: Setup, cell, depth, origin, p, running) -> State:
@@ -446,15 +433,16 @@ def _state(tree: DeviceTree, setup: Setup, cell, depth, origin, p, running) -> S
     )
 
 
-def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_only: bool = False, lighting=None):
+def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_only: bool = False, lighting=None, lod=None):
     """One ray. Returns (State at the end, Record or None); the State's
     colour already includes the background (spec 6), and lit (setup.lit)
     the direct light times the shadow ray's transmittance (spec 6.1).
     last_only: the Record holds only the last step (one row), for callers
-    that need no more."""
+    that need no more. lod: (lam, f) of the cut when setup.lod (lod.py)."""
     m = Arith(setup.fmt, guard)
     d = m.rnd(ray.dir_canvas)
-    hit, cell, depth, origin, p = _start(tree, setup, ray, m, d)
+    cut = Cut(lod[0], lod[1], ray.eye_lattice, ray.frac) if setup.lod else None
+    hit, cell, depth, origin, p = _start(tree, setup, ray, m, d, cut)
     s0 = _state(tree, setup, cell, depth, origin, p, hit)
     K = 1 if last_only else setup.record
     if K:
@@ -472,14 +460,14 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_
 
         def body(c):
             s, rec = c
-            new, r = _step(tree, setup, m, d, s, lighting)
+            new, r = _step(tree, setup, m, d, s, lighting, cut=cut)
             i = 0 if last_only else s.steps
             rec = Record(*(a.at[i].set(v) for a, v in zip(rec, r)))
             return new, rec
 
         s, rec = lax.while_loop(lambda c: c[0].status == RUNNING, body, (s0, rec0))
     else:
-        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, s, lighting)[0], s0)
+        s = lax.while_loop(lambda s: s.status == RUNNING, lambda s: _step(tree, setup, m, d, s, lighting, cut=cut)[0], s0)
         rec = None
     if setup.lit == 1:
         s = s._replace(colour=s.colour + s.direct)
@@ -488,83 +476,17 @@ def trace_ray(tree: DeviceTree, setup: Setup, ray: Ray, background, guard, last_
         # 1/2, the same walk with another direction; no start, no light.
         ld = m.rnd(lighting.to_light)
         s1 = _state(tree, setup, s.s_cell, s.s_depth, s.s_origin, s.s_p, s.found)
-        s1 = lax.while_loop(lambda q: q.status == RUNNING, lambda q: _step(tree, setup, m, ld, q, shadow=True)[0], s1)
+        s1 = lax.while_loop(lambda q: q.status == RUNNING, lambda q: _step(tree, setup, m, ld, q, shadow=True, cut=cut)[0], s1)
         s = s._replace(colour=s.colour + s1.trans * s.direct)
     s = s._replace(colour=s.colour + s.trans * background)
     return s, rec
 
 
 @partial(jax.jit, static_argnums=(1,))
-def trace_rays(tree: DeviceTree, setup: Setup, rays: Ray, background, guard, lighting=None):
+def trace_rays(tree: DeviceTree, setup: Setup, rays: Ray, background, guard, lighting=None, lod=None):
     """trace_ray over R rays (vmap): (State [R], Record [R, K] or None)."""
-    one = lambda t, r, b, g, li: trace_ray(t, setup, r, b, g, lighting=li)
-    return jax.vmap(one, in_axes=(None, 0, None, None, None))(tree, rays, background, guard, lighting)
-
-
-# ---------------------------------------------------------------- lighting
-# The ramp of the shading weight over the relative gradient r (spec 6.1):
-# unlit below R_UNLIT, fully lit above R_LIT.
-R_UNLIT = 0.004
-R_LIT = 0.02
-
-
-def _face(tree: DeviceTree, canvas: Canvas, a: int, side: int):
-    """What every cell sees across its face on side `side` (+1/-1) of axis
-    `a` (spec 6.1): (sigma f64 [N], distance between centres in edges of
-    the cell f64 [N]). A same-depth leaf gives its sigma at 1; a same-depth
-    cell with children the mean of the four children on the face at 3/4; a
-    coarser leaf its sigma at 3/2; nothing (outside the canvas, or a cell
-    of another depth) an empty cell at 1."""
-    n = tree.parent.shape[0]
-    c = jnp.arange(n, dtype=jnp.uint32)
-    rx, ry, rz = canvas.roots
-    ci = c.astype(jnp.int64)
-    rc = [ci % rx, (ci // rx) % ry, ci // (rx * ry)]
-    rc[a] = rc[a] + side
-    ok = (rc[a] >= 0) & (rc[a] < canvas.roots[a])
-    root_nb = jnp.where(ok, (rc[0] + rx * (rc[1] + ry * rc[2])).astype(jnp.uint32), jnp.uint32(NONE))
-    bit = (c >> jnp.uint32(a)) & jnp.uint32(1)
-    outward = (bit == 1) == (side > 0)
-    nb = jnp.where(c < rx * ry * rz, root_nb, jnp.where(outward, tree.g3[:, a], c ^ jnp.uint32(1 << a)))
-    gone = nb == NONE
-    safe = jnp.where(gone, jnp.uint32(0), nb)
-    dn = tree.depth[safe]
-    same = ~gone & (dn == tree.depth)
-    coarser = ~gone & (dn == tree.depth - 1)
-    fc = tree.first_child[safe]
-    kids = fc != NONE
-    want = 0 if side > 0 else 1
-    ks = [k for k in range(8) if (k >> a) & 1 == want]
-    kid = [tree.sigma[jnp.where(kids, fc + jnp.uint32(k), jnp.uint32(0))] for k in ks]
-    mean = ((kid[0] + kid[1]) + (kid[2] + kid[3])) * 0.25
-    sigma = jnp.where(same, jnp.where(kids, mean, tree.sigma[safe]), jnp.where(coarser, tree.sigma[safe], 0.0))
-    dist = jnp.where(same & kids, 0.75, jnp.where(coarser, 1.5, 1.0))
-    return sigma, dist
-
-
-def shading(tree: DeviceTree, canvas: Canvas, light) -> Lighting:
-    """Every cell's lighting factors (spec 6.1) for `light` (trace.Light),
-    in f64 jnp: differentiable in sigma and in the light's parameters.
-    Free and empty cells get factors too; they are never composited."""
-    ld = np.asarray(light.dir, np.float64)
-    ld = ld / np.sqrt(ld[0] * ld[0] + ld[1] * ld[1] + ld[2] * ld[2])
-    top = tree.sigma
-    delta = []
-    for a in range(3):
-        s_hi, h_hi = _face(tree, canvas, a, 1)
-        s_lo, h_lo = _face(tree, canvas, a, -1)
-        delta.append((s_hi - s_lo) / (h_hi + h_lo))
-        top = jnp.maximum(top, jnp.maximum(s_hi, s_lo))
-    g2 = delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]
-    # sqrt's derivative at 0 is infinite: keep it out of the gradient.
-    g = jnp.where(g2 > 0, jnp.sqrt(jnp.where(g2 > 0, g2, 1.0)), 0.0)
-    r = jnp.where(top > 0, g / jnp.where(top > 0, top, 1.0), 0.0)
-    w = jnp.clip((r - R_UNLIT) / (R_LIT - R_UNLIT), 0.0, 1.0)
-    # n = -grad / |grad|: the normal points out of the paint.
-    n_dot_l = -(delta[0] * ld[0] + delta[1] * ld[1] + delta[2] * ld[2]) / jnp.where(g > 0, g, 1.0)
-    a0 = (1.0 - w) + w * light.ambient
-    a1 = w * (light.intensity * jnp.maximum(n_dot_l, 0.0))
-    return Lighting(a0, a1, jnp.asarray(ld))
+    one = lambda t, r, b, g, li, lo: trace_ray(t, setup, r, b, g, lighting=li, lod=lo)
+    return jax.vmap(one, in_axes=(None, 0, None, None, None, None))(tree, rays, background, guard, lighting, lod)
 
 
 # ---------------------------------------------------------------- images
@@ -594,17 +516,24 @@ def camera_rays(camera, canvas: Canvas) -> Ray:
     return Ray(np.broadcast_to(e, (n, 3)).copy(), np.broadcast_to(f, (n, 3)).copy(), dirs)
 
 
-def cast(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS, light=None):
+def cast(
+    tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS, light=None, lod=None
+):
     """Trace numpy rays in tiles of `tile` (the last one padded with rays
     that miss). Returns (State, Record or None) as numpy arrays [R, ...].
-    light: a trace.Light (spec 6.1); None or off: unlit."""
+    light: a trace.Light (spec 6.1); None or off: unlit. lod: (lam, f) of a
+    level of detail's cut (lod.py; camera_cut), None or lam 0: full depth."""
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = shading(tree, canvas, light) if lit else None
-    setup = Setup(canvas, format_of(precision), frame, int(max_steps), int(record), lit)
+    on = lod is not None and float(lod[0]) > 0.0
+    if on and (record or frame != "local"):
+        raise ValueError("a level of detail walks the local frame without a record")
+    setup = Setup(canvas, format_of(precision), frame, int(max_steps), int(record), lit, on)
+    lod = (jnp.float64(lod[0]), jnp.asarray(np.asarray(lod[1], np.float64))) if on else None
     bg = jnp.asarray(np.asarray(background, np.float64))
     parts = []
     for chunk, k in _tiles(rays, tile):
-        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting)
+        s, rec = trace_rays(tree, setup, chunk, bg, np.uint64(0), lighting, lod)
         parts.append(jax.tree_util.tree_map(lambda a: np.asarray(a)[:k], (s, rec)))  # noqa: B023 (called in this iteration only)
     return jax.tree_util.tree_map(lambda *a: np.concatenate(a), *parts)
 
@@ -632,12 +561,20 @@ def _tiles(rays: Ray, tile: int):
         yield chunk, k
 
 
-def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None) -> Rendered:
+def camera_cut(camera, k: float):
+    """(lam, f) of the level of detail k for `camera` (lod.py), or None
+    for k = 0 (full depth)."""
+    lam = lam_of(camera, k)
+    return (lam, view_axis(camera)) if lam > 0 else None
+
+
+def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None, lod=0.0) -> Rendered:
     """The image of the tree `arrays` (dump arrays) seen by `camera`, lit
-    by `light` (a trace.Light; None or off: unlit, spec 6)."""
+    by `light` (a trace.Light; None or off: unlit, spec 6), at level of
+    detail `lod` (k of spec 7; 0: every ray walks to the leaves)."""
     tree, canvas = device if device is not None else device_tree(arrays)
     rays = camera_rays(camera, canvas)
-    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile, light)
+    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile, light, camera_cut(camera, lod))
     w, h = camera.size
     colour = s.colour.reshape(h, w, 3)
     return Rendered(to_pixels(colour), colour, s.steps.reshape(h, w), s.status.reshape(h, w), int(s.skipped.sum()))
@@ -658,170 +595,3 @@ def start_points(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", f
     setup = Setup(canvas, format_of(precision), frame, 1, 0)
     out = _starts(tree, setup, Ray(*(np.asarray(a) for a in rays)), np.uint64(0))
     return tuple(np.asarray(a) for a in out)
-
-
-# ---------------------------------------------------------------- layers
-# A document of several layers (spec 6.2): one cursor per contributing
-# layer, each walking its own tree by the rules of 7; every step composites
-# the interval up to the nearest boundary of any layer. The cursors walk
-# trees whose sigma is zeroed (`_step` then never stops them as opaque);
-# compositing reads the real sigma, scaled by the layer's opacity.
-class March(NamedTuple):
-    cur: State  # [L]: per layer, the cell, depth, origin and point
-    active: jax.Array  # bool [L]: still inside the canvas
-    colour: jax.Array  # f64 [3] (lit: C0)
-    direct: jax.Array  # f64 [3] (lit: C1)
-    trans: jax.Array  # f64
-    steps: jax.Array  # i32
-    status: jax.Array  # i32
-    found: jax.Array  # bool: T passed 1/2 (the shadow ray's start)
-    s_cur: State  # [L]: the cursors at that point
-    s_active: jax.Array  # bool [L]
-
-
-def stack_trees(arrays_list: list) -> tuple[DeviceTree, Canvas]:
-    """The DeviceTrees of several layers (dump arrays each), padded to one
-    size and stacked along a leading layer axis."""
-    require_x64()
-    n = max(len(a["parent"]) for a in arrays_list)
-    trees = []
-    for a in arrays_list:
-        a = dict(a)
-        pad = n - len(a["parent"])
-        if pad:
-            for k, fill in (("parent", NONE), ("first_child", NONE), ("depth", 255), ("rgb", 0), ("sigma", 0)):
-                v = np.asarray(a[k])
-                a[k] = np.concatenate([v, np.full((pad,) + v.shape[1:], fill, v.dtype)])
-            a["g3"] = np.concatenate([np.asarray(a["g3"], np.uint32), np.full((pad, 3), NONE, np.uint32)])
-        tree, canvas = device_tree(a)
-        trees.append(tree)
-    return jax.tree_util.tree_map(lambda *x: jnp.stack(x), *trees), canvas
-
-
-def _march_step(trees: DeviceTree, walk: DeviceTree, setup: Setup, m: Arith, d, opacity, s: March, lighting=None, shadow: bool = False) -> March:
-    """One step of the march of spec 6.2."""
-    n_layers = opacity.shape[0]
-    inv = jnp.exp2(-s.cur.depth.astype(jnp.float64))  # a cell edge in root edges, 2^-d_k: exact
-    lo, hi = jnp.full(3, -0.5), jnp.full(3, 0.5)
-    t_k = jax.vmap(lambda p: _exit(m, p, d, lo, hi)[0])(s.cur.p)
-    u_k = jnp.where(s.active, t_k * inv, jnp.inf)
-    u = jnp.min(u_k)
-    exits = s.active & (u_k == u)
-    rows = jnp.arange(n_layers)
-    cells = s.cur.cell
-    sig_k = jnp.where(s.active & s.cur.visible, opacity * trees.sigma[rows, cells], 0.0)
-    sig = sig_k[0]
-    for k in range(1, n_layers):
-        sig = sig + sig_k[k]
-    length = u * setup.canvas.root_size
-    e = jnp.exp(-sig * length)
-    w = s.trans * (1.0 - e)
-    trans = s.trans * e
-    colour, direct, found, s_cur, s_active = s.colour, s.direct, s.found, s.s_cur, s.s_active
-    if not shadow:
-        share = jnp.where(sig > 0, sig_k / jnp.where(sig > 0, sig, 1.0), 0.0)  # [L]
-        rgb = trees.rgb[rows, cells]  # [L, 3]
-        if setup.lit:
-            a0 = lighting.a0[rows, cells]
-            a1 = lighting.a1[rows, cells]
-            colour = colour + w * jnp.sum((share * a0)[:, None] * rgb, axis=0)
-            direct = direct + w * jnp.sum((share * a1)[:, None] * rgb, axis=0)
-            cross = ~s.found & (s.trans >= 0.5) & (trans < 0.5)
-            per_unit = sig * setup.canvas.root_size
-            t_half = jnp.minimum(jnp.log(2.0 * s.trans) / jnp.where(per_unit > 0, per_unit, 1.0), u)
-            t_local = m.rnd(t_half / inv)
-            p_half = jnp.clip(m.add(s.cur.p, m.mul(t_local[:, None], d[None, :])), -0.5, 0.5)
-            found = s.found | cross
-            s_cur = jax.tree_util.tree_map(lambda new, old: jnp.where(cross, new, old), s.cur._replace(p=p_half), s.s_cur)
-            s_active = jnp.where(cross, s.active, s.s_active)
-        else:
-            colour = colour + w * jnp.sum(share[:, None] * rgb, axis=0)
-    # Exiting cursors step to their next cell (7); the others move along.
-    unlit = replace(setup, lit=0)  # the cursors only walk
-    stepped = jax.vmap(lambda tr, st: _step(tr, unlit, m, d, st)[0])(walk, s.cur)
-    moved = jnp.clip(m.add(s.cur.p, m.mul(m.rnd(u / inv)[:, None], d[None, :])), -0.5, 0.5)
-
-    def pick(new, old):
-        sel = exits.reshape((n_layers,) + (1,) * (new.ndim - 1))
-        return jnp.where(sel, new, old)
-
-    cur = jax.tree_util.tree_map(pick, stepped, s.cur._replace(p=moved))
-    active = s.active & ~(exits & (stepped.status != RUNNING) & (stepped.status != OVERFLOW))
-    steps = s.steps + 1
-    status = jnp.where(
-        trans < T_MIN,
-        OPAQUE,
-        jnp.where(~jnp.any(active), LEFT, jnp.where(steps >= setup.max_steps, OVERFLOW, RUNNING)),
-    ).astype(jnp.int32)
-    return March(cur, active, colour, direct, trans, steps, status, found, s_cur, s_active)
-
-
-def trace_layers_ray(trees: DeviceTree, setup: Setup, opacity, ray: Ray, background, guard, lighting=None) -> March:
-    """One ray through every layer of `trees` (stacked [L]), spec 6.2."""
-    m = Arith(setup.fmt, guard)
-    d = m.rnd(ray.dir_canvas)
-    walk = trees._replace(sigma=jnp.zeros_like(trees.sigma))
-    hit, cell, depth, origin, p = jax.vmap(lambda tr: _start(tr, setup, ray, m, d))(trees)
-    cur = jax.vmap(lambda tr, c, dp, o, pp, h: _state(tr, setup, c, dp, o, pp, h))(trees, cell, depth, origin, p, hit)
-    n_layers = opacity.shape[0]
-    s0 = March(
-        cur,
-        hit,
-        jnp.zeros(3),
-        jnp.zeros(3),
-        jnp.float64(1.0),
-        jnp.int32(0),
-        jnp.where(jnp.any(hit), RUNNING, LEFT).astype(jnp.int32),
-        jnp.bool_(False),
-        cur,
-        jnp.zeros(n_layers, bool),
-    )
-    s = lax.while_loop(lambda q: q.status == RUNNING, lambda q: _march_step(trees, walk, setup, m, d, opacity, q, lighting), s0)
-    colour = s.colour
-    if setup.lit == 1:
-        colour = colour + s.direct
-    elif setup.lit == 2:
-        ld = m.rnd(lighting.to_light)
-        s1 = s._replace(
-            cur=s.s_cur,
-            active=s.s_active & s.found,
-            trans=jnp.float64(1.0),
-            steps=jnp.int32(0),
-            status=jnp.where(s.found & jnp.any(s.s_active), RUNNING, LEFT).astype(jnp.int32),
-        )
-        s1 = lax.while_loop(lambda q: q.status == RUNNING, lambda q: _march_step(trees, walk, setup, m, ld, opacity, q, shadow=True), s1)
-        colour = colour + s1.trans * s.direct
-    return s._replace(colour=colour + s.trans * background)
-
-
-@partial(jax.jit, static_argnums=(1,))
-def trace_layers_rays(trees: DeviceTree, setup: Setup, opacity, rays: Ray, background, guard, lighting=None):
-    one = lambda r: trace_layers_ray(trees, setup, opacity, r, background, guard, lighting)
-    return jax.vmap(one)(rays)
-
-
-def render_layers(layers: list, camera, precision="f64", max_steps=MAX_STEPS, tile=TILE_RAYS, light=None) -> Rendered:
-    """The image of several layers, [(dump arrays, opacity)] bottom first
-    (spec 6.2), seen by `camera`, lit by `light` as render() is. With no
-    layer the image is the background."""
-    w, h = camera.size
-    if not layers:
-        colour = np.broadcast_to(np.asarray(camera.background, np.float64), (h, w, 3)).copy()
-        return Rendered(to_pixels(colour), colour, np.zeros((h, w), np.int32), np.full((h, w), LEFT, np.int32), 0)
-    trees, canvas = stack_trees([a for a, _ in layers])
-    opacity = jnp.asarray(np.array([o for _, o in layers], np.float32).astype(np.float64))
-    lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
-    lighting = jax.vmap(lambda t: shading(t, canvas, light))(trees) if lit else None
-    if lighting is not None:
-        lighting = lighting._replace(to_light=lighting.to_light[0])
-    setup = Setup(canvas, format_of(precision), "local", int(max_steps), 0, lit)
-    rays = camera_rays(camera, canvas)
-    bg = jnp.asarray(np.asarray(camera.background, np.float64))
-    parts = []
-    for chunk, k in _tiles(rays, tile):
-        s = trace_layers_rays(trees, setup, opacity, chunk, bg, np.uint64(0), lighting)
-        parts.append((np.asarray(s.colour)[:k], np.asarray(s.steps)[:k], np.asarray(s.status)[:k]))
-    colour = np.concatenate([p[0] for p in parts]).reshape(h, w, 3)
-    steps = np.concatenate([p[1] for p in parts]).reshape(h, w)
-    status = np.concatenate([p[2] for p in parts]).reshape(h, w)
-    return Rendered(to_pixels(colour), colour, steps, status, 0)

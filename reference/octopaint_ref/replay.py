@@ -5,14 +5,17 @@ the first event runs."""
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 from dataclasses import dataclass, field, replace
 
 from .dump import dump_bytes, tree_arrays, write_atomic
 from .layers import Document, document_arrays
+from .lod import check_k
+from .march import render_layers
 from .png import png_bytes
-from .raycast import OVERFLOW, render, render_layers
+from .raycast import OVERFLOW, render
 from .trace import Trace
 
 
@@ -37,6 +40,7 @@ def replay(
     on_render=None,
     renders=True,
     after_event=None,
+    lods=(("0", 0.0),),
 ) -> ReplayStats:
     """Replay `trace`; write `<name>.npz` into out_dir at snapshot events
     and `<name>.png` at render events (nothing when out_dir is None).
@@ -44,7 +48,9 @@ def replay(
     every snapshot and render (tests use them); after_event(event, painting)
     after every event (the conformance driver follows a cell's history). Images are f64 local-frame
     renders (raycast.py): the oracle for the GPU ray caster. renders=False
-    skips them (timing the painting alone)."""
+    skips them (timing the painting alone). lods: the levels of detail of
+    every image, (text, k) pairs (spec 7; parse_lods): k = 0 writes
+    `<name>.png`, any other `<name>.lod<text>.png`."""
     stats = ReplayStats()
 
     def _warn(msg):
@@ -101,17 +107,19 @@ def replay(
         elif k == "render" and renders and (out_dir is not None or on_render):
             # Every event before this one has been applied: the tree is the
             # one all pending work leads to.
-            r0 = time.perf_counter()
-            image = render_document(doc, camera, light=light)
-            stats.render_seconds += time.perf_counter() - r0
-            if image.count(OVERFLOW):
-                _warn(f"line {ev.line}: {image.count(OVERFLOW)} ray(s) of render {ev.value!r} reached the step limit")
-            if on_render:
-                on_render(ev.value, image)
-            if out_dir is not None:
-                path = os.path.join(out_dir, ev.value + ".png")
-                write_atomic(path, png_bytes(image.image))
-                stats.written.append(path)
+            for text, k in lods:
+                name = ev.value if k == 0 else f"{ev.value}.lod{text}"
+                r0 = time.perf_counter()
+                image = render_document(doc, camera, light=light, lod=k)
+                stats.render_seconds += time.perf_counter() - r0
+                if image.count(OVERFLOW):
+                    _warn(f"line {ev.line}: {image.count(OVERFLOW)} ray(s) of render {name!r} reached the step limit")
+                if on_render:
+                    on_render(name, image)
+                if out_dir is not None:
+                    path = os.path.join(out_dir, name + ".png")
+                    write_atomic(path, png_bytes(image.image))
+                    stats.written.append(path)
         if after_event:
             after_event(ev, doc.current.painting)
     stats.seconds = time.perf_counter() - t0
@@ -122,14 +130,29 @@ def replay(
     return stats
 
 
-def render_document(doc: Document, camera, light=None):
-    """The image of a document (spec 6.2, 14.6): the single-tree ray caster
-    when one layer contributes at opacity 1, the march through every
-    contributing layer otherwise."""
+def render_document(doc: Document, camera, light=None, lod=0.0):
+    """The image of a document (spec 6.2, 14.6) at level of detail `lod`
+    (spec 7): the single-tree ray caster when one layer contributes at
+    opacity 1, the march through every contributing layer otherwise."""
     layers = [la for la in doc.layers if la.visible and la.opacity > 0]
     if len(layers) == 1 and layers[0].opacity == 1.0:
-        return render(tree_arrays(layers[0].tree), camera, light=light)
-    return render_layers([(tree_arrays(la.tree), la.opacity) for la in layers], camera, light=light)
+        return render(tree_arrays(layers[0].tree), camera, light=light, lod=lod)
+    return render_layers([(tree_arrays(la.tree), la.opacity) for la in layers], camera, light=light, lod=lod)
+
+
+def parse_lods(text: str) -> list:
+    """`--lod K[,K...]`: the levels of detail every render event is
+    written at, as (text as given, k) pairs, or ValueError: each a decimal
+    number in [0, lod.MAX_K], none twice."""
+    out = []
+    for part in text.split(","):
+        if not re.fullmatch(r"[0-9]+(\.[0-9]+)?", part):
+            raise ValueError(f"--lod {text!r}: {part!r} is not a decimal number such as 0, 1 or 0.5")
+        k = check_k(float(part))
+        if any(k == q for _, q in out):
+            raise ValueError(f"--lod {text!r}: level {part} given twice")
+        out.append((part, k))
+    return out
 
 
 def print_stats(stats: ReplayStats, file=sys.stderr) -> None:

@@ -11,7 +11,8 @@ from conftest import TRACES
 from octopaint_ref.dump import layer_trees, tree_arrays
 from octopaint_ref.layer_rules import LayerOp
 from octopaint_ref.layers import Document
-from octopaint_ref.raycast import render, render_layers
+from octopaint_ref.march import render_layers
+from octopaint_ref.raycast import render
 from octopaint_ref.replay import replay
 from octopaint_ref.trace import Brush, Camera, Canvas, Light, Sample, TraceError, parse_trace, read_trace
 

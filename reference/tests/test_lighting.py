@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from conftest import TRACES
-from octopaint_ref import raycast
+from octopaint_ref import raycast, shading
 from octopaint_ref.dump import tree_arrays
 from octopaint_ref.replay import replay
 from octopaint_ref.trace import Camera, Light, TraceError, parse_trace, read_trace
@@ -33,8 +33,8 @@ def test_faces_across_depth_changes():
         t.sigma[fc + k] = 1.0 + k
     t.sigma[1] = 20.0
     tree, canvas = _device(t)
-    s_lo, h_lo = (np.asarray(v) for v in raycast._face(tree, canvas, 0, -1))
-    s_hi, h_hi = (np.asarray(v) for v in raycast._face(tree, canvas, 0, 1))
+    s_lo, h_lo = (np.asarray(v) for v in shading._face(tree, canvas, 0, -1))
+    s_hi, h_hi = (np.asarray(v) for v in shading._face(tree, canvas, 0, 1))
     # Root 1 looks back (-x) at the children with x bit 1: 2, 4, 6, 8.
     assert (s_lo[1], h_lo[1]) == (((2.0 + 4.0) + (6.0 + 8.0)) / 4, 0.75)
     # Child 1 (x bit 1) looks out (+x) at root 1, coarser.
@@ -57,8 +57,8 @@ def _cube(sigma=1.0):
 
 def test_even_paint_is_unlit_and_a_surface_faces_out():
     tree, canvas = _cube()
-    towards = raycast.shading(tree, canvas, Light(dir=(1.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
-    away = raycast.shading(tree, canvas, Light(dir=(-2.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
+    towards = shading.shading(tree, canvas, Light(dir=(1.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
+    away = shading.shading(tree, canvas, Light(dir=(-2.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
     centre, side = 13, 2 + 3 * (1 + 3 * 1)
     assert float(towards.a0[centre]) == 1.0 and float(towards.a1[centre]) == 0.0
     # The +x side: delta_x = (0 - 1)/2, the normal +x: fully lit (r = 1/2).
@@ -74,10 +74,10 @@ def test_the_weight_ramps_with_the_relative_gradient():
         t = Tree((3, 1, 1), 2, 1.0, 4096)
         t.sigma[:3] = (1.0 - step, 1.0, 1.0 + step)
         tree, canvas = _device(t)
-        f = raycast.shading(tree, canvas, Light(dir=(0.0, 1.0, 0.0), intensity=1.0, ambient=0.0))
+        f = shading.shading(tree, canvas, Light(dir=(0.0, 1.0, 0.0), intensity=1.0, ambient=0.0))
         # cell 1: delta_x = 2 step / 2, m = 1 + step
         r = step / (1.0 + step)
-        w = min(max((r - raycast.R_UNLIT) / (raycast.R_LIT - raycast.R_UNLIT), 0.0), 1.0)
+        w = min(max((r - shading.R_UNLIT) / (shading.R_LIT - shading.R_UNLIT), 0.0), 1.0)
         assert float(f.a0[1]) == pytest.approx(1.0 - w, rel=1e-4)  # sigma is stored in f32
         if lit is None:
             assert w == 0.0
@@ -141,7 +141,7 @@ def test_lit_pixels_are_differentiable_in_sigma_and_the_light():
     paths = diffrender.record_paths(tree, canvas, rays)
 
     def colours(sigma, intensity):
-        f = raycast.shading(tree._replace(sigma=sigma), canvas, Light(dir=light.dir, intensity=intensity, ambient=light.ambient))
+        f = shading.shading(tree._replace(sigma=sigma), canvas, Light(dir=light.dir, intensity=intensity, ambient=light.ambient))
         return diffrender.composite(tree.rgb, sigma, paths, jnp.asarray(paths.p0), rays.dir_canvas, canvas, jnp.zeros(3), f.a0 + f.a1)
 
     assert np.allclose(np.asarray(colours(tree.sigma, 0.8)), s.colour, atol=1e-12)

@@ -62,6 +62,10 @@ pub struct Args {
     /// Write each camera's mono f32 image (PNG) into this folder.
     #[arg(long)]
     images: Option<PathBuf>,
+    /// Levels of detail every cast is timed at (docs/spec.md 7; 0: every
+    /// ray to the leaves), e.g. 0,1 for the cut against the full walk.
+    #[arg(long, value_delimiter = ',', default_value = "0", value_parser = crate::lod_arg)]
+    lod: Vec<f64>,
 }
 
 /// The median of some timings (benchmarks print it).
@@ -386,8 +390,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let sun = Light { dir: [0.45, 1.0, 0.35], ..Light::default() };
     let shadowed = Light { shadows: true, ..sun };
     let mut casts = Vec::new();
-    println!("| camera | size | precision | light | ms per frame | rays/s |");
-    println!("| --- | --- | --- | --- | ---: | ---: |");
+    println!("| camera | size | precision | light | level of detail | ms per frame | rays/s |");
+    println!("| --- | --- | --- | --- | ---: | ---: | ---: |");
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -414,13 +418,15 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
             if !r.gpu.supports(precision) {
                 continue;
             }
-            let params: Vec<RayParams> = eyes.iter().map(|e| RayParams::new(&painting.tree.lat, e).with_light(light)).collect();
-            let s = warm_median(a.runs, || r.cast_and_wait(&params, precision))?;
-            let rays = f64::from(w) * f64::from(h) * eyes.len() as f64;
-            let size = if eyes.len() == 2 { format!("2×{w}×{h}") } else { format!("{w}×{h}") };
-            println!("| {name} | {what} {size} | {precision:?} | {light_name} | {:.2} | {:.1} M |", s * 1e3, rays / s / 1e6);
-            casts.push(json!({"camera": name, "camera_index": ci, "view": what, "width": w, "height": h, "eyes": eyes.len(),
-                              "precision": format!("{precision:?}"), "light": light_name, "ms": s * 1e3, "rays_per_s": rays / s}));
+            for &k in &a.lod {
+                let params: Vec<RayParams> = eyes.iter().map(|e| RayParams::new(&painting.tree.lat, e).with_light(light).with_lod(e, k)).collect();
+                let s = warm_median(a.runs, || r.cast_and_wait(&params, precision))?;
+                let rays = f64::from(w) * f64::from(h) * eyes.len() as f64;
+                let size = if eyes.len() == 2 { format!("2×{w}×{h}") } else { format!("{w}×{h}") };
+                println!("| {name} | {what} {size} | {precision:?} | {light_name} | {k} | {:.2} | {:.1} M |", s * 1e3, rays / s / 1e6);
+                casts.push(json!({"camera": name, "camera_index": ci, "view": what, "width": w, "height": h, "eyes": eyes.len(),
+                                  "precision": format!("{precision:?}"), "light": light_name, "lod": k, "ms": s * 1e3, "rays_per_s": rays / s}));
+            }
         }
     }
     report.insert("cameras".into(), Value::Array(cameras.iter().map(|(n, c)| json!({"name": n, "eye": c.eye, "q": c.q})).collect()));

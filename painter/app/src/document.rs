@@ -390,6 +390,8 @@ pub struct Frames {
     pub play: Option<PathBuf>,
     pub exit_after_play: bool,
     pub hold_painting: Option<PathBuf>,
+    /// `--lod`: the level of detail the window starts at.
+    pub lod: f64,
 }
 
 pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, frames: Frames) -> ExitCode {
@@ -414,6 +416,7 @@ pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, fr
         play: frames.play,
         exit_after_play: frames.exit_after_play,
         hold_painting: frames.hold_painting,
+        lod: frames.lod,
     };
     match octopaint_desktop::run(opts) {
         Ok(()) => ExitCode::SUCCESS,
@@ -441,7 +444,7 @@ pub fn start() -> ExitCode {
         return fail(e);
     }
     eprintln!("octopaint: painting on {} (octopaint --help lists every command)", doc.display());
-    vr(&doc, None, None, Live { script: None, play: None, hold_painting: None, frame_log: None }, false, false, false)
+    vr(&doc, None, None, Live { script: None, play: None, hold_painting: None, frame_log: None }, false, false, false, octopaint_tree::raycast::DEFAULT_LOD)
 }
 
 /// An empty document on the desktop window's default canvas, unless `doc`
@@ -467,7 +470,8 @@ pub struct Live {
     pub frame_log: Option<PathBuf>,
 }
 
-pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live, f16: bool, no_fallback: bool, fixed_resolution: bool) -> ExitCode {
+#[allow(clippy::too_many_arguments)]
+pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live, f16: bool, no_fallback: bool, fixed_resolution: bool, lod: f64) -> ExitCode {
     let s = match Session::open(doc) {
         Ok(s) => s,
         Err(e) => return fail(e),
@@ -475,7 +479,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
     say_recovered(&s);
     let precision = if f16 { octopaint_gpu::Precision::F16 } else { octopaint_gpu::Precision::F32 };
     let Live { script, play, hold_painting, frame_log } = live;
-    let opts = octopaint_xr::headset::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting, frame_log };
+    let opts = octopaint_xr::headset::Options { frames, precision, capture: capture.clone(), script, fixed_resolution, play, hold_painting, frame_log, lod };
     // The session saves whatever happened in the headset as it ends (the
     // journal has it too).
     match octopaint_xr::headset::run(s, &opts) {
@@ -516,7 +520,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
                 return ExitCode::from(3);
             }
             eprintln!("octopaint: no VR here: {e}; opening the desktop window instead");
-            window(doc, "1280x720", f16, None, Frames::default())
+            window(doc, "1280x720", f16, None, Frames { lod, ..Frames::default() })
         }
         Err(e) => {
             eprintln!("octopaint: VR: {e}");

@@ -14,19 +14,15 @@ mod fuzz_smoke;
 mod imports;
 mod probe;
 mod render;
+mod replay_cmd;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
-use octopaint_gpu::{Backend, Precision, Renderer};
-use octopaint_tree::layers::Document;
-use octopaint_tree::paint::Painting;
-use octopaint_tree::pool::CellRecord;
-use octopaint_tree::raycast::{LayerInput, RayInput, RayParams};
-use octopaint_tree::replay::{ReplayObserver, replay};
-use octopaint_tree::trace::{Camera, Event, Light, read_trace};
+use octopaint_gpu::{Backend, Precision};
+use octopaint_tree::trace::{Camera, read_trace};
+use replay_cmd::{DrawOptions, Lods, cmd_replay, parse_lods_arg};
 
 #[derive(Parser)]
 #[command(
@@ -73,6 +69,11 @@ enum Command {
         /// with SHADER_F16).
         #[arg(long, value_enum, default_value_t = PrecisionChoice::F32)]
         precision: PrecisionChoice,
+        /// Levels of detail of every image (docs/spec.md 7): 0, the
+        /// default, walks to the leaves and writes <name>.png; any other k
+        /// writes <name>.lod<k>.png, k as given (for example --lod 0,1).
+        #[arg(long, value_name = "K[,K...]", default_value = "0", value_parser = parse_lods_arg)]
+        lod: Lods,
     },
     /// Validate traces without replaying them: print `PATH: ok` or
     /// `PATH: MESSAGE` for each (exit status 2 if any is malformed).
@@ -127,6 +128,11 @@ enum Command {
         /// each level of painting.
         #[arg(long, value_name = "FILE", hide = true)]
         hold_painting: Option<PathBuf>,
+        /// Level of detail (docs/spec.md 7): rays stop at cells no wider
+        /// than K pixels' footprints; 1 is about a cell per pixel, 0 walks
+        /// every ray to the leaves.
+        #[arg(long, value_name = "K", default_value_t = octopaint_tree::raycast::DEFAULT_LOD, value_parser = lod_arg)]
+        lod: f64,
     },
     /// Show a document in the headset through OpenXR: each eye ray cast
     /// with its own pose and field of view, paced by the runtime
@@ -169,6 +175,11 @@ enum Command {
         /// each level of painting.
         #[arg(long, value_name = "FILE", hide = true)]
         hold_painting: Option<PathBuf>,
+        /// Level of detail (docs/spec.md 7): rays stop at cells no wider
+        /// than K pixels' footprints; 1 is about a cell per pixel, 0 walks
+        /// every ray to the leaves.
+        #[arg(long, value_name = "K", default_value_t = octopaint_tree::raycast::DEFAULT_LOD, value_parser = lod_arg)]
+        lod: f64,
     },
     /// Find the OpenXR runtime and headset and print what they offer, or
     /// exactly what is missing (exit status 3 when there is no VR here).
@@ -286,6 +297,12 @@ pub(crate) fn event_arg<T>(option: &str, text: &str, parse: fn(usize, &serde_jso
     parse(0, &v).map_err(|e| format!("{option}: {}", e.message))
 }
 
+/// `--lod K` of render, window and vr: a level of detail (docs/spec.md 7).
+pub(crate) fn lod_arg(text: &str) -> Result<f64, String> {
+    let k: f64 = text.parse().map_err(|_| format!("{text:?} is not a number"))?;
+    octopaint_tree::raycast::check_lod(k)
+}
+
 fn camera_arg(text: &str) -> Result<Camera, String> {
     event_arg("--camera", text, octopaint_tree::trace::parse_camera)
 }
@@ -302,186 +319,6 @@ enum Bench {
     Doc(bench_doc::Args),
     /// Hours of painting through the window's engine: memory, journal, saves.
     Soak(bench_soak::Args),
-}
-
-/// Prints warnings as they happen; shows progress on a terminal; records a
-/// cell's history when asked.
-struct Reporter<'a> {
-    trace: &'a Path,
-    bar: ProgressBar,
-    history: Option<(u32, CellRecord)>,
-    draw: Draw,
-    /// The trace's version: 2 is a document of layers (spec 14), drawn by
-    /// one march through every contributing layer (spec 6.2).
-    version: u32,
-}
-
-/// Who draws the images and computes the dumps' g3.
-enum Draw {
-    Gpu(Box<Renderer>, Precision),
-    Cpu,
-    Nobody,
-}
-
-impl ReplayObserver for Reporter<'_> {
-    fn warning(&mut self, msg: &str) {
-        self.bar.suspend(|| eprintln!("octopaint: warning: {}: {msg}", self.trace.display()));
-    }
-
-    fn after_event(&mut self, ev: &Event, painting: &Painting) {
-        self.bar.inc(1);
-        if let Some((cell, last)) = &mut self.history {
-            let now = painting.tree.record(*cell);
-            if !now.same_bits(last) {
-                let kind = ev.kind.ev();
-                println!(
-                    "history: line {} {kind}: parent {} first_child {} depth {} rgb {:?} sigma {:?}",
-                    ev.line,
-                    now.parent,
-                    now.first_child,
-                    now.depth,
-                    now.rgb,
-                    f64::from(now.sigma)
-                );
-                *last = now;
-            }
-        }
-    }
-
-    fn render(&mut self, name: &str, camera: &Camera, light: Option<&Light>, doc: &mut Document, out_dir: Option<&Path>) -> std::io::Result<Option<PathBuf>> {
-        let [w, h] = camera.size;
-        let params = RayParams::new(&doc.layer(0).tree().lat, camera).with_light(light);
-        if self.version == 2 {
-            // A document: one march through its contributing layers (spec
-            // 6.2), on the GPU with every layer's pools in the pages, or in
-            // the CPU port.
-            let contributing: Vec<&octopaint_tree::layers::Layer> = doc.layers().filter(|l| l.contributes()).collect();
-            let cpu_layers = || {
-                let g3: Vec<Vec<[u32; 3]>> = contributing.iter().map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
-                let layers: Vec<LayerInput> =
-                    contributing.iter().zip(&g3).map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity }).collect();
-                octopaint_tree::raycast::render_layers(&layers, &params)
-            };
-            let rgb = match &mut self.draw {
-                Draw::Nobody => return Ok(None),
-                Draw::Cpu => cpu_layers(),
-                Draw::Gpu(renderer, precision) => {
-                    let trees: Vec<(&octopaint_tree::Tree, f32)> = contributing.iter().map(|l| (l.tree(), l.opacity)).collect();
-                    match renderer.render_layers(&trees, &params, *precision) {
-                        Ok(rgb) => rgb,
-                        // More than one binding of pixels or the pages hold.
-                        Err(e @ (octopaint_gpu::GpuError::TooBig(_) | octopaint_gpu::GpuError::Capacity { .. })) => {
-                            self.bar.suspend(|| eprintln!("octopaint: render {name:?}: {e}; drawn by the CPU port instead"));
-                            cpu_layers()
-                        }
-                        Err(e) => return Err(std::io::Error::other(format!("render {name:?}: {e}"))),
-                    }
-                }
-            };
-            let Some(dir) = out_dir else { return Ok(None) };
-            let path = dir.join(format!("{name}.png"));
-            octopaint_gpu::image::write_png(&path, &rgb, w, h)?;
-            return Ok(Some(path));
-        }
-        let painting = &mut doc.current_mut().painting;
-        let cpu = |tree: &octopaint_tree::Tree| {
-            let g3 = octopaint_tree::g3::g3_table(tree);
-            let inp = RayInput::of(tree, &g3);
-            octopaint_tree::raycast::render(&inp, &params)
-        };
-        let rgb = match &mut self.draw {
-            Draw::Nobody => return Ok(None),
-            Draw::Gpu(renderer, precision) => match renderer.sync(&mut painting.tree).and_then(|_| renderer.cast_params(&params, *precision)) {
-                Ok(rgb) => rgb,
-                // An image the GPU cannot hold in one binding (a trace may
-                // ask for 16384 x 16384): the CPU port draws it.
-                Err(octopaint_gpu::GpuError::TooBig(why)) => {
-                    self.bar.suspend(|| eprintln!("octopaint: render {name:?}: {why}; drawn by the CPU port instead"));
-                    cpu(&painting.tree)
-                }
-                Err(e) => return Err(std::io::Error::other(format!("render {name:?}: {e}"))),
-            },
-            Draw::Cpu => cpu(&painting.tree),
-        };
-        let Some(dir) = out_dir else { return Ok(None) };
-        let path = dir.join(format!("{name}.png"));
-        octopaint_gpu::image::write_png(&path, &rgb, w, h)?;
-        Ok(Some(path))
-    }
-
-    fn dump_g3(&mut self, painting: &mut Painting) -> std::io::Result<Option<Vec<[u32; 3]>>> {
-        match &mut self.draw {
-            Draw::Gpu(renderer, _) => renderer.read_g3(&mut painting.tree).map(Some).map_err(std::io::Error::other),
-            _ => Ok(None),
-        }
-    }
-}
-
-struct DrawOptions {
-    renderer: RendererChoice,
-    backend: BackendChoice,
-    precision: PrecisionChoice,
-}
-
-fn cmd_replay(trace_path: &Path, out: &Path, quiet: bool, history: Option<u32>, opts: DrawOptions) -> ExitCode {
-    let trace = match read_trace(trace_path) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("octopaint: {}: {e}", trace_path.display());
-            return ExitCode::from(2);
-        }
-    };
-    let bar = ProgressBar::new(trace.events.len() as u64);
-    bar.set_style(ProgressStyle::with_template("{spinner} replaying {pos}/{len} events [{elapsed_precise}] {wide_bar}").expect("static template"));
-    if quiet {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    let draw = match opts.renderer {
-        RendererChoice::None => Draw::Nobody,
-        RendererChoice::Cpu => Draw::Cpu,
-        RendererChoice::Gpu => {
-            let precision = Precision::from(opts.precision);
-            match Renderer::new(opts.backend.into()) {
-                Ok(r) if r.gpu.supports(precision) => {
-                    if !quiet {
-                        eprintln!("octopaint: rendering on {}", r.gpu.describe());
-                    }
-                    Draw::Gpu(Box::new(r), precision)
-                }
-                Ok(r) => {
-                    eprintln!("octopaint: {} has no SHADER_F16 for --precision f16", r.gpu.describe());
-                    return ExitCode::from(1);
-                }
-                Err(e) => {
-                    eprintln!("octopaint: {e}; --renderer cpu draws on the CPU, --renderer none skips images");
-                    return ExitCode::from(1);
-                }
-            }
-        }
-    };
-    let mut rep = Reporter { trace: trace_path, bar, history: history.map(|c| (c, CellRecord::FREE)), draw, version: trace.version };
-    let result = replay(&trace, Some(out), &mut rep);
-    rep.bar.finish_and_clear();
-    let (stats, _) = match result {
-        Ok(r) => r,
-        Err(e) => {
-            eprintln!("octopaint: {}: cannot write to {}: {}", trace_path.display(), out.display(), octopaint_tree::trace::io_reason(&e));
-            return ExitCode::from(1);
-        }
-    };
-    if !stats.renders.is_empty() {
-        eprintln!("octopaint: {} render event(s) not drawn (--renderer none)", stats.renders.len());
-    }
-    if !quiet {
-        eprintln!(
-            "replayed {} strokes, {} samples in {:.2} s: {} cells in use, deepest cell at depth {}",
-            stats.strokes, stats.samples, stats.seconds, stats.cells, stats.deepest
-        );
-        for p in &stats.written {
-            println!("{}", p.display());
-        }
-    }
-    ExitCode::SUCCESS
 }
 
 fn cmd_check(traces: &[PathBuf], canonical: bool) -> ExitCode {
@@ -539,23 +376,23 @@ fn main() -> ExitCode {
         return document::start();
     };
     match command {
-        Command::Replay { trace, out, quiet, history, renderer, backend, precision } => {
-            cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision })
+        Command::Replay { trace, out, quiet, history, renderer, backend, precision, lod } => {
+            cmd_replay(&trace, &out, quiet, history, DrawOptions { renderer, backend, precision, lods: lod.0 })
         }
         Command::Check { traces, canonical } => cmd_check(&traces, canonical),
         Command::Export(args) => export::run(&args),
         Command::New(args) => document::new(&args),
         Command::XrInfo => xr_info(),
-        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution, frame_log, play, hold_painting } => {
+        Command::Vr { doc, frames, capture, precision, no_fallback, script, fixed_resolution, frame_log, play, hold_painting, lod } => {
             let live = document::Live { script, play, hold_painting, frame_log };
-            document::vr(&doc, frames, capture, live, precision == PrecisionChoice::F16, no_fallback, fixed_resolution)
+            document::vr(&doc, frames, capture, live, precision == PrecisionChoice::F16, no_fallback, fixed_resolution, lod)
         }
-        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting } => document::window(
+        Command::Window { doc, size, precision, screenshot, fixed_resolution, frame_log, play, exit_after_play, hold_painting, lod } => document::window(
             &doc,
             &size,
             precision == PrecisionChoice::F16,
             screenshot,
-            document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting },
+            document::Frames { fixed_resolution, frame_log, play, exit_after_play, hold_painting, lod },
         ),
         Command::Import { trace, doc } => document::import(&trace, &doc),
         Command::ImportVdb(args) => imports::vdb(&args),

@@ -80,6 +80,12 @@ pub struct Args {
     /// Precision of the GPU ray caster's positions.
     #[arg(long, value_enum, default_value_t = crate::PrecisionChoice::F32)]
     precision: crate::PrecisionChoice,
+    /// Level of detail (docs/spec.md 7): rays stop at cells no wider than
+    /// K pixels' footprints and draw their prefiltered value; 0 (the
+    /// default) walks every ray to the leaves, 1 is about one cell per
+    /// pixel (the window's default).
+    #[arg(long, value_name = "K", default_value_t = 0.0, value_parser = crate::lod_arg)]
+    lod: f64,
     /// Print nothing but errors.
     #[arg(long)]
     quiet: bool,
@@ -184,8 +190,8 @@ impl Draw {
     /// The image of `layers` (each tree with its opacity; one at opacity 1
     /// for a one-tree document): the one-tree ray caster, or the march
     /// through every layer (spec 6.2).
-    fn image(&mut self, layers: &[(&Tree, f32)], camera: &Camera, grid: bool, light: Option<&Light>) -> Result<Vec<u8>, String> {
-        let mut params = RayParams::new(&layers[0].0.lat, camera).with_light(light);
+    fn image(&mut self, layers: &[(&Tree, f32)], camera: &Camera, grid: bool, light: Option<&Light>, lod: f64) -> Result<Vec<u8>, String> {
+        let mut params = RayParams::new(&layers[0].0.lat, camera).with_light(light).with_lod(camera, lod);
         if grid {
             params = params.with_grid(camera.eye);
         }
@@ -200,7 +206,7 @@ impl Draw {
                 Err(e @ (octopaint_gpu::GpuError::TooBig(_) | octopaint_gpu::GpuError::Capacity { .. })) => {
                     eprintln!("octopaint: render: {e}; drawn by the CPU port instead");
                     *self = Draw::Cpu(layers.iter().map(|(t, _)| octopaint_tree::g3::g3_table(t)).collect());
-                    self.image(layers, camera, grid, light)
+                    self.image(layers, camera, grid, light, lod)
                 }
                 Err(e) => Err(e.to_string()),
             },
@@ -288,7 +294,7 @@ pub fn run(a: &Args) -> ExitCode {
     // turntable.gif only once every frame is in (durable::write_with).
     let mut frame = |k: usize, camera: &Camera, gif: Option<&mut GifEncoder<&mut octopaint_platform::durable::Out>>| -> Result<(), String> {
         let layers: Vec<(&Tree, f32)> = if one_tree { vec![(&*refs[0], 1.0)] } else { refs.iter().map(|t| &**t).zip(opacity.iter().copied()).collect() };
-        let rgb = draw.image(&layers, camera, a.grid, plan.light.as_ref())?;
+        let rgb = draw.image(&layers, camera, a.grid, plan.light.as_ref(), a.lod)?;
         let path = match &plan.folder {
             Some(dir) => dir.join(format!("frame-{k:03}.png")),
             None => a.out.clone(),

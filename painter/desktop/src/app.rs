@@ -33,8 +33,8 @@ use crate::panel::{Action, LayersUi};
 const POLL: Duration = Duration::from_millis(15);
 
 /// What the window's view is made of, compared frame to frame to tell a
-/// still frame: the camera, the window's size, the grid, the light.
-pub(crate) type Look = (OrbitCamera, [u32; 2], bool, Option<octopaint_tree::trace::Light>);
+/// still frame: the camera, the window's size, the grid, the light, the level of detail.
+pub(crate) type Look = (OrbitCamera, [u32; 2], bool, Option<octopaint_tree::trace::Light>, f64);
 
 pub(crate) struct Running {
     pub window: Arc<Window>,
@@ -340,6 +340,7 @@ impl App {
             light: LightUi { on: renderer.gpu.info.device_type != wgpu::DeviceType::Cpu, ..LightUi::default() },
             mirror_axes: [false; 3],
             mirror_centre: camera.target,
+            lod: self.opts.lod,
         };
         let frames = Frames::new(self.engine.as_ref().expect("the engine runs until the window closes"), &self.settings);
         Ok(Running {

@@ -25,6 +25,9 @@ pub(crate) struct BrushUi {
     /// through `mirror_centre` mirror every stroke.
     pub(crate) mirror_axes: [bool; 3],
     pub(crate) mirror_centre: DVec3,
+    /// The level of detail of the view (docs/spec.md 7): rays stop at
+    /// cells no wider than this many pixels' footprints; 0: at the leaves.
+    pub(crate) lod: f64,
 }
 
 impl BrushUi {

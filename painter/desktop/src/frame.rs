@@ -58,10 +58,12 @@ impl App {
         // A screenshot is always of the full resolution, moving or not.
         let mirror = r.brush.mirror_axes.iter().enumerate().fold(0u8, |m, (a, &on)| m | (u8::from(on) << a));
         let have_cast = r.renderer.ray.pixel_buffer().is_some();
-        let planned = r.view.plan(size, (r.camera, size, r.brush.grid, light), prepared.changed, r.want_screenshot, have_cast, mirror);
+        let planned = r.view.plan(size, (r.camera, size, r.brush.grid, light, r.brush.lod), prepared.changed, r.want_screenshot, have_cast, mirror);
         let cast = planned.size;
         let camera = r.camera.camera(cast, BACKGROUND);
-        let mut params = RayParams::new(&self.lattice, &camera).with_light(light.as_ref());
+        // The cut follows the size cast (a frame at reduced resolution is
+        // a coarser, cheaper one: spec 7).
+        let mut params = RayParams::new(&self.lattice, &camera).with_light(light.as_ref()).with_lod(&camera, r.brush.lod);
         if r.brush.grid {
             params = params.with_grid(camera.eye);
         }

@@ -57,6 +57,10 @@ pub struct Options {
     /// While this file exists, the stroke thread waits before each level
     /// (tests: frames must go on while painting is held).
     pub hold_painting: Option<PathBuf>,
+    /// The level of detail the window starts at (docs/spec.md 7; the
+    /// panel changes it): rays stop at cells no wider than this many
+    /// pixels' footprints, 0 walks them to the leaves.
+    pub lod: f64,
 }
 
 /// Open the window on `opts.doc` and run until it is closed (closing saves).

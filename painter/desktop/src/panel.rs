@@ -208,6 +208,10 @@ pub(crate) fn panel(root: &mut egui::Ui, b: &mut BrushUi, l: &mut LayersUi, s: &
             }
         });
         ui.checkbox(&mut b.grid, "ground grid and horizon (G)");
+        ui.add(egui::Slider::new(&mut b.lod, 0.0..=4.0).step_by(0.25).text("level of detail")).on_hover_text(
+            "rays stop at cells no wider than this many pixels and draw their children's average: \
+             1 is about a cell per pixel; 0 walks every ray to the smallest cells (slower, shimmers when moving)",
+        );
         ui.horizontal(|ui| {
             ui.checkbox(&mut b.light.on, "light (L)");
             ui.add_enabled(b.light.on, egui::Checkbox::new(&mut b.light.shadows, "shadows (Shift+L)"));

@@ -31,6 +31,7 @@ pub struct RayParamsGpu {
     pub grid: [f32; 4],
     pub light: [f32; 4],
     pub shade: [f32; 4],
+    pub lod: [f32; 4],
 }
 
 impl RayParamsGpu {
@@ -53,6 +54,7 @@ impl RayParamsGpu {
             grid: p.grid,
             light: p.light,
             shade: [p.ambient, 0.0, 0.0, 0.0],
+            lod: [p.forward[0], p.forward[1], p.forward[2], p.lod],
         }
     }
 }
@@ -130,6 +132,9 @@ impl ProbeRecord {
     }
 }
 
+/// Precision, lighting mode, layered, level of detail on.
+type PipelineKey = (Precision, u32, bool, bool);
+
 pub struct RayCaster {
     /// One shader module per precision the adapter has.
     modules: Vec<(Precision, wgpu::ShaderModule)>,
@@ -137,9 +142,9 @@ pub struct RayCaster {
     page_shift: u32,
     /// Pipelines made so far, per precision, lighting mode (the shader's
     /// `LIT`: 0 unlit, 1 lit, 2 with shadow rays) and entry point (`main`
-    /// for one tree, `main_layers` for a document's layers), each compiled
-    /// on first use.
-    pipelines: Vec<((Precision, u32, bool), wgpu::ComputePipeline)>,
+    /// for one tree, `main_layers` for a document's layers) and whether
+    /// it walks a level of detail's cut (`LOD`), each compiled on first use.
+    pipelines: Vec<(PipelineKey, wgpu::ComputePipeline)>,
     layout_params: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     layers: wgpu::Buffer,
@@ -223,15 +228,16 @@ impl RayCaster {
         };
         // The unlit one-tree pipelines now; others when first asked for.
         for precision in [Precision::F32, Precision::F16] {
-            let _ = caster.pipeline(gpu, precision, 0, false);
+            let _ = caster.pipeline(gpu, precision, (0, false, false));
         }
         caster
     }
 
-    /// The pipeline for `precision`, lighting mode `lit` and one tree or
-    /// a document's `layered` march, compiled on first use.
-    fn pipeline(&mut self, gpu: &Gpu, precision: Precision, lit: u32, layered: bool) -> Result<wgpu::ComputePipeline, GpuError> {
-        if let Some((_, p)) = self.pipelines.iter().find(|(k, _)| *k == (precision, lit, layered)) {
+    /// The pipeline for `precision` and `(lit, layered, lod)`: lighting
+    /// mode `lit`, one tree or a document's `layered` march, and a level
+    /// of detail's cut or none, compiled on first use.
+    fn pipeline(&mut self, gpu: &Gpu, precision: Precision, (lit, layered, lod): (u32, bool, bool)) -> Result<wgpu::ComputePipeline, GpuError> {
+        if let Some((_, p)) = self.pipelines.iter().find(|(k, _)| *k == (precision, lit, layered, lod)) {
             return Ok(p.clone());
         }
         let module = self.modules.iter().find(|(p, _)| *p == precision).map(|(_, m)| m).ok_or(GpuError::NoF16)?;
@@ -241,12 +247,12 @@ impl RayCaster {
             module,
             entry_point: Some(if layered { "main_layers" } else { "main" }),
             compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[("PAGE_SHIFT", f64::from(self.page_shift)), ("LIT", f64::from(lit))],
+                constants: &[("PAGE_SHIFT", f64::from(self.page_shift)), ("LIT", f64::from(lit)), ("LOD", f64::from(u8::from(lod)))],
                 zero_initialize_workgroup_memory: false,
             },
             cache: None,
         });
-        self.pipelines.push(((precision, lit, layered), pipeline.clone()));
+        self.pipelines.push(((precision, lit, layered, lod), pipeline.clone()));
         Ok(pipeline)
     }
 
@@ -311,7 +317,7 @@ impl RayCaster {
         probe: bool,
         table: Option<&LayerTableGpu>,
     ) -> Result<(), GpuError> {
-        let pipeline = self.pipeline(gpu, precision, params.lit, table.is_some())?;
+        let pipeline = self.pipeline(gpu, precision, (params.lit, table.is_some(), params.lod > 0.0))?;
         let n = u64::from(params.width) * u64::from(params.height);
         let words = if probe { n * PROBE_WORDS } else { n };
         // One binding holds every pixel (or record): refuse what the device

@@ -50,7 +50,7 @@ fn ray_params_layout_agrees() {
         assert_eq!(size as usize, std::mem::size_of::<RayParamsGpu>());
         assert_eq!(
             offsets,
-            offsets!(RayParamsGpu, eye_cell, eye_rel, roots, extent, extent_max, tan_fov, rot0, rot1, rot2, background, misc, flags, grid, light, shade)
+            offsets!(RayParamsGpu, eye_cell, eye_rel, roots, extent, extent_max, tan_fov, rot0, rot1, rot2, background, misc, flags, grid, light, shade, lod)
         );
     }
 }

@@ -34,17 +34,12 @@ pub trait ReplayObserver {
     fn after_event(&mut self, _ev: &Event, _painting: &Painting) {}
     /// A `render` event: draw the document as `camera` sees it, lit by
     /// `light` (None: unlit, spec 6.1; several layers: spec 6.2), and write
-    /// `<name>.png` into `out_dir` (nothing when it is None). Returns the
-    /// path written, or None when this observer does not render.
-    fn render(
-        &mut self,
-        _name: &str,
-        _camera: &Camera,
-        _light: Option<&Light>,
-        _doc: &mut Document,
-        _out_dir: Option<&Path>,
-    ) -> std::io::Result<Option<PathBuf>> {
-        Ok(None)
+    /// `<name>.png` into `out_dir` (nothing when it is None), and more
+    /// images where the observer draws several levels of detail (spec 7;
+    /// `octopaint replay --lod`). Returns the paths written, none when this
+    /// observer does not render.
+    fn render(&mut self, _name: &str, _camera: &Camera, _light: Option<&Light>, _doc: &mut Document, _out_dir: Option<&Path>) -> std::io::Result<Vec<PathBuf>> {
+        Ok(Vec::new())
     }
     /// The g3 table a snapshot of a version 1 trace dumps; None: the CPU
     /// port's (g3.rs). The GPU replay returns the table it read back from
@@ -144,10 +139,11 @@ pub fn replay_document_within(
             }
             EventKind::Render(name) => {
                 let cam = camera.as_ref().expect("validated: a camera precedes every render");
-                match obs.render(name, cam, light.as_ref(), &mut doc, out_dir)? {
-                    Some(path) => stats.written.push(path),
-                    None => stats.renders.push(name.clone()),
+                let paths = obs.render(name, cam, light.as_ref(), &mut doc, out_dir)?;
+                if paths.is_empty() {
+                    stats.renders.push(name.clone());
                 }
+                stats.written.extend(paths);
             }
             EventKind::Camera(c) => camera = Some(*c),
             EventKind::Light(l) => light = Some(*l),

@@ -89,15 +89,17 @@ pub(crate) struct Drawer {
     pub view: View<Look>,
     lattice: Lattice,
     precision: Precision,
+    /// The level of detail of both eyes (spec 7).
+    lod: f64,
     /// Both eyes have been cast once (each has a last cast to present).
     cast_once: bool,
 }
 
 impl Drawer {
-    pub(crate) fn new(renderer: &Renderer, eyes: &Eyes, lattice: Lattice, precision: Precision, view: View<Look>) -> Drawer {
+    pub(crate) fn new(renderer: &Renderer, eyes: &Eyes, lattice: Lattice, precision: Precision, lod: f64, view: View<Look>) -> Drawer {
         let blit = Blit::new(&renderer.gpu, eyes.format);
         let hud = egui_wgpu::Renderer::new(&renderer.gpu.device, eyes.format, egui_wgpu::RendererOptions::default());
-        Drawer { blit, hud_ctx: egui::Context::default(), hud, view, lattice, precision, cast_once: false }
+        Drawer { blit, hud_ctx: egui::Context::default(), hud, view, lattice, precision, lod, cast_once: false }
     }
 
     /// Draw both eyes into swapchain image `image` (acquired and waited
@@ -140,7 +142,8 @@ impl Drawer {
             let mut enc = renderer.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("eye") });
             if planned.cast {
                 let camera = eye_camera(placement, view, planned.size);
-                let mut params = RayParams::new(&self.lattice, &camera).with_light(lit.then_some(&DEFAULT_LIGHT));
+                // The cut follows the eye's cast size (dynamic resolution).
+                let mut params = RayParams::new(&self.lattice, &camera).with_light(lit.then_some(&DEFAULT_LIGHT)).with_lod(&camera, self.lod);
                 if grid {
                     params = params.with_grid(camera.eye);
                 }

@@ -78,6 +78,9 @@ pub struct Options {
     /// Write one CSV line per frame here (the window's frame log,
     /// docs/desktop.md).
     pub frame_log: Option<PathBuf>,
+    /// The level of detail of both eyes (docs/spec.md 7): rays stop at
+    /// cells no wider than this many pixels' footprints; 0: at the leaves.
+    pub lod: f64,
 }
 
 /// The time both eyes' ray casts aim at: one frame of a 90 Hz headset.
@@ -127,7 +130,7 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     // Where the painting is placed first, and the lattice the eyes are cast
     // on, before the document goes to the stroke thread.
     let bounds = Bounds::shown(&doc.doc);
-    let drawer = Drawer::new(&renderer, &eyes, Lattice::new(doc.doc.canvas()), opts.precision, view);
+    let drawer = Drawer::new(&renderer, &eyes, Lattice::new(doc.doc.canvas()), opts.precision, opts.lod, view);
     let mut settings = Settings::new(Camera { eye: [0.0; 3], q: [0.0, 0.0, 0.0, 1.0], fov: [-0.5, 0.5, 0.5, -0.5], size: [64, 64], background: [0.0; 3] });
     // A session of hours: the engine's records stay a few seconds long.
     settings.keep_records = Some(octopaint_pipeline::settings::LIVE_RECORDS);

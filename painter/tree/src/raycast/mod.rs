@@ -6,10 +6,11 @@
 //! [`RayParams::new`].
 
 mod layers;
+mod lod;
 mod params;
 
 pub use layers::{LayerInput, render_layers, trace_pixel_layers};
-pub use params::RayParams;
+pub use params::{DEFAULT_LOD, MAX_LOD, RayParams, check_lod, parse_lods};
 
 use crate::pool::{FREE, NONE};
 
@@ -243,8 +244,9 @@ fn exit(p: [f32; 3], d: [f32; 3]) -> (f32, usize, [f32; 3]) {
 
 /// The cell after `c` for a ray leaving it after `t` through axis `axis`
 /// (bound `bound`) along `d`, with the point in its frame (spec 7 "Next
-/// cell", one descent at most); None when the ray leaves the canvas or
-/// meets a cell of a depth it cannot enter.
+/// cell", one descent at most; with a level of detail, the cell of the cut
+/// there); None when the ray leaves the canvas or meets a cell of a depth
+/// it cannot enter.
 fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bound: f32, d: [f32; 3]) -> Option<Cursor> {
     let dd = pr.max_depth;
     let (rx, ry) = (pr.roots[0], pr.roots[1]);
@@ -287,6 +289,9 @@ fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bo
     }
     p_next[axis] = entry;
     let mut out = Cursor { cell: nxt, depth: dn, origin: o_next, p: p_next, visible: consistent(inp, pr, nxt) };
+    if pr.lod > 0.0 {
+        return Some(lod::settle(inp, pr, out));
+    }
     let fc = inp.first_child_of(nxt);
     if out.visible && fc != NONE {
         let cbits = p_next.map(|v| u32::from(v >= 0.0));
@@ -435,7 +440,8 @@ fn ray_start(pr: &RayParams, x: u32, y: u32) -> RayStart {
     RayStart { dir, running, q_lat, q_frac, entry_axis: if inside { -1 } else { entry_axis } }
 }
 
-/// The leaf of `inp` where the ray of `rs` starts, and the point in it.
+/// The leaf of `inp` (or the cell of the cut, spec 7 "Level of detail")
+/// where the ray of `rs` starts, and the point in it.
 fn start_cursor(inp: &RayInput, pr: &RayParams, rs: &RayStart) -> Cursor {
     let dd = pr.max_depth;
     let (q_lat, q_frac, dir) = (rs.q_lat, rs.q_frac, rs.dir);
@@ -446,7 +452,7 @@ fn start_cursor(inp: &RayInput, pr: &RayParams, rs: &RayStart) -> Cursor {
     let mut origin = root.map(|v| v << dd);
     for _ in 0..dd {
         let fc = inp.first_child_of(cell);
-        if fc == NONE {
+        if fc == NONE || (pr.lod > 0.0 && lod::small(pr, depth, origin)) {
             break;
         }
         let half = 1u32 << (dd - depth - 1);

@@ -39,6 +39,11 @@ pub struct RayParams {
     /// The unit direction towards the light, and its intensity.
     pub light: [f32; 4],
     pub ambient: f32,
+    /// The level of detail's `lam = min(k·alpha, 1)` (spec 7), 0 for none
+    /// (every ray walks to the leaves; see [`RayParams::with_lod`]).
+    pub lod: f32,
+    /// The camera's view axis `M(q)·(0, 0, -1)`, for the cut's view depths.
+    pub forward: [f32; 3],
 }
 
 impl RayParams {
@@ -83,7 +88,25 @@ impl RayParams {
             lit: 0,
             light: [0.0; 4],
             ambient: 0.0,
+            lod: 0.0,
+            forward: [-rows[0][2] as f32, -rows[1][2] as f32, -rows[2][2] as f32],
         }
+    }
+
+    /// These constants at level of detail `k` for `camera` (spec 7): rays
+    /// stop at cells no wider than `k` footprints of a pixel of `camera`'s
+    /// image, whose size (the one rendered, so a frame at reduced
+    /// resolution is a coarser one) and field of view give the pixel pitch
+    /// `alpha = max((tan r - tan l)/w, (tan u - tan d)/h)`, in f64 with
+    /// `lam = min(k·alpha, 1)` rounded once to f32. `k = 0`: full depth.
+    /// [`check_lod`] says which `k` are accepted.
+    pub fn with_lod(mut self, camera: &Camera, k: f64) -> Self {
+        let [l, r, u, d] = camera.fov;
+        let [w, h] = camera.size.map(f64::from);
+        let alpha = ((r.tan() - l.tan()) / w).max((u.tan() - d.tan()) / h);
+        let lam = (k * alpha).min(1.0);
+        self.lod = if k > 0.0 && lam > 0.0 { lam as f32 } else { 0.0 };
+        self
     }
 
     /// These constants lit by `light` (spec 6.1): its direction normalised
@@ -123,4 +146,41 @@ impl RayParams {
         self.grid = [eye[0].rem_euclid(m) as f32, h as f32, eye[2].rem_euclid(m) as f32, s as f32];
         self
     }
+}
+
+/// The largest level of detail accepted (spec 7): beyond it every cell of
+/// an ordinary view is small anyway (`lam` is capped at 1).
+pub const MAX_LOD: f64 = 64.0;
+
+/// The level of detail the window and the headset start at (spec 7):
+/// about one cell per pixel.
+pub const DEFAULT_LOD: f64 = 1.0;
+
+/// `k` if it is a level of detail (a number in `[0, MAX_LOD]`), or why not.
+pub fn check_lod(k: f64) -> Result<f64, String> {
+    if (0.0..=MAX_LOD).contains(&k) { Ok(k) } else { Err(format!("level of detail {k}: must be a number in [0, {MAX_LOD}] (0: full depth)")) }
+}
+
+/// `--lod K[,K...]` (`octopaint replay`, as `octopaint-ref replay`): the
+/// levels of detail every image is drawn at, as (text as given, k): each a
+/// decimal number (`0`, `1`, `0.5`) in `[0, MAX_LOD]`, none twice. The text
+/// names the image of a k other than 0: `<name>.lod<text>.png`.
+pub fn parse_lods(text: &str) -> Result<Vec<(String, f64)>, String> {
+    let mut out: Vec<(String, f64)> = Vec::new();
+    for part in text.split(',') {
+        let decimal = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+        let ok = match part.split_once('.') {
+            Some((a, b)) => decimal(a) && decimal(b),
+            None => decimal(part),
+        };
+        if !ok {
+            return Err(format!("--lod {text:?}: {part:?} is not a decimal number such as 0, 1 or 0.5"));
+        }
+        let k = check_lod(part.parse::<f64>().map_err(|e| format!("--lod {text:?}: {e}"))?)?;
+        if out.iter().any(|(_, q)| *q == k) {
+            return Err(format!("--lod {text:?}: level {part} given twice"));
+        }
+        out.push((part.to_string(), k));
+    }
+    Ok(out)
 }

@@ -1,0 +1,70 @@
+//! Level of detail (spec 7 "Level of detail"): the walk stops at cells no
+//! wider than k footprints of a pixel and composites their prefiltered
+//! values (spec 4.4). Whether a cell is small depends on the cell and the
+//! camera alone ([`RayParams::with_lod`] sets the camera's constants), so
+//! every ray of an image walks the same cut. The shader's `small` and
+//! `settle` (shaders/raycast.wgsl) follow these line for line; reference:
+//! reference/octopaint_ref/lod.py.
+
+use super::{Cursor, RayInput, RayParams, consistent};
+use crate::pool::NONE;
+
+/// `a - b` for lattice coordinates (each below 2^32), exact before its
+/// one rounding to f32.
+fn lattice_diff(a: u32, b: u32) -> f32 {
+    if a >= b { (a - b) as f32 } else { -((b - a) as f32) }
+}
+
+/// Whether the cell of `depth` at lattice `origin` is small: its edge `S`
+/// at most `lam` times its centre's view depth, `z = sum_a f_a ((o_a -
+/// Ec_a) + S/2 - eye_rel_a)` in lattice units, summed in axis order.
+pub(super) fn small(pr: &RayParams, depth: u32, origin: [u32; 3]) -> bool {
+    let s = (1u64 << (pr.max_depth - depth)) as f32;
+    let f = pr.forward;
+    let v = [0, 1, 2].map(|a| (lattice_diff(origin[a], pr.eye_cell[a]) + s * 0.5) - pr.eye_rel[a]);
+    let z = (v[0] * f[0] + v[1] * f[1]) + v[2] * f[2];
+    s <= pr.lod * z
+}
+
+fn octant(cell: u32) -> [u32; 3] {
+    [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1]
+}
+
+/// From the cell a step entered (same depth or one coarser) to the cell of
+/// the cut there: up while the cell is not a root and its parent is small,
+/// then down while it has a consistent child at the point and is not
+/// small. Each round is one level, so both loops end within D rounds.
+pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor) -> Cursor {
+    let dd = pr.max_depth;
+    while c.cell >= pr.n_roots && c.depth > 0 {
+        let par = inp.parent_of(c.cell);
+        let bits = octant(c.cell);
+        let size = 1u32 << (dd - c.depth);
+        let o_par = [0, 1, 2].map(|a| c.origin[a].wrapping_sub(bits[a] * size));
+        if par == NONE || !small(pr, c.depth - 1, o_par) {
+            break;
+        }
+        c.p = [0, 1, 2].map(|a| c.p[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+        c.cell = par;
+        c.depth -= 1;
+        c.origin = o_par;
+        c.visible = consistent(inp, pr, par);
+    }
+    while c.visible && c.depth < dd {
+        let fc = inp.first_child_of(c.cell);
+        if fc == NONE || small(pr, c.depth, c.origin) {
+            break;
+        }
+        let cbits = c.p.map(|v| u32::from(v >= 0.0));
+        let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+        if pr.skip_invalid && inp.parent_of(child) != c.cell {
+            break;
+        }
+        let half = 1u32 << (dd - c.depth - 1);
+        c.p = [0, 1, 2].map(|a| c.p[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
+        c.origin = [0, 1, 2].map(|a| c.origin[a].wrapping_add(cbits[a] * half));
+        c.cell = child;
+        c.depth += 1;
+    }
+    c
+}

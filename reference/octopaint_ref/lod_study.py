@@ -1,0 +1,140 @@
+"""The level of detail's quality and cost (spec 7, docs/benchmarks.md "Level
+of detail"), measured with the reference's f64 ray caster: for every render
+event of the given traces, the truth is the full-depth image cast at
+`ss` x `ss` samples per pixel and box-filtered to the display size; the
+figures are the PSNR of the full-depth image and of the image at each level
+of detail against it, the cells stepped per ray (mean, p99), and a flicker
+figure: the mean frame-to-frame difference of a slow orbit around the
+view's target, with and without.
+
+    python -m octopaint_ref.lod_study traces/scene.jsonl traces/lit.jsonl --json out/lod.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from .dump import tree_arrays
+from .jax_setup import configure
+from .lod import check_k
+from .raycast import render
+from .replay import replay
+from .trace import read_trace
+
+
+def psnr(a: np.ndarray, b: np.ndarray) -> float:
+    """PSNR in dB of two 8-bit images (inf when equal)."""
+    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
+    return math.inf if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
+
+
+def _render(painting, camera, light, k=0.0):
+    return render(tree_arrays(painting.tree), camera, light=light, lod=k)
+
+
+def truth(painting, camera, light, ss: int) -> np.ndarray:
+    """The full-depth image at ss x ss samples per pixel, box-filtered, as
+    8-bit (the mean of the samples' f64 colours, rounded as spec 6)."""
+    w, h = camera.size
+    big = replace(camera, size=(w * ss, h * ss))
+    c = _render(painting, big, light).colour.reshape(h, ss, w, ss, 3).mean(axis=(1, 3))
+    return np.clip(np.floor(c * 255.0 + 0.5), 0, 255).astype(np.uint8)
+
+
+def _turned(camera, degrees: float):
+    """camera turned by `degrees` about the canvas y axis (a slow pan)."""
+    a = math.radians(degrees) / 2
+    qx, qy, qz, qw = camera.q
+    s, c = math.sin(a), math.cos(a)
+    # r * q with r = (0, s, 0, c)
+    q = (c * qx + s * qz, c * qy + s * qw, c * qz - s * qx, c * qw - s * qy)
+    return replace(camera, q=q)
+
+
+def flicker(painting, camera, light, k: float, frames: int, step_deg: float) -> float:
+    """Mean absolute frame-to-frame difference (8-bit steps per channel) of
+    `frames` frames panning by `step_deg` each."""
+    prev, diffs = None, []
+    for i in range(frames):
+        img = _render(painting, _turned(camera, i * step_deg), light, k).image.astype(np.int64)
+        if prev is not None:
+            diffs.append(float(np.abs(img - prev).mean()))
+        prev = img
+    return float(np.mean(diffs))
+
+
+def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float) -> list:
+    """One row per render event of a one-tree trace (version 1)."""
+    trace = read_trace(trace_path)
+    if trace.version != 1:
+        raise ValueError(f"{trace_path}: the study reads one-tree traces (version 1)")
+    rows = []
+    view = {"camera": None, "light": None}
+
+    def after(ev, painting):
+        if ev.kind in ("camera", "light"):
+            view[ev.kind] = ev.value
+        if ev.kind != "render":
+            return
+        camera, light = view["camera"], view["light"]
+        t0 = time.perf_counter()
+        ref = truth(painting, camera, light, ss)
+        row = {"trace": trace_path, "render": ev.value, "size": list(camera.size), "samples_per_pixel": ss * ss, "levels": []}
+        for k in lods:
+            r = _render(painting, camera, light, k)
+            steps = r.steps.ravel()
+            row["levels"].append(
+                {
+                    "k": k,
+                    "psnr_db": psnr(r.image, ref),
+                    "steps_mean": float(steps.mean()),
+                    "steps_p99": float(np.percentile(steps, 99)),
+                    "flicker": flicker(painting, camera, light, k, frames, step_deg) if frames > 1 else None,
+                }
+            )
+        row["seconds"] = time.perf_counter() - t0
+        rows.append(row)
+
+    replay(trace, None, renders=False, after_event=after)
+    return rows
+
+
+def main(argv=None) -> int:
+    configure()
+    ap = argparse.ArgumentParser(prog="python -m octopaint_ref.lod_study", description=__doc__.split("\n\n")[0])
+    ap.add_argument("traces", nargs="+")
+    ap.add_argument("--lod", default="0,1", help="levels of detail to compare (default 0,1)")
+    ap.add_argument("--ss", type=int, default=4, help="samples per pixel and axis of the truth (default 4)")
+    ap.add_argument("--frames", type=int, default=6, help="frames of the flicker pan (default 6; 1: none)")
+    ap.add_argument("--step", type=float, default=0.25, help="degrees the pan turns per frame (default 0.25)")
+    ap.add_argument("--json", help="write the rows here")
+    a = ap.parse_args(argv)
+    lods = [check_k(float(x)) for x in a.lod.split(",")]
+    rows = []
+    print("| trace | render | size | k | PSNR against the truth (dB) | cells per ray, mean | p99 | flicker (steps) |")
+    print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
+    for t in a.traces:
+        for row in study(t, lods, a.ss, a.frames, a.step):
+            rows.append(row)
+            for lv in row["levels"]:
+                fl = f"{lv['flicker']:.3f}" if lv["flicker"] is not None else ""
+                print(
+                    f"| {t.split('/')[-1]} | {row['render']} | {row['size'][0]}×{row['size'][1]} | {lv['k']:g} | {lv['psnr_db']:.2f} | "
+                    f"{lv['steps_mean']:.1f} | {lv['steps_p99']:.0f} | {fl} |",
+                    flush=True,
+                )
+    if a.json:
+        with open(a.json, "w", encoding="utf-8") as f:
+            json.dump({"ss": a.ss, "frames": a.frames, "step_deg": a.step, "rows": rows}, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
