@@ -348,21 +348,29 @@ fn small(depth: u32, origin: vec3<u32>) -> bool {
     return s <= params.lod.w * z;
 }
 
-// From the cell a step entered (same depth or one coarser) to the cell of
-// the cut there: up while the cell is not a root and its parent is small,
-// then down while it has a consistent child at the point and is not small;
-// one level per round, so both loops end within D rounds.
-fn settle(c0: Cur) -> Cur {
+// From the cell a step entered (same depth or one coarser; `fc0` its first
+// child) to the cell of the cut there: up while the cell is not a root and
+// its parent is small, then (when it did not go up: a small parent's
+// children are small) down while it has a consistent child at the point and
+// is not small. The parent's smallness comes from the cell's own index and
+// origin, so a step reads the parent link only to go up; one level per
+// round, so both loops end within D rounds.
+fn settle(c0: Cur, fc0: u32) -> Cur {
     let D = params.roots.w;
     var c = c0;
+    var fc = fc0;
+    var ascended = false;
     loop {
         if (c.cell < params.misc.z || c.depth == 0u) {
             break;
         }
-        let par = tcell(c.cell).parent;
         let bits = vec3<u32>(c.cell & 1u, (c.cell >> 1u) & 1u, (c.cell >> 2u) & 1u);
         let o_par = c.origin - bits * (1u << (D - c.depth));
-        if (par == NONE || !small(c.depth - 1u, o_par)) {
+        if (!small(c.depth - 1u, o_par)) {
+            break;
+        }
+        let par = tcell(c.cell).parent;
+        if (par == NONE) {
             break;
         }
         c.p = c.p * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
@@ -370,24 +378,26 @@ fn settle(c0: Cur) -> Cur {
         c.depth = c.depth - 1u;
         c.origin = o_par;
         c.visible = consistent(par);
+        ascended = true;
     }
     loop {
-        if (!c.visible || c.depth >= D) {
+        if (ascended || !c.visible || c.depth >= D) {
             break;
         }
-        let fc = tcell(c.cell).first_child;
         if (fc == NONE || small(c.depth, c.origin)) {
             break;
         }
         let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), c.p >= vec3<real>(0.0)));
         let child = fc + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
-        if (params.flags.x != 0u && tcell(child).parent != c.cell) {
+        let kid = tcell(child);
+        if (params.flags.x != 0u && kid.parent != c.cell) {
             break;
         }
         c.p = c.p * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
         c.origin = c.origin + cbits * (1u << (D - c.depth - 1u));
         c.cell = child;
         c.depth = c.depth + 1u;
+        fc = kid.first_child;
     }
     return c;
 }
@@ -447,7 +457,7 @@ fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
     p_next[axis] = entry;
     out = Cur(nxt, dn, o_next, p_next, consistent(nxt), RUNNING);
     if (LOD != 0u) {
-        return settle(out);
+        return settle(out, next.first_child);
     }
     // At most one descent, into the child holding the entry point.
     if (out.visible && next.first_child != NONE) {

@@ -74,6 +74,16 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// The cells a ray stepped through, over the probe records of a cast:
+/// (mean, 99th percentile).
+fn step_figures(records: &[octopaint_gpu::raycast::ProbeRecord]) -> (f64, u32) {
+    let mut steps: Vec<u32> = records.iter().map(|r| r.steps).collect();
+    steps.sort_unstable();
+    let mean = steps.iter().map(|&s| f64::from(s)).sum::<f64>() / steps.len().max(1) as f64;
+    let p99 = steps.get((steps.len() * 99 / 100).min(steps.len().saturating_sub(1))).copied().unwrap_or(0);
+    (mean, p99)
+}
+
 /// `v` rotated by the unit quaternion `q` (x, y, z, w).
 fn rotate(q: [f64; 4], v: [f64; 3]) -> [f64; 3] {
     let u = [q[0], q[1], q[2]];
@@ -390,8 +400,8 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     let sun = Light { dir: [0.45, 1.0, 0.35], ..Light::default() };
     let shadowed = Light { shadows: true, ..sun };
     let mut casts = Vec::new();
-    println!("| camera | size | precision | light | level of detail | ms per frame | rays/s |");
-    println!("| --- | --- | --- | --- | ---: | ---: | ---: |");
+    println!("| camera | size | precision | light | level of detail | ms per frame | rays/s | cells per ray, mean | p99 |");
+    println!("| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: |");
     if let Some(dir) = &a.images {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -423,9 +433,14 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 let s = warm_median(a.runs, || r.cast_and_wait(&params, precision))?;
                 let rays = f64::from(w) * f64::from(h) * eyes.len() as f64;
                 let size = if eyes.len() == 2 { format!("2×{w}×{h}") } else { format!("{w}×{h}") };
-                println!("| {name} | {what} {size} | {precision:?} | {light_name} | {k} | {:.2} | {:.1} M |", s * 1e3, rays / s / 1e6);
+                // Cells per ray from the probe records of a mono cast (a
+                // stereo frame's records would not fit one binding here).
+                let steps = if eyes.len() == 1 { Some(step_figures(&r.ray.probe(&r.gpu, &r.pools, &params[0], precision)?)) } else { None };
+                let (mean, p99) = steps.map_or((String::new(), String::new()), |(m, p)| (format!("{m:.1}"), format!("{p}")));
+                println!("| {name} | {what} {size} | {precision:?} | {light_name} | {k} | {:.2} | {:.1} M | {mean} | {p99} |", s * 1e3, rays / s / 1e6);
                 casts.push(json!({"camera": name, "camera_index": ci, "view": what, "width": w, "height": h, "eyes": eyes.len(),
-                                  "precision": format!("{precision:?}"), "light": light_name, "lod": k, "ms": s * 1e3, "rays_per_s": rays / s}));
+                                  "precision": format!("{precision:?}"), "light": light_name, "lod": k, "ms": s * 1e3, "rays_per_s": rays / s,
+                                  "steps_mean": steps.map(|x| x.0), "steps_p99": steps.map(|x| x.1)}));
             }
         }
     }

@@ -390,8 +390,9 @@ pub struct Frames {
     pub play: Option<PathBuf>,
     pub exit_after_play: bool,
     pub hold_painting: Option<PathBuf>,
-    /// `--lod`: the level of detail the window starts at.
-    pub lod: f64,
+    /// `--lod`: the level of detail the window starts at (None: its
+    /// adapter's default).
+    pub lod: Option<f64>,
 }
 
 pub fn window(doc: &Path, size: &str, f16: bool, screenshot: Option<PathBuf>, frames: Frames) -> ExitCode {
@@ -520,7 +521,7 @@ pub fn vr(doc: &Path, frames: Option<u64>, capture: Option<PathBuf>, live: Live,
                 return ExitCode::from(3);
             }
             eprintln!("octopaint: no VR here: {e}; opening the desktop window instead");
-            window(doc, "1280x720", f16, None, Frames { lod, ..Frames::default() })
+            window(doc, "1280x720", f16, None, Frames { lod: Some(lod), ..Frames::default() })
         }
         Err(e) => {
             eprintln!("octopaint: VR: {e}");

@@ -129,10 +129,11 @@ enum Command {
         #[arg(long, value_name = "FILE", hide = true)]
         hold_painting: Option<PathBuf>,
         /// Level of detail (docs/spec.md 7): rays stop at cells no wider
-        /// than K pixels' footprints; 1 is about a cell per pixel, 0 walks
-        /// every ray to the leaves.
-        #[arg(long, value_name = "K", default_value_t = octopaint_tree::raycast::DEFAULT_LOD, value_parser = lod_arg)]
-        lod: f64,
+        /// than K pixels' footprints; 0 walks every ray to the leaves.
+        /// Default: 1, or 0 on a CPU Vulkan such as lavapipe (there the
+        /// cut's walk costs more than it saves).
+        #[arg(long, value_name = "K", value_parser = lod_arg)]
+        lod: Option<f64>,
     },
     /// Show a document in the headset through OpenXR: each eye ray cast
     /// with its own pose and field of view, paced by the runtime

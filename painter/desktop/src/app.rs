@@ -324,6 +324,7 @@ impl App {
         let egui_state = egui_winit::State::new(egui_ctx.clone(), egui::ViewportId::ROOT, &window, Some(window.scale_factor() as f32), None, None);
         let egui_renderer = egui_wgpu::Renderer::new(device, format, egui_wgpu::RendererOptions::default());
         let camera = self.first_camera;
+        let cpu = renderer.gpu.info.device_type == wgpu::DeviceType::Cpu;
         let brush = BrushUi {
             shape: Shape::Sphere,
             mode: Mode::Paint,
@@ -337,10 +338,13 @@ impl App {
             // Lit at first on a GPU; a CPU Vulkan (lavapipe) casts a lit
             // frame about five times slower (docs/benchmarks.md), so there
             // the window starts unlit and L lights it.
-            light: LightUi { on: renderer.gpu.info.device_type != wgpu::DeviceType::Cpu, ..LightUi::default() },
+            light: LightUi { on: !cpu, ..LightUi::default() },
             mirror_axes: [false; 3],
             mirror_centre: camera.target,
-            lod: self.opts.lod,
+            // The cut at 1 on a GPU; on lavapipe its walk costs about 1.5x
+            // where it trims nothing (docs/benchmarks.md), so there the
+            // window starts at full depth and the panel turns it on.
+            lod: self.opts.lod.unwrap_or(if cpu { 0.0 } else { octopaint_tree::raycast::DEFAULT_LOD }),
         };
         let frames = Frames::new(self.engine.as_ref().expect("the engine runs until the window closes"), &self.settings);
         Ok(Running {

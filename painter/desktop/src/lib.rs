@@ -59,8 +59,10 @@ pub struct Options {
     pub hold_painting: Option<PathBuf>,
     /// The level of detail the window starts at (docs/spec.md 7; the
     /// panel changes it): rays stop at cells no wider than this many
-    /// pixels' footprints, 0 walks them to the leaves.
-    pub lod: f64,
+    /// pixels' footprints, 0 walks them to the leaves. None: 1 on a GPU,
+    /// 0 on a CPU Vulkan (lavapipe), where the cut's walk costs more than
+    /// it saves (docs/benchmarks.md "Level of detail").
+    pub lod: Option<f64>,
 }
 
 /// Open the window on `opts.doc` and run until it is closed (closing saves).

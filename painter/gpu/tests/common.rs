@@ -79,3 +79,8 @@ pub fn psnr(a: &[u8], b: &[u8]) -> f64 {
     let se: f64 = a.iter().zip(b).map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2)).sum();
     if se == 0.0 { f64::INFINITY } else { 10.0 * (255.0f64 * 255.0 / (se / a.len() as f64)).log10() }
 }
+
+/// The lit trace's light (traces/lit.jsonl) with shadows on or off (spec 6.1).
+pub fn lit_light(shadows: bool) -> octopaint_tree::trace::Light {
+    octopaint_tree::trace::Light { dir: [-0.5, 1.0, 0.2], intensity: 1.2, ambient: 0.2, shadows, ..Default::default() }
+}

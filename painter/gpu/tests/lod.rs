@@ -9,7 +9,7 @@ use common::*;
 use octopaint_gpu::{Backend, Precision};
 use octopaint_tree::g3::g3_table;
 use octopaint_tree::raycast::{LayerInput, RayInput, RayParams, render, render_layers};
-use octopaint_tree::trace::{EventKind, Light};
+use octopaint_tree::trace::EventKind;
 
 #[test]
 fn the_cut_on_the_gpu_matches_the_cpu_port() {
@@ -19,7 +19,7 @@ fn the_cut_on_the_gpu_matches_the_cpu_port() {
     let t = &painting.tree;
     let g3 = g3_table(t);
     let inp = RayInput::of(t, &g3);
-    let light = Light { dir: [-0.5, 1.0, 0.2], intensity: 1.2, ambient: 0.2, shadows: true, ..Light::default() };
+    let light = lit_light(true);
     for plain in [RayParams::new(&t.lat, &camera), RayParams::new(&t.lat, &camera).with_light(Some(&light))] {
         let full = render(&inp, &plain);
         let full_gpu = r.cast_params(&plain, Precision::F32).unwrap();

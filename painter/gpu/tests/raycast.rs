@@ -35,11 +35,6 @@ fn gpu_images_match_the_cpu_port() {
     }
 }
 
-/// The lit trace's light with shadows on or off (spec 6.1).
-fn light(shadows: bool) -> Light {
-    Light { dir: [-0.5, 1.0, 0.2], intensity: 1.2, ambient: 0.2, shadows, ..Light::default() }
-}
-
 #[test]
 fn lit_gpu_images_match_the_cpu_port_and_light_changes_them() {
     let mut r = renderer(Backend::Vulkan);
@@ -52,7 +47,7 @@ fn lit_gpu_images_match_the_cpu_port_and_light_changes_them() {
     let unlit = render(&inp, &plain);
     let mut images = Vec::new();
     for shadows in [false, true] {
-        let params = plain.with_light(Some(&light(shadows)));
+        let params = plain.with_light(Some(&lit_light(shadows)));
         let cpu = render(&inp, &params);
         let gpu = r.cast_params(&params, Precision::F32).unwrap();
         assert_f32_close(&r, &gpu, &cpu, &format!("shadows {shadows}"));
@@ -118,7 +113,7 @@ fn a_documents_layers_on_the_gpu_match_the_cpu_port() {
     let trees: Vec<_> = layers.iter().map(|l| (l.tree(), l.opacity)).collect();
     let mut r = renderer(Backend::Vulkan);
     let plain = RayParams::new(&layers[0].tree().lat, &camera);
-    for params in [plain, plain.with_light(Some(&light(true)))] {
+    for params in [plain, plain.with_light(Some(&lit_light(true)))] {
         let cpu = render_layers(&inputs, &params);
         let gpu = r.render_layers(&trees, &params, Precision::F32).unwrap();
         assert_f32_close(&r, &gpu, &cpu, &format!("lit {}", params.lit));

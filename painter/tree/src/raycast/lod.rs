@@ -30,18 +30,25 @@ fn octant(cell: u32) -> [u32; 3] {
     [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1]
 }
 
-/// From the cell a step entered (same depth or one coarser) to the cell of
-/// the cut there: up while the cell is not a root and its parent is small,
-/// then down while it has a consistent child at the point and is not
-/// small. Each round is one level, so both loops end within D rounds.
-pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor) -> Cursor {
+/// From the cell a step entered (same depth or one coarser; `fc` its
+/// first child) to the cell of the cut there: up while the cell is not a
+/// root and its parent is small, then (when it did not go up: a small
+/// parent's children are small) down while it has a consistent child at
+/// the point and is not small. The parent's smallness comes from the
+/// cell's own index and origin, so a step reads the parent link only to go
+/// up. Each round is one level, so both loops end within D rounds.
+pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor, mut fc: u32) -> Cursor {
     let dd = pr.max_depth;
+    let mut ascended = false;
     while c.cell >= pr.n_roots && c.depth > 0 {
-        let par = inp.parent_of(c.cell);
         let bits = octant(c.cell);
         let size = 1u32 << (dd - c.depth);
         let o_par = [0, 1, 2].map(|a| c.origin[a].wrapping_sub(bits[a] * size));
-        if par == NONE || !small(pr, c.depth - 1, o_par) {
+        if !small(pr, c.depth - 1, o_par) {
+            break;
+        }
+        let par = inp.parent_of(c.cell);
+        if par == NONE {
             break;
         }
         c.p = [0, 1, 2].map(|a| c.p[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
@@ -49,9 +56,9 @@ pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor) -> Cursor {
         c.depth -= 1;
         c.origin = o_par;
         c.visible = consistent(inp, pr, par);
+        ascended = true;
     }
-    while c.visible && c.depth < dd {
-        let fc = inp.first_child_of(c.cell);
+    while !ascended && c.visible && c.depth < dd {
         if fc == NONE || small(pr, c.depth, c.origin) {
             break;
         }
@@ -65,6 +72,7 @@ pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor) -> Cursor {
         c.origin = [0, 1, 2].map(|a| c.origin[a].wrapping_add(cbits[a] * half));
         c.cell = child;
         c.depth += 1;
+        fc = inp.first_child_of(child);
     }
     c
 }

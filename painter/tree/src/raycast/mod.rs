@@ -289,10 +289,10 @@ fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bo
     }
     p_next[axis] = entry;
     let mut out = Cursor { cell: nxt, depth: dn, origin: o_next, p: p_next, visible: consistent(inp, pr, nxt) };
-    if pr.lod > 0.0 {
-        return Some(lod::settle(inp, pr, out));
-    }
     let fc = inp.first_child_of(nxt);
+    if pr.lod > 0.0 {
+        return Some(lod::settle(inp, pr, out, fc));
+    }
     if out.visible && fc != NONE {
         let cbits = p_next.map(|v| u32::from(v >= 0.0));
         let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
