@@ -158,3 +158,17 @@ def test_replay_refuses_a_bad_lod_before_writing(tmp_path):
     )
     assert res.returncode == 2 and "--lod" in res.stderr
     assert not out.exists()
+
+
+def test_the_study_measures_every_render_of_a_trace():
+    """lod_study (docs/benchmarks.md): one row per render event, a PSNR
+    against the supersampled truth and the cells per ray at each level."""
+    from conftest import TRACES
+    from octopaint_ref import lod_study
+
+    rows = lod_study.study(os.path.join(TRACES, "single_stamp.jsonl"), [0.0, 4.0], ss=2, frames=2, step_deg=0.5)
+    assert rows and all(len(r["levels"]) == 2 for r in rows)
+    for r in rows:
+        full, cut = r["levels"]
+        assert full["psnr_db"] > 20 and cut["psnr_db"] > 10
+        assert cut["steps_mean"] <= full["steps_mean"] and full["flicker"] >= 0
