@@ -1,7 +1,7 @@
 """The GPU campaign (painter/bench/gpu_campaign.sh) at toy sizes on this
 machine's adapter: every step runs, writes its figures, and the summary says
 what they are. On a GPU the same script runs at headset sizes
-(docs/benchmarks.md, "On a real GPU")."""
+(docs/benchmarks-gpu.md)."""
 
 from __future__ import annotations
 

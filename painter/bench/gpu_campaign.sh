@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU campaign (docs/benchmarks.md, "On a real GPU"): every GPU figure
+# The GPU campaign (docs/benchmarks-gpu.md): every GPU figure
 # of the painter and of the reference's JAX ray caster in one run, written
 # as JSON plus OUT/summary.md.
 #

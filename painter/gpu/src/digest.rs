@@ -2,7 +2,7 @@
 //! so that a benchmark can compare frames with the images it expects without
 //! reading them back: the Fig. 9 corruption count captures every frame, and
 //! reading back a 2880×1600 image each frame took longer than the frame's
-//! ray cast on an H100 (docs/benchmarks.md, "On a real GPU").
+//! ray cast on an H100 (docs/benchmarks-gpu.md).
 //!
 //! [`rgb_digest`] is the CPU port: the same two words from an image read
 //! back as RGB, which the tests hold the shader to.
