@@ -82,7 +82,7 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, sh
     with cell values rgb f64 [N, 3] (in [0, 1]) and sigma f64 [N], start
     positions p0 [R, 3] and unit directions dirs [R, 3]. shade f64 [N]:
     lit without shadows (spec 6.1), each cell's a0 + a1 from
-    raycast.shading (computed from the same sigma to differentiate through
+    shading.shading (computed from the same sigma to differentiate through
     the normals); None: unlit."""
     lu = canvas.root_size * 2.0**-canvas.max_depth
     K = paths.cell.shape[1]
