@@ -24,15 +24,10 @@ import numpy as np
 from .dump import tree_arrays
 from .jax_setup import configure
 from .lod import check_k
+from .precision import psnr
 from .raycast import render
 from .replay import replay
 from .trace import read_trace
-
-
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    """PSNR in dB of two 8-bit images (inf when equal)."""
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return math.inf if mse == 0 else 10.0 * math.log10(255.0**2 / mse)
 
 
 def _render(painting, camera, light, k=0.0):
