@@ -348,6 +348,31 @@ fn small(depth: u32, origin: vec3<u32>) -> bool {
     return s <= params.lod.w * z;
 }
 
+// The octant bits (x, y, z) of a non-root cell: its index's low three bits
+// (spec 2.1); and the child octant holding a point p (ties to the upper half).
+fn octant(cell: u32) -> vec3<u32> {
+    return vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
+}
+
+fn octant_at(p: vec3<real>) -> vec3<u32> {
+    return vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p >= vec3<real>(0.0)));
+}
+
+fn octant_index(bits: vec3<u32>) -> u32 {
+    return bits.x | (bits.y << 1u) | (bits.z << 2u);
+}
+
+// A point of a cell in octant `bits`, in its parent's frame; a point of a
+// cell, in the frame of its child in octant `cbits` (spec 7). CPU port:
+// in_parent and child_at in painter/tree/src/raycast/mod.rs.
+fn to_parent(p: vec3<real>, bits: vec3<u32>) -> vec3<real> {
+    return p * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+}
+
+fn to_child(p: vec3<real>, cbits: vec3<u32>) -> vec3<real> {
+    return p * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+}
+
 // From the cell a step entered (same depth or one coarser; `fc0` its first
 // child) to the cell of the cut there: up while the cell is not a root and
 // its parent is small, then (when it did not go up: a small parent's
@@ -364,7 +389,7 @@ fn settle(c0: Cur, fc0: u32) -> Cur {
         if (c.cell < params.misc.z || c.depth == 0u) {
             break;
         }
-        let bits = vec3<u32>(c.cell & 1u, (c.cell >> 1u) & 1u, (c.cell >> 2u) & 1u);
+        let bits = octant(c.cell);
         let o_par = c.origin - bits * (1u << (D - c.depth));
         if (!small(c.depth - 1u, o_par)) {
             break;
@@ -373,7 +398,7 @@ fn settle(c0: Cur, fc0: u32) -> Cur {
         if (par == NONE) {
             break;
         }
-        c.p = c.p * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+        c.p = to_parent(c.p, bits);
         c.cell = par;
         c.depth = c.depth - 1u;
         c.origin = o_par;
@@ -387,13 +412,13 @@ fn settle(c0: Cur, fc0: u32) -> Cur {
         if (fc == NONE || small(c.depth, c.origin)) {
             break;
         }
-        let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), c.p >= vec3<real>(0.0)));
-        let child = fc + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+        let cbits = octant_at(c.p);
+        let child = fc + octant_index(cbits);
         let kid = tcell(child);
         if (params.flags.x != 0u && kid.parent != c.cell) {
             break;
         }
-        c.p = c.p * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+        c.p = to_child(c.p, cbits);
         c.origin = c.origin + cbits * (1u << (D - c.depth - 1u));
         c.cell = child;
         c.depth = c.depth + 1u;
@@ -417,7 +442,7 @@ fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
     var p_exit = c.p + t * d;
     p_exit[axis] = bound;
     let sgn = select(-1, 1, d[axis] > real(0.0));
-    let bits = vec3<u32>(cell & 1u, (cell >> 1u) & 1u, (cell >> 2u) & 1u);
+    let bits = octant(cell);
     let size = 1u << (D - depth);
     var nxt = NONE;
     if (cell < params.misc.z) {
@@ -448,7 +473,7 @@ fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
     var p_next = p_exit;
     var o_next = origin;
     if (coarser) {
-        p_next = p_exit * real(0.5) + (vec3<real>(bits) - real(0.5)) * real(0.5);
+        p_next = to_parent(p_exit, bits);
         o_next = origin - bits * size;
         o_next[axis] = o_next[axis] + u32(sgn) * (2u * size);
     } else {
@@ -461,10 +486,10 @@ fn next_cell(c: Cur, t: real, axis: u32, bound: real, d: vec3<real>) -> Cur {
     }
     // At most one descent, into the child holding the entry point.
     if (out.visible && next.first_child != NONE) {
-        let cbits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), p_next >= vec3<real>(0.0)));
-        let child = next.first_child + (cbits.x | (cbits.y << 1u) | (cbits.z << 2u));
+        let cbits = octant_at(p_next);
+        let child = next.first_child + octant_index(cbits);
         if (params.flags.x == 0u || tcell(child).parent == nxt) {
-            out.p = p_next * real(2.0) + select(vec3<real>(0.5), vec3<real>(-0.5), cbits == vec3<u32>(1u));
+            out.p = to_child(p_next, cbits);
             out.origin = o_next + cbits * (1u << (D - dn - 1u));
             out.cell = child;
             out.depth = dn + 1u;
@@ -647,7 +672,7 @@ fn start_cursor(rs: RayStart) -> Cur {
         }
         let half = 1u << (D - depth - 1u);
         let bits = vec3<u32>(select(vec3<u32>(0u), vec3<u32>(1u), q_lat - origin >= vec3<u32>(half)));
-        let child = fc + (bits.x | (bits.y << 1u) | (bits.z << 2u));
+        let child = fc + octant_index(bits);
         if (params.flags.x != 0u && tcell(child).parent != cell) {
             break;
         }

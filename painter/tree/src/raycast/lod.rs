@@ -6,7 +6,7 @@
 //! `settle` (shaders/raycast.wgsl) follow these line for line; reference:
 //! reference/octopaint_ref/lod.py.
 
-use super::{Cursor, RayInput, RayParams, consistent};
+use super::{Cursor, RayInput, RayParams, child_at, consistent, in_parent, octant};
 use crate::pool::NONE;
 
 /// `a - b` for lattice coordinates (each below 2^32), exact before its
@@ -26,10 +26,6 @@ pub(super) fn small(pr: &RayParams, depth: u32, origin: [u32; 3]) -> bool {
     s <= pr.lod * z
 }
 
-fn octant(cell: u32) -> [u32; 3] {
-    [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1]
-}
-
 /// From the cell a step entered (same depth or one coarser; `fc` its
 /// first child) to the cell of the cut there: up while the cell is not a
 /// root and its parent is small, then (when it did not go up: a small
@@ -41,9 +37,7 @@ pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor, mut fc: u32)
     let dd = pr.max_depth;
     let mut ascended = false;
     while c.cell >= pr.n_roots && c.depth > 0 {
-        let bits = octant(c.cell);
-        let size = 1u32 << (dd - c.depth);
-        let o_par = [0, 1, 2].map(|a| c.origin[a].wrapping_sub(bits[a] * size));
+        let (p_par, o_par) = in_parent(c.p, c.origin, octant(c.cell), 1u32 << (dd - c.depth));
         if !small(pr, c.depth - 1, o_par) {
             break;
         }
@@ -51,7 +45,7 @@ pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor, mut fc: u32)
         if par == NONE {
             break;
         }
-        c.p = [0, 1, 2].map(|a| c.p[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+        c.p = p_par;
         c.cell = par;
         c.depth -= 1;
         c.origin = o_par;
@@ -62,14 +56,12 @@ pub(super) fn settle(inp: &RayInput, pr: &RayParams, mut c: Cursor, mut fc: u32)
         if fc == NONE || small(pr, c.depth, c.origin) {
             break;
         }
-        let cbits = c.p.map(|v| u32::from(v >= 0.0));
-        let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+        let (child, p_child, o_child) = child_at(fc, c.p, c.origin, 1u32 << (dd - c.depth - 1));
         if pr.skip_invalid && inp.parent_of(child) != c.cell {
             break;
         }
-        let half = 1u32 << (dd - c.depth - 1);
-        c.p = [0, 1, 2].map(|a| c.p[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
-        c.origin = [0, 1, 2].map(|a| c.origin[a].wrapping_add(cbits[a] * half));
+        c.p = p_child;
+        c.origin = o_child;
         c.cell = child;
         c.depth += 1;
         fc = inp.first_child_of(child);

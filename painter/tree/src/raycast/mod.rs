@@ -221,6 +221,37 @@ struct Cursor {
     visible: bool,
 }
 
+/// The octant bits (x, y, z) of a non-root cell: its index's low three
+/// bits, siblings being stored in octant order (spec 2.1).
+fn octant(cell: u32) -> [u32; 3] {
+    [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1]
+}
+
+/// The index of octant `bits` within its unit.
+fn octant_index(bits: [u32; 3]) -> u32 {
+    bits[0] | (bits[1] << 1) | (bits[2] << 2)
+}
+
+/// A point `p` of a cell in octant `bits` of edge `size` (lattice units)
+/// at lattice `origin`, as a point of its parent's frame with the parent's
+/// origin.
+fn in_parent(p: [f32; 3], origin: [u32; 3], bits: [u32; 3], size: u32) -> ([f32; 3], [u32; 3]) {
+    let p_par = [0, 1, 2].map(|a| p[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
+    let o_par = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
+    (p_par, o_par)
+}
+
+/// The child holding `p` of a cell whose first child is `fc` (ties to the
+/// upper half), with `p` and the origin in the child's frame; `half` is
+/// the child's edge in lattice units.
+fn child_at(fc: u32, p: [f32; 3], origin: [u32; 3], half: u32) -> (u32, [f32; 3], [u32; 3]) {
+    let cbits = p.map(|v| u32::from(v >= 0.0));
+    let child = fc + octant_index(cbits);
+    let p_child = [0, 1, 2].map(|a| p[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
+    let o_child = [0, 1, 2].map(|a| origin[a].wrapping_add(cbits[a] * half));
+    (child, p_child, o_child)
+}
+
 /// The exit distance from `p` along `d`, the exit axis and the bound per
 /// axis (spec 7 "Step"; ties to the lowest axis).
 fn exit(p: [f32; 3], d: [f32; 3]) -> (f32, usize, [f32; 3]) {
@@ -255,7 +286,7 @@ fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bo
     p_exit[axis] = bound;
 
     let sgn: i32 = if d[axis] > 0.0 { 1 } else { -1 };
-    let bits = [cell & 1, (cell >> 1) & 1, (cell >> 2) & 1];
+    let bits = octant(cell);
     let size = 1u32 << (dd - depth);
     let mut nxt = NONE;
     if cell < pr.n_roots {
@@ -281,8 +312,7 @@ fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bo
     let mut p_next = p_exit;
     let mut o_next = origin;
     if coarser {
-        p_next = [0, 1, 2].map(|a| p_exit[a] * 0.5 + (bits[a] as f32 - 0.5) * 0.5);
-        o_next = [0, 1, 2].map(|a| origin[a].wrapping_sub(bits[a] * size));
+        (p_next, o_next) = in_parent(p_exit, origin, bits, size);
         o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(2 * size));
     } else {
         o_next[axis] = o_next[axis].wrapping_add((sgn as u32).wrapping_mul(size));
@@ -294,13 +324,9 @@ fn next_cell(inp: &RayInput, pr: &RayParams, c: &Cursor, t: f32, axis: usize, bo
         return Some(lod::settle(inp, pr, out, fc));
     }
     if out.visible && fc != NONE {
-        let cbits = p_next.map(|v| u32::from(v >= 0.0));
-        let child = fc + (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2));
+        let (child, p_child, o_child) = child_at(fc, p_next, o_next, 1u32 << (dd - dn - 1));
         if !pr.skip_invalid || inp.parent_of(child) == nxt {
-            out.p = [0, 1, 2].map(|a| p_next[a] * 2.0 + if cbits[a] == 1 { -0.5 } else { 0.5 });
-            out.origin = [0, 1, 2].map(|a| o_next[a] + cbits[a] * (1u32 << (dd - dn - 1)));
-            out.cell = child;
-            out.depth = dn + 1;
+            out = Cursor { cell: child, depth: dn + 1, origin: o_child, p: p_child, ..out };
         }
     }
     Some(out)
@@ -457,7 +483,7 @@ fn start_cursor(inp: &RayInput, pr: &RayParams, rs: &RayStart) -> Cursor {
         }
         let half = 1u32 << (dd - depth - 1);
         let bits = [0, 1, 2].map(|a| u32::from(q_lat[a] - origin[a] >= half));
-        let child = fc + (bits[0] | (bits[1] << 1) | (bits[2] << 2));
+        let child = fc + octant_index(bits);
         if pr.skip_invalid && inp.parent_of(child) != cell {
             break;
         }
