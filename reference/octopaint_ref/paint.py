@@ -44,6 +44,27 @@ class Stroke:
         self.settles = brush.shape == "sphere" and brush.mode != "pickup"
         self.capacity_warned = False
         self._init_slots()
+        # Deferred cells (spec 8.7), pool-sized: settled at a decision of
+        # this stroke, or new children of a deferred cell.
+        self.deferred = np.zeros(0, bool)
+
+    def is_deferred(self, cells: np.ndarray) -> np.ndarray:
+        """bool mask: which of `cells` are deferred."""
+        out = np.zeros(len(cells), bool)
+        inside = cells < len(self.deferred)
+        out[inside] = self.deferred[cells[inside]]
+        return out
+
+    def defer(self, cells: np.ndarray) -> None:
+        """Mark `cells` deferred for the rest of the stroke."""
+        if not len(cells):
+            return
+        top = int(cells.max()) + 1
+        if top > len(self.deferred):
+            grown = np.zeros(max(top, 2 * len(self.deferred)), bool)
+            grown[: len(self.deferred)] = self.deferred
+            self.deferred = grown
+        self.deferred[cells] = True
 
     def _init_slots(self) -> None:
         # Per touched cell (a slot): the value before the stroke, the stroke
@@ -126,12 +147,16 @@ class Painting:
         self.warn = warn or (lambda msg: None)
         self.after_segment = None  # test hook: called with the Painting
         self.capacity_refusals = 0
+        # Settled leaves are left unrefined (spec 8.7); off only to test that
+        # the rule changes no value (the painter's set_settling).
+        self.settling = True
 
     # ------------------------------------------------------------ strokes
     def begin_stroke(self, brush: Brush, line: int = 0) -> None:
         assert self.stroke is None, "stroke already open"
         self.history.begin()
         self.stroke = Stroke(brush, line)
+        self.stroke.settles &= self.settling
         if brush.shape == "noise":
             self._perm = permutation(brush.noise.seed)
 
@@ -253,11 +278,14 @@ class Painting:
     # ------------------------------------------------------- one segment
     def _process_segment(self, st: Stroke, seg: Prims, line: int) -> None:
         leaves, needs = self._leaves_in_reach(seg)
+        # A deferred leaf needs refinement by any primitive of the stroke so
+        # far (spec 8.7), sigma read before the paint pass as for the rest.
+        again = ~needs & st.is_deferred(leaves)
+        needs[again] = self._needs_by_stroke(st, leaves[again])
         a, best = self._evaluate(st, seg, leaves)
         hit = a > 0
         self._apply(st, leaves[hit], a[hit], seg.colour[best[hit]])
-        candidates = leaves[needs]
-        candidates = candidates[~self._settled(st, candidates)]
+        candidates = self._unsettled(st, leaves[needs])
         while len(candidates):
             new, refused = self._round(st, candidates, line)
             if not len(new):
@@ -265,8 +293,42 @@ class Painting:
             self._paint_new_cells(st, new)
             if refused:
                 break
-            candidates = new[self._needs_refinement(st, seg, new)]
-            candidates = candidates[~self._settled(st, candidates)]
+            need = self._needs_refinement(st, seg, new)
+            inherit = st.is_deferred(self.tree.parent[new].astype(np.int64))
+            st.defer(new[inherit])
+            again = ~need & inherit
+            need[again] = self._needs_by_stroke(st, new[again])
+            candidates = self._unsettled(st, new[need])
+
+    def _unsettled(self, st: Stroke, cells: np.ndarray) -> np.ndarray:
+        """The cells among `cells` (each needing refinement) that are not
+        settled; the settled ones become deferred (spec 8.7)."""
+        settled = self._settled(st, cells)
+        st.defer(cells[settled])
+        return cells[~settled]
+
+    def _needs_by_stroke(self, st: Stroke, cells: np.ndarray) -> np.ndarray:
+        """bool mask: the leaves among `cells` that some capsule of the
+        stroke so far must refine (a deferred leaf's test, spec 8.7). Only
+        sphere strokes defer. The capsules tested are those whose boxes,
+        grown by twice the largest h·K, meet the cells' centres: a capsule
+        within reach of a ball has the ball's centre at most r(u) + h·K from
+        its axis, inside its box grown by h·K."""
+        out = np.zeros(len(cells), bool)
+        hist = st.history()
+        if not len(cells) or hist is None:
+            return out
+        tree = self.tree
+        x = tree.centres(cells)
+        h = float(tree.reach_radius[tree.depth[cells]].max())
+        arr = hist.arrays
+        slack = np.array([B.capsule_slack(arr["p0"][k], arr["p1"][k], arr["r0"][k], arr["r1"][k]) for k in range(len(hist))])
+        grow = (2.0 * h * slack)[:, None]
+        near = np.nonzero(np.all(hist.hi + grow >= x.min(axis=0), axis=1) & np.all(hist.lo - grow <= x.max(axis=0), axis=1))[0]
+        if len(near):
+            leaf = tree.first_child[cells] == NONE
+            out = self._reach(st, hist.take(near), cells, leaf)[1]
+        return out
 
     def _paint_new_cells(self, st: Stroke, cells: np.ndarray) -> None:
         """New children take their parent's before-value and their own

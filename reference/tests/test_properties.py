@@ -196,3 +196,78 @@ def test_strongly_tapered_stroke_reaches_every_covered_leaf():
         assert np.all(np.abs(p.tree.rgb[leaves].astype(int) - rgb.astype(int)) <= 1)
         np.testing.assert_allclose(p.tree.sigma[leaves], sigma, rtol=1e-6, atol=1e-30)
         p.end_stroke()
+
+
+def painted(canvas, strokes_, settling):
+    p = Painting(canvas)
+    p.settling = settling
+    for b, samples in strokes_:
+        p.begin_stroke(b)
+        for s in samples:
+            p.add_sample(s)
+        p.end_stroke()
+    return p.tree
+
+
+def same_values_at_centres(a, b):
+    """Every leaf centre of `a` lies in a leaf of `b` with the same stored
+    value; returns the first that does not (cell, centre), else None."""
+    cells = a.leaves()
+    for c, x in zip(cells, a.centres(cells)):
+        o = b.leaf_at(x)
+        if a.sigma[c] != b.sigma[o] or np.any(a.rgb[c] != b.rgb[o]):
+            return c, x
+    return None
+
+
+walk = st.lists(st.tuples(st.tuples(*[st.floats(-0.25, 0.25)] * 3), st.floats(0.2, 1.0)), min_size=2, max_size=4)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.lists(
+        st.tuples(
+            st.sampled_from(["paint", "mix", "erase", "recolor"]),
+            st.floats(0.1, 0.6),
+            st.sampled_from([0.0, 0.5, 0.9, 0.97, 1.0]),
+            unit,
+            walk,
+        ),
+        min_size=1,
+        max_size=2,
+    ),
+    st.integers(5, 6),
+)
+def test_settled_leaves_hold_what_refinement_would(plan, max_depth):
+    """Spec 8.7: settling changes topology, never a value at a centre, over
+    short random walks whose pressure swings (a settled leaf that a later,
+    coarser segment paints unevenly must still refine: deferred leaves)."""
+    canvas = Canvas((1, 1, 1), max_depth, 1.0, 1 << 22)
+    strokes_ = []
+    for mode, radius, hardness, opacity, steps in plan:
+        b = Brush("sphere", mode, radius, (0.2, 0.7, 0.4), opacity, hardness, spacing=0.1, mix_ratio=0.5)
+        p = np.array([0.5, 0.5, 0.5])
+        samples = []
+        for step, pressure in steps:
+            samples.append(Sample(tuple(p), pressure))
+            p = p + np.array(step)
+        strokes_.append((b, samples))
+    with_, without = painted(canvas, strokes_, True), painted(canvas, strokes_, False)
+    assert same_values_at_centres(with_, without) is None
+    assert same_values_at_centres(without, with_) is None
+
+
+def test_a_leaf_settled_by_a_small_sphere_refines_when_a_wider_capsule_paints_it():
+    """Regression (the painter's proptest, shrunk): a hard sphere settles a
+    depth-5 leaf of its core that it wants at depth 6; the next capsule,
+    wider (target depth 5), paints the leaf unevenly. Without deferral the
+    leaf stayed at depth 5 and its centre's value differed from what its
+    children would hold (sigma 0.57594 against 0.57063)."""
+    canvas = Canvas((1, 1, 1), 6, 1.0, 1 << 20)
+    b = Brush("sphere", "paint", 0.5, (0.0, 0.0, 0.0), 0.40970369804851514, 0.9648771434249287, spacing=0.1, mix_ratio=0.0)
+    samples = [Sample((0.0, 0.0, 0.6791444817350459), 0.40061760752670994), Sample((0.0, 0.0, 0.0), 0.838358719665331)]
+    with_, without = painted(canvas, [(b, samples)], True), painted(canvas, [(b, samples)], False)
+    assert same_values_at_centres(with_, without) is None
+    assert same_values_at_centres(without, with_) is None
+    x = np.array([0.078125, 0.015625, 0.453125])
+    assert with_.depth[with_.leaf_at(x)] == 6

@@ -58,6 +58,12 @@ struct Slot {
     /// primitives added since.
     bounds: [f64; 2],
     bounds_upto: u32,
+    /// Deferred (spec 8.7): settled at a decision of this stroke, or a new
+    /// child of a deferred cell, so that whether it needs refinement is
+    /// tested against every primitive of the stroke so far. Cleared when
+    /// that test finds no primitive wanting it finer (nothing a later
+    /// segment's own test would miss).
+    deferred: bool,
 }
 
 const _: () = assert!(std::mem::size_of::<Slot>() == 32);
@@ -65,7 +71,7 @@ const _: () = assert!(std::mem::size_of::<Slot>() == 32);
 impl Slot {
     /// A new slot of `cell` with its before-value, no bounds yet.
     fn new(cell: u32, before_rgb: [u8; 3], before_sigma: f32) -> Slot {
-        Slot { cell, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0 }
+        Slot { cell, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0, deferred: false }
     }
 }
 
@@ -86,6 +92,8 @@ struct StrokeState {
     /// Leaves may be settled (spec 8.7): a sphere brush whose colour stays
     /// the same along the stroke (every mode but pickup).
     settles: bool,
+    /// Some slot is deferred: the paint pass looks at the slots' marks.
+    any_deferred: bool,
     refusal_warned: bool,
     slots: Vec<Slot>,
     /// The stroke maximum of coverage·flow of each slot.
@@ -249,6 +257,7 @@ impl Painting {
             perm: Box::new(if brush.shape == Shape::Noise { permutation(brush.noise.seed) } else { [0; 512] }),
             stamp_reach: StampReach::new(brush.aspect),
             settles: self.settling && brush.shape == Shape::Sphere && brush.mode != Mode::Pickup,
+            any_deferred: false,
             refusal_warned: false,
             slots: std::mem::take(&mut self.spare_slots),
             slot_a: std::mem::take(&mut self.spare_slot_a),

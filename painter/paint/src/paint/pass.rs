@@ -294,6 +294,7 @@ impl Painting {
         // 3. In order, serially.
         let settles = st.settles;
         let mut maybe = Vec::new();
+        let mut deferred = Vec::new();
         for mut run in runs {
             for &b in &run.blocks {
                 self.tree.mark_block_written(b);
@@ -307,6 +308,7 @@ impl Painting {
             self.counters.leaves_hit += run.hit;
             if settles {
                 maybe.append(&mut run.needs);
+                deferred.append(&mut run.deferred);
             } else {
                 candidates.extend(run.needs.iter().map(|&(c, _, _)| c));
             }
@@ -315,16 +317,18 @@ impl Painting {
             }
             run.fresh.clear();
             run.needs.clear();
+            run.deferred.clear();
             run.blocks.clear();
             run.wrote.clear();
             run.stack.clear();
-            let mut emptied = Run { fresh: run.fresh, needs: run.needs, blocks: run.blocks, wrote: run.wrote, stack: run.stack, ..Run::default() };
+            let mut emptied = Run { fresh: run.fresh, needs: run.needs, deferred: run.deferred, blocks: run.blocks, wrote: run.wrote, stack: run.stack, ..Run::default() };
             if parallel {
                 // A huge pass (a brush over millions of leaves) leaves no
                 // lasting claim on memory: a kept list holds at most
                 // SPARE_RUN_ITEMS items' room.
                 emptied.fresh.shrink_to(SPARE_RUN_ITEMS);
                 emptied.needs.shrink_to(SPARE_RUN_ITEMS);
+                emptied.deferred.shrink_to(SPARE_RUN_ITEMS);
                 emptied.blocks.shrink_to(SPARE_RUN_ITEMS);
                 emptied.wrote.shrink_to(SPARE_RUN_ITEMS);
                 emptied.stack.shrink_to(SPARE_RUN_ITEMS);
@@ -337,6 +341,9 @@ impl Painting {
         if let Some((t0, visited)) = start {
             let choice = if W::CAPSULE { &mut self.split } else { &mut self.split_stamp };
             choice.record(t0.elapsed().as_nanos() as f64, self.counters.leaves_visited - visited);
+        }
+        if !deferred.is_empty() {
+            maybe.extend(self.needed_by_stroke(deferred));
         }
         if !maybe.is_empty() {
             candidates.extend(self.unsettled(maybe));

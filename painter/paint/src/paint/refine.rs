@@ -13,7 +13,7 @@ use crate::lanes::{self, LANES};
 use crate::stroke::{Geometry, Prim};
 use octopaint_model::{Mode, Shape};
 use octopaint_octree::par;
-use octopaint_octree::pool::{Tree, UNIT};
+use octopaint_octree::pool::{NONE, Tree, UNIT};
 
 /// What the pass over a round's new children reads
 /// ([`Painting::paint_new_cells`]).
@@ -103,9 +103,13 @@ impl Painting {
                 cells.push((unit + k, self.tree.lat.centre(co, d + 1), d + 1));
             }
         }
-        let next = self.paint_new_cells(&cells, first);
+        let mut next = self.paint_new_cells(&cells, first);
         if refusal.is_some() {
             return None;
+        }
+        if self.stroke.as_ref().expect("stroke").any_deferred {
+            let more = self.deferred_children(&cells, &next);
+            next.extend(more);
         }
         let st = self.stroke.as_ref().expect("stroke");
         let next = if st.settles { self.unsettled(next) } else { next.into_iter().map(|(c, _, _)| c).collect() };
@@ -211,6 +215,31 @@ impl Painting {
             }
         }
         next
+    }
+
+    /// The new children (cell, centre, depth) of deferred parents are
+    /// deferred too (spec 8.7): those that `next` (the children the
+    /// segment refines, in the same order) does not hold, and that an
+    /// erase or recolour does not leave alone (sigma as just painted), are
+    /// tested against the stroke so far; returned are those it refines.
+    fn deferred_children(&mut self, cells: &[(u32, DVec3, u32)], next: &[(u32, DVec3, f64)]) -> Vec<(u32, DVec3, f64)> {
+        let st = self.stroke.as_mut().expect("stroke");
+        let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
+        let (parent, sigma, lat) = (self.tree.parent(), self.tree.sigma(), &self.tree.lat);
+        let mut test = Vec::new();
+        let mut in_next = next.iter().map(|&(c, _, _)| c).peekable();
+        for &(c, x, d) in cells {
+            let refined = in_next.next_if_eq(&c).is_some();
+            let p = self.slot_of.get(parent[c as usize]);
+            if p == NONE || !st.slots[p as usize].deferred {
+                continue;
+            }
+            st.slots[self.slot_of.get(c) as usize].deferred = true;
+            if !refined && !(sigma_gate && !(sigma[c as usize] > 0.0)) {
+                test.push((c, x, lat.reach_radius[d as usize]));
+            }
+        }
+        if test.is_empty() { test } else { self.needed_by_stroke(test) }
     }
 
     /// [`Painting::first_write`] of a round's new children, in order: their

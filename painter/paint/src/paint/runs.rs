@@ -139,7 +139,12 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
     // Its stored sigma, read where it is needed: a leaf that is neither
     // new to the stroke nor written leaves its pools unread.
     let sigma_now = || unsafe { ctx.values.sigma(c) };
-    let needs = ctx.tree.lat.coarser_than_target(d, r) && !(ctx.sigma_gate && !(sigma_now() > 0.0));
+    // A deferred leaf (spec 8.7) coarser than no target of this segment may
+    // still be coarser than an earlier primitive's: the serial part tests
+    // it against the stroke so far.
+    let coarser = ctx.tree.lat.coarser_than_target(d, r);
+    let deferred = !coarser && ctx.st.any_deferred && slot != NONE && unsafe { (*ctx.slots.at(slot as usize)).deferred };
+    let needs = (coarser || deferred) && !(ctx.sigma_gate && !(sigma_now() > 0.0));
     if a >= TINY {
         out.hit += 1;
         let colour = ctx.prim.colour;
@@ -173,7 +178,7 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
         }
     }
     if needs {
-        out.needs.push((c, x, h));
+        if coarser { out.needs.push((c, x, h)) } else { out.deferred.push((c, x, h)) }
     }
 }
 
@@ -188,6 +193,9 @@ pub(super) struct Run {
     pub(super) fresh: Vec<FirstWrite>,
     /// Leaves coarser than their target depth: (cell, centre, reach radius).
     pub(super) needs: Vec<(u32, DVec3, f64)>,
+    /// Deferred leaves (spec 8.7) that this segment alone does not refine,
+    /// the same way, for the test against the stroke so far.
+    pub(super) deferred: Vec<(u32, DVec3, f64)>,
     /// Dirty blocks of the cells written in place, consecutive repeats dropped.
     pub(super) blocks: Vec<u32>,
     /// The units of the cells written in place, consecutive repeats dropped

@@ -6,8 +6,8 @@
 
 use glam::DVec3;
 
-use super::Painting;
-use crate::brush::TINY;
+use super::{FirstWrite, Painting};
+use crate::brush::{Capsule, TINY};
 use crate::lanes::{self, LANES};
 use crate::stroke::{Geometry, Prim};
 use octopaint_octree::par;
@@ -63,6 +63,7 @@ impl Painting {
         let st = self.stroke.as_mut().expect("stroke");
         let upto = st.prims.len() as u32;
         let mut out = Vec::with_capacity(leaves.len());
+        let mut settled_now = Vec::new();
         for (&(c, _, _), (settled, bounds)) in leaves.iter().zip(tests) {
             if let Some((slot, bounds)) = bounds {
                 let s = &mut st.slots[slot as usize];
@@ -71,9 +72,77 @@ impl Painting {
             }
             if settled {
                 self.counters.leaves_settled += 1;
+                settled_now.push(c);
             } else {
                 out.push(c);
             }
+        }
+        for c in settled_now {
+            self.defer(c);
+        }
+        out
+    }
+
+    /// Mark a settled leaf deferred (spec 8.7). A leaf the stroke has not
+    /// touched gets its slot first, its before-value its stored value and
+    /// written unchanged (journalled like every slotted cell, which the
+    /// paint pass may later write in place).
+    fn defer(&mut self, c: u32) {
+        if self.slot_of.get(c) == NONE {
+            let (rgb, sigma) = (self.tree.rgb()[c as usize], self.tree.sigma()[c as usize]);
+            self.first_write(&FirstWrite { c, before_rgb: rgb, before_sigma: sigma, a: 0.0, rgb, sigma, next: false });
+        }
+        let slot = self.slot_of.get(c) as usize;
+        let st = self.stroke.as_mut().expect("stroke");
+        st.slots[slot].deferred = true;
+        st.any_deferred = true;
+    }
+
+    /// The deferred leaves among `leaves` (cell, centre, reach radius;
+    /// each has a slot) that some capsule of the stroke so far must refine:
+    /// within its reach and coarser than its target depth at the centre
+    /// (spec 8.7; the caller has applied the sigma gate). The others need
+    /// no earlier primitive, and a later segment tests its own, so their
+    /// marks are cleared. A capsule reaching a ball has the ball's centre
+    /// at most `r(u) + h·K` from its axis, inside its box grown by `h·K`:
+    /// the box grown by twice that picks the capsules to test.
+    pub(super) fn needed_by_stroke(&mut self, leaves: Vec<(u32, DVec3, f64)>) -> Vec<(u32, DVec3, f64)> {
+        let st = self.stroke.as_ref().expect("stroke");
+        let (lat, depth) = (&self.tree.lat, self.tree.depth());
+        let grown = |p: &Prim, cap: &Capsule, h: f64| {
+            let g = DVec3::splat(2.0 * h * cap.slack);
+            (p.lo - g, p.hi + g)
+        };
+        let (lo, hi) = leaves.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &(_, x, _)| (lo.min(x), hi.max(x)));
+        let h_max = leaves.iter().fold(0.0f64, |m, l| m.max(l.2));
+        let caps: Vec<(&Prim, &Capsule)> = st
+            .prims
+            .iter()
+            .filter_map(|p| match &p.geo {
+                Geometry::Capsule(cap) => {
+                    let (g_lo, g_hi) = grown(p, cap, h_max);
+                    (g_hi.cmpge(lo).all() && g_lo.cmple(hi).all()).then_some((p, cap))
+                }
+                Geometry::Stamp(_) => None,
+            })
+            .collect();
+        let needs = par::map(&leaves, |&(c, x, h)| {
+            let d = u32::from(depth[c as usize]);
+            caps.iter().any(|&(p, cap)| {
+                let (g_lo, g_hi) = grown(p, cap, h);
+                g_hi.cmpge(x).all() && g_lo.cmple(x).all() && {
+                    let cp = cap.project(x);
+                    cap.within_reach(&cp, h) && lat.coarser_than_target(d, cp.r)
+                }
+            })
+        });
+        let (mut out, mut idle) = (Vec::new(), Vec::new());
+        for (l, need) in leaves.into_iter().zip(needs) {
+            if need { out.push(l) } else { idle.push(l.0) }
+        }
+        let st = self.stroke.as_mut().expect("stroke");
+        for c in idle {
+            st.slots[self.slot_of.get(c) as usize].deferred = false;
         }
         out
     }
