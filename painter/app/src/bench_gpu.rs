@@ -77,11 +77,9 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
 /// The cells a ray stepped through, over the probe records of a cast:
 /// (mean, 99th percentile).
 fn step_figures(records: &[octopaint_gpu::raycast::ProbeRecord]) -> (f64, u32) {
-    let mut steps: Vec<u32> = records.iter().map(|r| r.steps).collect();
-    steps.sort_unstable();
-    let mean = steps.iter().map(|&s| f64::from(s)).sum::<f64>() / steps.len().max(1) as f64;
-    let p99 = steps.get((steps.len() * 99 / 100).min(steps.len().saturating_sub(1))).copied().unwrap_or(0);
-    (mean, p99)
+    let steps: Vec<f64> = records.iter().map(|r| f64::from(r.steps)).collect();
+    let p = crate::bench_realtime::percentiles(&steps);
+    (p.mean, p.p99 as u32)
 }
 
 /// `v` rotated by the unit quaternion `q` (x, y, z, w).

@@ -72,15 +72,17 @@ pub struct Args {
 }
 
 #[derive(Serialize)]
-struct Percentiles {
-    mean: f64,
-    p50: f64,
-    p95: f64,
-    p99: f64,
-    max: f64,
+pub(crate) struct Percentiles {
+    pub(crate) mean: f64,
+    pub(crate) p50: f64,
+    pub(crate) p95: f64,
+    pub(crate) p99: f64,
+    pub(crate) max: f64,
 }
 
-fn percentiles(v: &[f64]) -> Percentiles {
+/// Mean, median, 95th and 99th percentiles (nearest rank, `(n − 1)·q`
+/// rounded) and maximum of `v`; zeros when it is empty.
+pub(crate) fn percentiles(v: &[f64]) -> Percentiles {
     if v.is_empty() {
         return Percentiles { mean: 0.0, p50: 0.0, p95: 0.0, p99: 0.0, max: 0.0 };
     }

@@ -84,3 +84,21 @@ pub fn psnr(a: &[u8], b: &[u8]) -> f64 {
 pub fn lit_light(shadows: bool) -> octopaint_tree::trace::Light {
     octopaint_tree::trace::Light { dir: [-0.5, 1.0, 0.2], intensity: 1.2, ambient: 0.2, shadows, ..Default::default() }
 }
+
+/// The lit trace (traces/lit.jsonl) painted and synced to a Vulkan
+/// renderer, with its camera and g3 table (`RayInput::of(&tree, &g3)` is
+/// the CPU port's input).
+pub struct LitScene {
+    pub r: Renderer,
+    pub painting: Painting,
+    pub camera: Camera,
+    pub g3: Vec<[u32; 3]>,
+}
+
+pub fn lit_scene() -> LitScene {
+    let mut r = renderer(Backend::Vulkan);
+    let (mut painting, camera) = painted("lit");
+    r.sync(&mut painting.tree).unwrap();
+    let g3 = octopaint_tree::g3::g3_table(&painting.tree);
+    LitScene { r, painting, camera, g3 }
+}

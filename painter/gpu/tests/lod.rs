@@ -13,11 +13,8 @@ use octopaint_tree::trace::EventKind;
 
 #[test]
 fn the_cut_on_the_gpu_matches_the_cpu_port() {
-    let mut r = renderer(Backend::Vulkan);
-    let (mut painting, camera) = painted("lit");
-    r.sync(&mut painting.tree).unwrap();
+    let LitScene { mut r, painting, camera, g3 } = lit_scene();
     let t = &painting.tree;
-    let g3 = g3_table(t);
     let inp = RayInput::of(t, &g3);
     let light = lit_light(true);
     for plain in [RayParams::new(&t.lat, &camera), RayParams::new(&t.lat, &camera).with_light(Some(&light))] {

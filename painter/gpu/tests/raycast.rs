@@ -37,11 +37,8 @@ fn gpu_images_match_the_cpu_port() {
 
 #[test]
 fn lit_gpu_images_match_the_cpu_port_and_light_changes_them() {
-    let mut r = renderer(Backend::Vulkan);
-    let (mut painting, camera) = painted("lit");
-    r.sync(&mut painting.tree).unwrap();
+    let LitScene { mut r, painting, camera, g3 } = lit_scene();
     let t = &painting.tree;
-    let g3 = g3_table(t);
     let inp = RayInput::of(t, &g3);
     let plain = RayParams::new(&t.lat, &camera);
     let unlit = render(&inp, &plain);
