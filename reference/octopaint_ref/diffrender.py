@@ -16,6 +16,11 @@ and is differentiable with respect to
   as the perturbed rays still cross the recorded cells (a finite difference
   that changes the sequence measures a different function).
 
+With a level of detail (spec 7) the recorded sequence is the cut's: rays
+stop at small interior cells, whose values `prefiltered` makes functions of
+the leaves below them (the prefilter is linear in sigma), so gradients
+still reach the leaves.
+
 Shapes: R rays, K recorded steps, N cells.
 """
 
@@ -27,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from .g3 import FREE, NONE
 from .jax_setup import require_x64
 from .raycast import LEFT, OVERFLOW, T_MIN, Canvas, DeviceTree, Ray, cast, start_points
 
@@ -53,19 +59,50 @@ class PathOverflow(ValueError):
     """A ray crossed more cells than the recording capacity."""
 
 
-def record_paths(tree: DeviceTree, canvas: Canvas, rays: Ray, capacity: int = 256) -> Paths:
+def record_paths(tree: DeviceTree, canvas: Canvas, rays: Ray, capacity: int = 256, lod=None) -> Paths:
     """Record each ray's full cell sequence to the canvas boundary (density
-    ignored, so the sequence does not depend on the values being fitted)."""
+    ignored, so the sequence does not depend on the values being fitted).
+    lod: (lam, f) of a level of detail's cut (raycast.camera_cut): the
+    sequence of the cut's cells, interior ones among them; `prefiltered`
+    gives those their values as functions of the leaves'."""
     require_x64()
     blind = tree._replace(sigma=jnp.zeros_like(tree.sigma))
-    s, rec = cast(blind, canvas, rays, "f64", "local", max_steps=capacity, record=capacity)
+    s, rec = cast(blind, canvas, rays, "f64", "local", max_steps=capacity, record=capacity, lod=lod)
     if np.any(s.status == OVERFLOW):
         raise PathOverflow(f"{int((s.status == OVERFLOW).sum())} ray(s) cross more than {capacity} cells")
     assert np.all(s.status == LEFT)
-    hit, cell, depth, origin, p = start_points(tree, canvas, rays, "f64", "local")
+    hit, cell, depth, origin, p = start_points(tree, canvas, rays, "f64", "local", lod=lod)
     steps = np.where(hit, s.steps, 0)
     k = max(int(steps.max()), 1)  # the scan runs over the longest path only
     return Paths(steps, rec.cell[:, :k].astype(np.int64), rec.depth[:, :k], rec.axis[:, :k], rec.visible[:, :k], rec.scale[:, :k], rec.shift[:, :k], origin, depth, p)
+
+
+def prefiltered(first_child, depth, rgb, sigma):
+    """rgb [N, 3] and sigma [N] with every cell that has children given the
+    prefilter of its 8 children (spec 4.4, prefilter.py), deepest first,
+    as a differentiable function of the leaves' values: sigma the mean,
+    rgb the sigma-weighted mean (octant 0's where all 8 are empty). The
+    relaxation of the stored rule: no rounding to f32 or to bytes, as rgb
+    is a float in [0, 1] here. first_child, depth: numpy (the topology)."""
+    rgb, sigma = jnp.asarray(rgb), jnp.asarray(sigma)
+    first_child, depth = np.asarray(first_child), np.asarray(depth)
+    inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
+    if not len(inner):
+        return rgb, sigma
+    for d in range(int(depth[inner].max()), -1, -1):
+        at = inner[depth[inner] == d]
+        if not len(at):
+            continue
+        kids = first_child[at].astype(np.int64)[:, None] + np.arange(8)
+        s = sigma[kids]
+        w = ((s[:, 0] + s[:, 1]) + (s[:, 2] + s[:, 3])) + ((s[:, 4] + s[:, 5]) + (s[:, 6] + s[:, 7]))
+        m = s[:, :, None] * rgb[kids]
+        num = ((m[:, 0] + m[:, 1]) + (m[:, 2] + m[:, 3])) + ((m[:, 4] + m[:, 5]) + (m[:, 6] + m[:, 7]))
+        pos = w > 0
+        mean = num / jnp.where(pos, w, 1.0)[:, None]
+        rgb = rgb.at[at].set(jnp.where(pos[:, None], mean, rgb[kids[:, 0]]))
+        sigma = sigma.at[at].set(w * 0.125)
+    return rgb, sigma
 
 
 def start_from_eye(paths: Paths, eye_canvas, canvas: Canvas):

@@ -311,7 +311,7 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
         # The cut (lod.py): up while the parent is small, down while the
         # cell is not (the one descent below is the second loop's first).
         moving = ~gone & ~lost
-        cell_n, depth_n, origin_n, p_next, visible_n = _settle(tree, setup, m, cut, moving, safe, dn, o_next, p_next, visible)
+        cell_n, depth_n, origin_n, p_next, visible_n, scale, shift = _settle(tree, setup, m, cut, moving, safe, dn, o_next, p_next, visible, scale, shift)
     else:
         # At most one descent, into the child containing the entry point (on
         # the entry axis the entry side, which the exact +-0.5 there gives).
@@ -363,13 +363,15 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
     return new, (s.cell, s.depth, s.origin, p_exit, t, axis, s.visible, scale, shift)
 
 
-def _settle(tree: DeviceTree, setup: Setup, m: Arith, cut, moving, cell, depth, origin, p, visible):
+def _settle(tree: DeviceTree, setup: Setup, m: Arith, cut, moving, cell, depth, origin, p, visible, scale=1.0, shift=0.0):
     """From the next cell of a step (same depth or one coarser) to the cell
     of the cut there (spec 7 "Level of detail"): while the cell is not a
     root and its parent is small, go up (p/2 + (bit - 1/2)/2 per axis, the
     octant bits of the cell); then while it has a consistent child at p and
     is not small, go down into it (2p -+ 1/2). Both loops end within D
-    rounds. Returns (cell, depth, origin, p, visible)."""
+    rounds. scale, shift: the step's frame map so far (p = p_exit * scale +
+    shift, exact f64, the record's), composed with every move. Returns
+    (cell, depth, origin, p, visible, scale, shift)."""
     D = setup.canvas.max_depth
     n_roots = setup.n_roots
 
@@ -377,37 +379,40 @@ def _settle(tree: DeviceTree, setup: Setup, m: Arith, cut, moving, cell, depth, 
         return jnp.stack([(c >> jnp.uint32(a)) & jnp.uint32(1) for a in range(3)]).astype(jnp.int64)
 
     def up_ok(q):
-        c, dp, o, _, _ = q
+        c, dp, o = q[:3]
         par = tree.parent[c]
         return moving & (c >= n_roots) & (par != NONE) & small(cut, D, dp - 1, o - octant(c) * _size_lattice(setup, dp))
 
     def up(q):
-        c, dp, o, pp, _ = q
+        c, dp, o, pp, _, sc, sh = q
         bits = octant(c)
         par = tree.parent[c]
-        pp = m.add(m.mul(pp, 0.5), (bits.astype(jnp.float64) - 0.5) * 0.5)
-        return par, dp - 1, o - bits * _size_lattice(setup, dp), pp, _consistent(tree, setup, par)
+        half = (bits.astype(jnp.float64) - 0.5) * 0.5
+        pp = m.add(m.mul(pp, 0.5), half)
+        return par, dp - 1, o - bits * _size_lattice(setup, dp), pp, _consistent(tree, setup, par), sc * 0.5, sh * 0.5 + half
 
     def child_at(q):
-        c, _, _, pp, _ = q
+        c, pp = q[0], q[3]
         fc = tree.first_child[c]
         cbits = (pp >= 0).astype(jnp.int64)
         k = (cbits[0] | (cbits[1] << 1) | (cbits[2] << 2)).astype(jnp.uint32)
         return fc, fc + k, cbits
 
     def down_ok(q):
-        c, dp, o, _, vis = q
+        c, dp, o, _, vis = q[:5]
         fc, child, _ = child_at(q)
         linked = (fc != NONE) & (tree.parent[jnp.where(fc != NONE, child, 0)] == c)
         return moving & vis & linked & ~small(cut, D, dp, o)
 
     def down(q):
-        _, dp, o, pp, _ = q
+        _, dp, o, pp, _, sc, sh = q
         _, child, cbits = child_at(q)
-        pp = m.add(m.mul(pp, 2.0), jnp.where(cbits == 1, -0.5, 0.5))
-        return child, dp + 1, o + cbits * _size_lattice(setup, dp + 1), pp, jnp.bool_(True)
+        off = jnp.where(cbits == 1, -0.5, 0.5)
+        pp = m.add(m.mul(pp, 2.0), off)
+        return child, dp + 1, o + cbits * _size_lattice(setup, dp + 1), pp, jnp.bool_(True), sc * 2.0, sh * 2.0 + off
 
-    q = lax.while_loop(up_ok, up, (cell, depth, origin, p, visible))
+    q0 = (cell, depth, origin, p, visible, jnp.float64(scale), jnp.broadcast_to(jnp.float64(shift), (3,)))
+    q = lax.while_loop(up_ok, up, q0)
     return lax.while_loop(down_ok, down, q)
 
 
@@ -526,8 +531,8 @@ def cast(
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = shading(tree, canvas, light) if lit else None
     on = lod is not None and float(lod[0]) > 0.0
-    if on and (record or frame != "local"):
-        raise ValueError("a level of detail walks the local frame without a record")
+    if on and frame != "local":
+        raise ValueError("a level of detail walks the local frame")
     setup = Setup(canvas, format_of(precision), frame, int(max_steps), int(record), lit, on)
     lod = (jnp.float64(lod[0]), jnp.asarray(np.asarray(lod[1], np.float64))) if on else None
     bg = jnp.asarray(np.asarray(background, np.float64))
@@ -581,17 +586,21 @@ def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_S
 
 
 @partial(jax.jit, static_argnums=(1,))
-def _starts(tree: DeviceTree, setup: Setup, rays: Ray, guard):
+def _starts(tree: DeviceTree, setup: Setup, rays: Ray, guard, lod=None):
     def one(ray):
         m = Arith(setup.fmt, guard)
-        return _start(tree, setup, ray, m, m.rnd(ray.dir_canvas))
+        cut = Cut(lod[0], lod[1], ray.eye_lattice, ray.frac) if setup.lod else None
+        return _start(tree, setup, ray, m, m.rnd(ray.dir_canvas), cut)
 
     return jax.vmap(one)(rays)
 
 
-def start_points(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local"):
+def start_points(tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", lod=None):
     """Where each ray starts: (hit, cell, depth, origin, p) as numpy [R, ...]
-    (the position the traversal begins with, for measuring e0)."""
-    setup = Setup(canvas, format_of(precision), frame, 1, 0)
-    out = _starts(tree, setup, Ray(*(np.asarray(a) for a in rays)), np.uint64(0))
+    (the position the traversal begins with, for measuring e0). lod: (lam,
+    f) of a level of detail's cut, as for cast: the start in the cut."""
+    on = lod is not None and float(lod[0]) > 0.0
+    setup = Setup(canvas, format_of(precision), frame, 1, 0, 0, on)
+    lod = (jnp.float64(lod[0]), jnp.asarray(np.asarray(lod[1], np.float64))) if on else None
+    out = _starts(tree, setup, Ray(*(np.asarray(a) for a in rays)), np.uint64(0), lod)
     return tuple(np.asarray(a) for a in out)
