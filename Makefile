@@ -281,7 +281,7 @@ bench-export: setup painter
 precision: setup painter
 	$(PY) -m octopaint_ref.precision --out docs/precision
 	$(PY) -m octopaint_ref.cli gpu-probe --painter $(PAINTER) --out docs/precision
-	$(PY) -m octopaint_ref.cli lit-precision --out docs/precision
+	$(PY) -m octopaint_ref.cli lit-precision --out docs/precision --lod 0,1,2 --scale 1,4
 
 # The differentiable-rendering examples and their images, docs/examples/.
 examples: setup

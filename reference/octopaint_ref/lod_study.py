@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from dataclasses import replace
@@ -24,6 +25,7 @@ import numpy as np
 from .dump import tree_arrays
 from .jax_setup import configure
 from .lod import check_k
+from .png import png_bytes
 from .precision import psnr
 from .raycast import render
 from .replay import replay
@@ -65,8 +67,28 @@ def flicker(painting, camera, light, k: float, frames: int, step_deg: float) -> 
     return float(np.mean(diffs))
 
 
-def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float) -> list:
-    """One row per render event of a one-tree trace (version 1)."""
+def pair_strip(images: list, zoom: int) -> np.ndarray:
+    """Images side by side, each enlarged `zoom` times (nearest pixel), with
+    a 2-pixel white gap: the docs' before/after pictures."""
+    big = [np.repeat(np.repeat(im, zoom, axis=0), zoom, axis=1) for im in images]
+    gap = np.full((big[0].shape[0], 2, 3), 255, np.uint8)
+    parts = []
+    for b in big:
+        parts += [b, gap]
+    return np.concatenate(parts[:-1], axis=1)
+
+
+def scaled(camera, div: int):
+    """`camera` with its size divided by `div` (at least 1 pixel a side),
+    the field of view kept: every cell covers 1/div as many pixels."""
+    w, h = camera.size
+    return replace(camera, size=(max(1, w // div), max(1, h // div)))
+
+
+def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, div: int = 1, pair=None) -> list:
+    """One row per render event of a one-tree trace (version 1); cameras at
+    1/div of their size. pair: a folder to write, per render, the images at
+    the first and last k and the truth side by side (`RENDER_lod.png`)."""
     trace = read_trace(trace_path)
     if trace.version != 1:
         raise ValueError(f"{trace_path}: the study reads one-tree traces (version 1)")
@@ -78,12 +100,14 @@ def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float) ->
             view[ev.kind] = ev.value
         if ev.kind != "render":
             return
-        camera, light = view["camera"], view["light"]
+        camera, light = scaled(view["camera"], div), view["light"]
         t0 = time.perf_counter()
         ref = truth(painting, camera, light, ss)
         row = {"trace": trace_path, "render": ev.value, "size": list(camera.size), "samples_per_pixel": ss * ss, "levels": []}
+        images = []
         for k in lods:
             r = _render(painting, camera, light, k)
+            images.append(r.image)
             steps = r.steps.ravel()
             row["levels"].append(
                 {
@@ -96,6 +120,11 @@ def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float) ->
             )
         row["seconds"] = time.perf_counter() - t0
         rows.append(row)
+        if pair is not None:
+            os.makedirs(pair, exist_ok=True)
+            zoom = max(1, 320 // camera.size[0])
+            with open(os.path.join(pair, f"{ev.value}_lod.png"), "wb") as f:
+                f.write(png_bytes(pair_strip([images[0], images[-1], ref], zoom)))
 
     replay(trace, None, renders=False, after_event=after)
     return rows
@@ -110,13 +139,17 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=6, help="frames of the flicker pan (default 6; 1: none)")
     ap.add_argument("--step", type=float, default=0.25, help="degrees the pan turns per frame (default 0.25)")
     ap.add_argument("--json", help="write the rows here")
+    ap.add_argument("--scale", type=int, default=1, help="divide every camera's size by this (fov kept; default 1)")
+    ap.add_argument("--pair", help="folder for each render's images at the first and last k and the truth, side by side")
     a = ap.parse_args(argv)
+    if a.scale < 1:
+        ap.error("--scale must be at least 1")
     lods = [check_k(float(x)) for x in a.lod.split(",")]
     rows = []
     print("| trace | render | size | k | PSNR against the truth (dB) | cells per ray, mean | p99 | flicker (steps) |")
     print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
     for t in a.traces:
-        for row in study(t, lods, a.ss, a.frames, a.step):
+        for row in study(t, lods, a.ss, a.frames, a.step, a.scale, a.pair):
             rows.append(row)
             for lv in row["levels"]:
                 fl = f"{lv['flicker']:.3f}" if lv["flicker"] is not None else ""
@@ -127,7 +160,7 @@ def main(argv=None) -> int:
                 )
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
-            json.dump({"ss": a.ss, "frames": a.frames, "step_deg": a.step, "rows": rows}, f, indent=1)
+            json.dump({"ss": a.ss, "frames": a.frames, "step_deg": a.step, "scale": a.scale, "rows": rows}, f, indent=1)
     return 0
 
 

@@ -172,3 +172,22 @@ def test_the_study_measures_every_render_of_a_trace():
         full, cut = r["levels"]
         assert full["psnr_db"] > 20 and cut["psnr_db"] > 10
         assert cut["steps_mean"] <= full["steps_mean"] and full["flicker"] >= 0
+
+
+def test_the_study_scales_cameras_and_writes_the_pair(tmp_path):
+    """--scale divides every camera's size (the field of view kept) and
+    --pair writes the first and last k's images and the truth side by side,
+    enlarged to about 320 pixels each."""
+    from conftest import TRACES
+    from octopaint_ref import lod_study
+    from octopaint_ref.png import read_png
+
+    path = os.path.join(TRACES, "single_stamp.jsonl")
+    rows = lod_study.study(path, [0.0, 4.0], ss=2, frames=1, step_deg=0.5, div=4, pair=str(tmp_path))
+    full = lod_study.study(path, [0.0], ss=1, frames=1, step_deg=0.5)
+    for r, f in zip(rows, full):
+        assert r["size"] == [f["size"][0] // 4, f["size"][1] // 4]
+        img = read_png((tmp_path / f"{r['render']}_lod.png").read_bytes())
+        w, h = r["size"]
+        zoom = max(1, 320 // w)
+        assert img.shape == (h * zoom, 3 * w * zoom + 4, 3)
