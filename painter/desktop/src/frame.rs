@@ -84,7 +84,11 @@ impl App {
             redo: s.redo,
             message: r.message.clone(),
             layered: s.version == 2,
-            layers: s.layers.iter().map(|l| LayerInfo { name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked }).collect(),
+            layers: s
+                .layers
+                .iter()
+                .map(|l| LayerInfo { name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked, cells: l.cells, bytes: l.bytes })
+                .collect(),
             selected: s.selected,
         };
         let mut view = None;

@@ -28,6 +28,9 @@ pub(crate) struct LayerInfo {
     pub(crate) visible: bool,
     pub(crate) opacity: f32,
     pub(crate) locked: bool,
+    /// Cells in use and the bytes of its pools (shown under its row).
+    pub(crate) cells: u32,
+    pub(crate) bytes: usize,
 }
 
 pub(crate) struct StatusInfo {
@@ -109,6 +112,7 @@ pub(crate) fn layers_panel(ui: &mut egui::Ui, l: &mut LayersUi, s: &StatusInfo, 
             }
             handle.rect
         });
+        ui.weak(egui::RichText::new(octopaint_ui::layer_figures(layer.cells, layer.bytes, s.capacity)).small());
         let rect = row.response.rect;
         l.rows.push((k, rect, row.inner));
         if let Some(from) = row.response.dnd_hover_payload::<usize>()
@@ -323,7 +327,7 @@ mod tests {
             redo: 0,
             message: String::new(),
             layered: true,
-            layers: names.iter().map(|n| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false }).collect(),
+            layers: names.iter().enumerate().map(|(k, n)| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false, cells: 8 + 8 * k as u32, bytes: 4096 }).collect(),
             selected: 0,
         }
     }
@@ -344,6 +348,28 @@ mod tests {
             e.push(egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed: p, modifiers: Default::default() });
         }
         e
+    }
+
+    #[test]
+    fn every_layer_row_shows_its_figures() {
+        let ctx = egui::Context::default();
+        let s = info(&["bottom", "top"]);
+        let raw = egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 600.0))), ..Default::default() };
+        let out = ctx.run_ui(raw, |ui| {
+            egui::CentralPanel::default().show(ui, |ui| layers_panel(ui, &mut LayersUi::default(), &s, &mut Vec::new()));
+        });
+        let texts: Vec<String> = out
+            .shapes
+            .iter()
+            .filter_map(|c| match &c.shape {
+                egui::Shape::Text(t) => Some(t.galley.text().to_string()),
+                _ => None,
+            })
+            .collect();
+        for layer in &s.layers {
+            let want = octopaint_ui::layer_figures(layer.cells, layer.bytes, s.capacity);
+            assert!(texts.contains(&want), "{want:?} not among {texts:?}");
+        }
     }
 
     #[test]

@@ -196,7 +196,9 @@ pub struct LayerRow {
     pub visible: bool,
     pub opacity: f32,
     pub locked: bool,
+    /// Cells in use in the layer's pools, and the bytes the pools hold.
     pub cells: u32,
+    pub bytes: usize,
 }
 
 /// What a front end shows of the painting besides the image, published by
@@ -227,7 +229,15 @@ impl Status {
                 .listed_ids()
                 .iter()
                 .zip(doc.layers())
-                .map(|(&id, l)| LayerRow { id, name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked, cells: l.tree().n_used() })
+                .map(|(&id, l)| LayerRow {
+                    id,
+                    name: l.name.clone(),
+                    visible: l.visible,
+                    opacity: l.opacity,
+                    locked: l.locked,
+                    cells: l.tree().n_used(),
+                    bytes: l.tree().pool_bytes_allocated(),
+                })
                 .collect(),
             selected: doc.selected(),
             undo,

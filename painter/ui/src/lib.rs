@@ -1,6 +1,6 @@
 //! The egui drawings the desktop window and the headset share (docs/desktop.md
-//! "Aids", docs/vr.md): the canvas axes gizmo and the heavy-operation
-//! indicator. Each front end places them (the window in a corner of its
+//! "Aids", docs/vr.md): the canvas axes gizmo, the heavy-operation
+//! indicator and a layer's figures. Each front end places them (the window in a corner of its
 //! view, the headset on its head-locked panel) and chooses their size.
 
 /// The axes' colours: x red, y green, z blue.
@@ -41,9 +41,33 @@ pub fn indicator(ui: &mut egui::Ui, text: &str, progress: Option<f32>, bar_width
     });
 }
 
+/// A layer's figures for the layer panels (docs/desktop.md "Layers"): its
+/// cells in use, the MiB its pools hold, and its share of the document's
+/// cell budget (`capacity`, shared by every layer), e.g. `1.25 M cells ·
+/// 19.6 MiB · 7.5 % of the budget`.
+pub fn layer_figures(cells: u32, bytes: usize, capacity: u32) -> String {
+    let count = match cells {
+        0..10_000 => format!("{cells}"),
+        10_000..1_000_000 => format!("{:.1} k", f64::from(cells) / 1e3),
+        _ => format!("{:.2} M", f64::from(cells) / 1e6),
+    };
+    let share = if capacity > 0 { 100.0 * f64::from(cells) / f64::from(capacity) } else { 0.0 };
+    let share = if share > 0.0 && share < 0.1 { "< 0.1".to_string() } else { format!("{share:.1}") };
+    format!("{count} cells · {:.1} MiB · {share} % of the budget", bytes as f64 / (1u64 << 20) as f64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layer_figures_name_cells_mib_and_the_share_of_the_budget() {
+        assert_eq!(layer_figures(8, 1 << 20, 1 << 20), "8 cells · 1.0 MiB · < 0.1 % of the budget");
+        assert_eq!(layer_figures(0, 0, 1 << 20), "0 cells · 0.0 MiB · 0.0 % of the budget");
+        assert_eq!(layer_figures(12_345, 3 << 19, 1_000_000), "12.3 k cells · 1.5 MiB · 1.2 % of the budget");
+        assert_eq!(layer_figures(1_250_000, 20_552_089, 16_666_667), "1.25 M cells · 19.6 MiB · 7.5 % of the budget");
+        assert_eq!(layer_figures(u32::MAX - 7, 0, u32::MAX - 7), "4294.97 M cells · 0.0 MiB · 100.0 % of the budget");
+    }
 
     /// The shapes a frame of `draw` gives, tessellated.
     fn shapes(draw: impl FnMut(&mut egui::Ui)) -> Vec<egui::epaint::ClippedShape> {

@@ -8,6 +8,10 @@ use octopaint_tree::trace::{Mode, Shape};
 
 use crate::gestures::{Gestures, PALETTE, Page};
 
+/// One layer as the HUD lists it: name, visible, opacity, locked, cells in
+/// use, pool bytes.
+pub type HudLayer = (String, bool, f32, bool, u32, usize);
+
 pub struct Status<'a> {
     /// The heavy-operation indicator, when the stroke thread has been busy
     /// for a frame or more or work is queued.
@@ -25,9 +29,10 @@ pub struct Status<'a> {
     /// The canvas axes x, y, z as the head sees them: direction on the
     /// panel (y down) and whether the axis points away.
     pub axes: [([f32; 2], bool); 3],
-    /// The document's layers bottom first (name, visible, opacity, locked)
-    /// and the selected one; None for a one-tree document.
-    pub layers: Option<(Vec<(String, bool, f32, bool)>, usize)>,
+    /// The document's layers bottom first (name, visible, opacity, locked,
+    /// cells in use, pool bytes) and the selected one; None for a one-tree
+    /// document.
+    pub layers: Option<(Vec<HudLayer>, usize)>,
 }
 
 /// Lay the panel out for a `size` eye image and upload its textures;
@@ -100,7 +105,7 @@ pub fn prepare(
                         Page::Layers => match &s.layers {
                             // Top first, as the window lists them.
                             Some((rows, selected)) => {
-                                for (k, (name, visible, opacity, locked)) in rows.iter().enumerate().rev() {
+                                for (k, (name, visible, opacity, locked, cells, bytes)) in rows.iter().enumerate().rev() {
                                     let mut text = format!("{} {name}", if *visible { "●" } else { "○" });
                                     if *opacity < 1.0 {
                                         text += &format!(" {:.0}%", opacity * 100.0);
@@ -113,6 +118,7 @@ pub fn prepare(
                                     } else {
                                         ui.label(text);
                                     }
+                                    ui.weak(egui::RichText::new(octopaint_ui::layer_figures(*cells, *bytes, s.capacity)).small());
                                 }
                                 ui.weak("stick ↕ select · ↔ opacity · X show · Y new");
                             }
