@@ -372,6 +372,28 @@ def mirror() -> str:
     return w.text()
 
 
+def settled() -> str:
+    """Settled leaves (spec 8.7) under brushes whose pressure swings: a hard
+    sphere settles leaves of its core at one sample that a wider capsule
+    after it (a coarser target depth) paints unevenly, so they must refine
+    then (deferred leaves); the same in erase and recolour, and a soft
+    brush for contrast."""
+    w = Writer({"roots": [1, 1, 1], "max_depth": 8, "root_size": 1.0, "capacity": 1048576}, "Settled and deferred leaves")
+    w.brush("sphere", "paint", 0.3, [0.2, 0.6, 0.9], opacity=0.4, hardness=0.965)
+    w.stroke([[0.5, 0.5, 0.75], [0.5, 0.5, 0.45], [0.52, 0.48, 0.3]], pressures=[0.4, 0.84, 0.6])
+    w.ev("snapshot", 0.1, name="settled_paint")
+    w.brush("sphere", "erase", 0.25, [0, 0, 0], opacity=0.5, hardness=0.97)
+    w.stroke([[0.45, 0.5, 0.7], [0.5, 0.52, 0.5]], pressures=[0.35, 0.9])
+    w.brush("sphere", "recolor", 0.25, [0.9, 0.3, 0.1], opacity=0.6, hardness=0.97)
+    w.stroke([[0.55, 0.45, 0.35], [0.5, 0.5, 0.55]], pressures=[0.3, 1.0])
+    w.brush("sphere", "mix", 0.2, [0.9, 0.9, 0.2], opacity=0.5, hardness=0.3)
+    w.stroke([[0.4, 0.6, 0.5], [0.6, 0.4, 0.5]], pressures=[0.3, 1.0])
+    w.camera([0.5, 0.6, 1.9], [0.5, 0.5, 0.5], size=(192, 144))
+    w.ev("render", 0.1, name="settled")
+    w.ev("snapshot", 0.0, name="settled")
+    return w.text()
+
+
 def layers() -> str:
     """Layers (spec 14, 6.2): a blue slab on the first layer, orange strokes
     crossing it on a second (finer cells over coarser ones, so the march
@@ -569,6 +591,7 @@ TRACES = {
     "lit.jsonl": lit,
     "mirror.jsonl": mirror,
     "layers.jsonl": layers,
+    "settled.jsonl": settled,
     "layers_budget.jsonl": layers_budget,
     "imports.jsonl": imports,
     "imports_budget.jsonl": imports_budget,

@@ -58,12 +58,6 @@ struct Slot {
     /// primitives added since.
     bounds: [f64; 2],
     bounds_upto: u32,
-    /// Deferred (spec 8.7): settled at a decision of this stroke, or a new
-    /// child of a deferred cell, so that whether it needs refinement is
-    /// tested against every primitive of the stroke so far. Cleared when
-    /// that test finds no primitive wanting it finer (nothing a later
-    /// segment's own test would miss).
-    deferred: bool,
 }
 
 const _: () = assert!(std::mem::size_of::<Slot>() == 32);
@@ -71,7 +65,45 @@ const _: () = assert!(std::mem::size_of::<Slot>() == 32);
 impl Slot {
     /// A new slot of `cell` with its before-value, no bounds yet.
     fn new(cell: u32, before_rgb: [u8; 3], before_sigma: f32) -> Slot {
-        Slot { cell, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0, deferred: false }
+        Slot { cell, before_rgb, before_sigma, bounds: [0.0; 2], bounds_upto: 0 }
+    }
+}
+
+/// The deferred marks of a stroke's slots (spec 8.7), one bit a slot: a
+/// slot is deferred when its cell was settled at a decision of this stroke
+/// or is a new child of a deferred cell, so that whether it needs
+/// refinement is tested against every primitive of the stroke so far. A
+/// mark is cleared when that test finds no primitive wanting the cell
+/// finer (a later segment's own test misses nothing then). Apart from the
+/// slots so that the paint pass reads a bit, not a slot, per leaf.
+#[derive(Clone, Default)]
+struct Marks {
+    bits: Vec<u64>,
+    /// Some slot was ever marked in this stroke (the pass reads no bits
+    /// until then).
+    any: bool,
+}
+
+impl Marks {
+    #[inline]
+    fn get(&self, slot: u32) -> bool {
+        self.bits.get(slot as usize / 64).is_some_and(|w| w >> (slot % 64) & 1 == 1)
+    }
+
+    fn set(&mut self, slot: u32, on: bool) {
+        let (i, bit) = (slot as usize / 64, 1u64 << (slot % 64));
+        if i >= self.bits.len() {
+            if !on {
+                return;
+            }
+            self.bits.resize(i + 1, 0);
+        }
+        if on {
+            self.bits[i] |= bit;
+            self.any = true;
+        } else {
+            self.bits[i] &= !bit;
+        }
     }
 }
 
@@ -92,8 +124,7 @@ struct StrokeState {
     /// Leaves may be settled (spec 8.7): a sphere brush whose colour stays
     /// the same along the stroke (every mode but pickup).
     settles: bool,
-    /// Some slot is deferred: the paint pass looks at the slots' marks.
-    any_deferred: bool,
+    deferred: Marks,
     refusal_warned: bool,
     slots: Vec<Slot>,
     /// The stroke maximum of coverage·flow of each slot.
@@ -257,7 +288,7 @@ impl Painting {
             perm: Box::new(if brush.shape == Shape::Noise { permutation(brush.noise.seed) } else { [0; 512] }),
             stamp_reach: StampReach::new(brush.aspect),
             settles: self.settling && brush.shape == Shape::Sphere && brush.mode != Mode::Pickup,
-            any_deferred: false,
+            deferred: Marks::default(),
             refusal_warned: false,
             slots: std::mem::take(&mut self.spare_slots),
             slot_a: std::mem::take(&mut self.spare_slot_a),

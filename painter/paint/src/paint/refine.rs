@@ -107,8 +107,8 @@ impl Painting {
         if refusal.is_some() {
             return None;
         }
-        if self.stroke.as_ref().expect("stroke").any_deferred {
-            let more = self.deferred_children(&cells, &next);
+        if self.stroke.as_ref().expect("stroke").deferred.any {
+            let more = self.deferred_children(&units, &cells, &next);
             next.extend(more);
         }
         let st = self.stroke.as_ref().expect("stroke");
@@ -217,26 +217,34 @@ impl Painting {
         next
     }
 
-    /// The new children (cell, centre, depth) of deferred parents are
-    /// deferred too (spec 8.7): those that `next` (the children the
-    /// segment refines, in the same order) does not hold, and that an
-    /// erase or recolour does not leave alone (sigma as just painted), are
-    /// tested against the stroke so far; returned are those it refines.
-    fn deferred_children(&mut self, cells: &[(u32, DVec3, u32)], next: &[(u32, DVec3, f64)]) -> Vec<(u32, DVec3, f64)> {
+    /// The new children of deferred parents are deferred too (spec 8.7).
+    /// `units`: the round's (parent, first child) pairs, whose children
+    /// `cells` (cell, centre, depth) lists unit by unit; `next`: the
+    /// children the segment refines. The marked children that `next` does
+    /// not hold, and that an erase or recolour does not leave alone (sigma
+    /// as just painted), are tested against the stroke so far; returned are
+    /// those it refines.
+    fn deferred_children(&mut self, units: &[(u32, u32)], cells: &[(u32, DVec3, u32)], next: &[(u32, DVec3, f64)]) -> Vec<(u32, DVec3, f64)> {
         let st = self.stroke.as_mut().expect("stroke");
+        let marked: Vec<usize> = (0..units.len())
+            .filter(|&i| {
+                let slot = self.slot_of.get(units[i].0);
+                slot != NONE && st.deferred.get(slot)
+            })
+            .collect();
+        if marked.is_empty() {
+            return Vec::new();
+        }
         let sigma_gate = matches!(st.brush.mode, Mode::Erase | Mode::Recolor);
-        let (parent, sigma, lat) = (self.tree.parent(), self.tree.sigma(), &self.tree.lat);
+        let (sigma, lat) = (self.tree.sigma(), &self.tree.lat);
+        let refined: std::collections::HashSet<u32> = next.iter().map(|&(c, _, _)| c).collect();
         let mut test = Vec::new();
-        let mut in_next = next.iter().map(|&(c, _, _)| c).peekable();
-        for &(c, x, d) in cells {
-            let refined = in_next.next_if_eq(&c).is_some();
-            let p = self.slot_of.get(parent[c as usize]);
-            if p == NONE || !st.slots[p as usize].deferred {
-                continue;
-            }
-            st.slots[self.slot_of.get(c) as usize].deferred = true;
-            if !refined && !(sigma_gate && !(sigma[c as usize] > 0.0)) {
-                test.push((c, x, lat.reach_radius[d as usize]));
+        for i in marked {
+            for &(c, x, d) in &cells[i * UNIT as usize..(i + 1) * UNIT as usize] {
+                st.deferred.set(self.slot_of.get(c), true);
+                if !refined.contains(&c) && !(sigma_gate && !(sigma[c as usize] > 0.0)) {
+                    test.push((c, x, lat.reach_radius[d as usize]));
+                }
             }
         }
         if test.is_empty() { test } else { self.needed_by_stroke(test) }

@@ -143,7 +143,7 @@ fn leaf<W: Walk>(ctx: &RunContext<W>, out: &mut Run, leaf: Leaf) {
     // still be coarser than an earlier primitive's: the serial part tests
     // it against the stroke so far.
     let coarser = ctx.tree.lat.coarser_than_target(d, r);
-    let deferred = !coarser && ctx.st.any_deferred && slot != NONE && unsafe { (*ctx.slots.at(slot as usize)).deferred };
+    let deferred = !coarser && ctx.st.deferred.any && slot != NONE && ctx.st.deferred.get(slot);
     let needs = (coarser || deferred) && !(ctx.sigma_gate && !(sigma_now() > 0.0));
     if a >= TINY {
         out.hit += 1;

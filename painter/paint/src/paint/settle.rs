@@ -92,10 +92,8 @@ impl Painting {
             let (rgb, sigma) = (self.tree.rgb()[c as usize], self.tree.sigma()[c as usize]);
             self.first_write(&FirstWrite { c, before_rgb: rgb, before_sigma: sigma, a: 0.0, rgb, sigma, next: false });
         }
-        let slot = self.slot_of.get(c) as usize;
-        let st = self.stroke.as_mut().expect("stroke");
-        st.slots[slot].deferred = true;
-        st.any_deferred = true;
+        let slot = self.slot_of.get(c);
+        self.stroke.as_mut().expect("stroke").deferred.set(slot, true);
     }
 
     /// The deferred leaves among `leaves` (cell, centre, reach radius;
@@ -142,7 +140,7 @@ impl Painting {
         }
         let st = self.stroke.as_mut().expect("stroke");
         for c in idle {
-            st.slots[self.slot_of.get(c) as usize].deferred = false;
+            st.deferred.set(self.slot_of.get(c), false);
         }
         out
     }
