@@ -327,7 +327,11 @@ mod tests {
             redo: 0,
             message: String::new(),
             layered: true,
-            layers: names.iter().enumerate().map(|(k, n)| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false, cells: 8 + 8 * k as u32, bytes: 4096 }).collect(),
+            layers: names
+                .iter()
+                .enumerate()
+                .map(|(k, n)| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false, cells: 8 + 8 * k as u32, bytes: 4096 })
+                .collect(),
             selected: 0,
         }
     }

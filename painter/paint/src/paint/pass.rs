@@ -321,7 +321,8 @@ impl Painting {
             run.blocks.clear();
             run.wrote.clear();
             run.stack.clear();
-            let mut emptied = Run { fresh: run.fresh, needs: run.needs, deferred: run.deferred, blocks: run.blocks, wrote: run.wrote, stack: run.stack, ..Run::default() };
+            let mut emptied =
+                Run { fresh: run.fresh, needs: run.needs, deferred: run.deferred, blocks: run.blocks, wrote: run.wrote, stack: run.stack, ..Run::default() };
             if parallel {
                 // A huge pass (a brush over millions of leaves) leaves no
                 // lasting claim on memory: a kept list holds at most
