@@ -4,8 +4,10 @@ event of the given traces, the truth is the full-depth image cast at
 `ss` x `ss` samples per pixel and box-filtered to the display size; the
 figures are the PSNR of the full-depth image and of the image at each level
 of detail against it, the cells stepped per ray (mean, p99), and a flicker
-figure: the mean frame-to-frame difference of a slow orbit around the
-view's target, with and without.
+figure: the mean frame-to-frame difference of a slow pan (the camera
+turned about the canvas y axis, `_turned`) or with `--orbit` of a slow
+turntable (the camera carried about a vertical axis in front of it), with
+and without.
 
     python -m octopaint_ref.lod_study traces/scene.jsonl traces/lit.jsonl --json out/lod.json
 """
@@ -24,7 +26,7 @@ import numpy as np
 
 from .dump import tree_arrays
 from .jax_setup import configure
-from .lod import check_k
+from .lod import check_k, view_axis
 from .png import png_bytes
 from .precision import psnr
 from .raycast import render
@@ -55,12 +57,34 @@ def _turned(camera, degrees: float):
     return replace(camera, q=q)
 
 
-def flicker(painting, camera, light, k: float, frames: int, step_deg: float) -> float:
+def _orbited(camera, degrees: float, pivot):
+    """camera carried `degrees` about the vertical (canvas y) axis through
+    `pivot`, turning with it (a turntable seen from a fixed camera)."""
+    a = math.radians(degrees)
+    c, s = math.cos(a), math.sin(a)
+    v = np.asarray(camera.eye, np.float64) - pivot
+    eye = pivot + np.array([c * v[0] + s * v[2], v[1], -s * v[0] + c * v[2]])
+    return replace(_turned(camera, degrees), eye=tuple(float(x) for x in eye))
+
+
+def orbit_pivot(painting, camera) -> np.ndarray:
+    """The point of the view axis nearest the canvas's centre (at least one
+    root edge in front of the eye): what a turntable turns about."""
+    t = painting.tree
+    centre = np.array(t.roots, np.float64) * t.root_size / 2.0
+    eye, f = np.asarray(camera.eye, np.float64), view_axis(camera)
+    return eye + f * max(float(np.dot(centre - eye, f)), t.root_size)
+
+
+def flicker(painting, camera, light, k: float, frames: int, step_deg: float, orbit: bool = False) -> float:
     """Mean absolute frame-to-frame difference (8-bit steps per channel) of
-    `frames` frames panning by `step_deg` each."""
+    `frames` frames panning by `step_deg` each, or with `orbit` turning by
+    as much about orbit_pivot (a slow turntable)."""
+    pivot = orbit_pivot(painting, camera) if orbit else None
     prev, diffs = None, []
     for i in range(frames):
-        img = _render(painting, _turned(camera, i * step_deg), light, k).image.astype(np.int64)
+        view = _orbited(camera, i * step_deg, pivot) if orbit else _turned(camera, i * step_deg)
+        img = _render(painting, view, light, k).image.astype(np.int64)
         if prev is not None:
             diffs.append(float(np.abs(img - prev).mean()))
         prev = img
@@ -85,7 +109,7 @@ def scaled(camera, div: int):
     return replace(camera, size=(max(1, w // div), max(1, h // div)))
 
 
-def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, div: int = 1, pair=None) -> list:
+def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, div: int = 1, pair=None, orbit: bool = False) -> list:
     """One row per render event of a one-tree trace (version 1); cameras at
     1/div of their size. pair: a folder to write, per render, the images at
     the first and last k and the truth side by side (`RENDER_lod.png`)."""
@@ -115,7 +139,7 @@ def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, di
                     "psnr_db": psnr(r.image, ref),
                     "steps_mean": float(steps.mean()),
                     "steps_p99": float(np.percentile(steps, 99)),
-                    "flicker": flicker(painting, camera, light, k, frames, step_deg) if frames > 1 else None,
+                    "flicker": flicker(painting, camera, light, k, frames, step_deg, orbit) if frames > 1 else None,
                 }
             )
         row["seconds"] = time.perf_counter() - t0
@@ -141,6 +165,7 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="write the rows here")
     ap.add_argument("--scale", type=int, default=1, help="divide every camera's size by this (fov kept; default 1)")
     ap.add_argument("--pair", help="folder for each render's images at the first and last k and the truth, side by side")
+    ap.add_argument("--orbit", action="store_true", help="flicker over a turntable orbit (about the view axis's point nearest the canvas centre) instead of a pan")
     a = ap.parse_args(argv)
     if a.scale < 1:
         ap.error("--scale must be at least 1")
@@ -149,7 +174,7 @@ def main(argv=None) -> int:
     print("| trace | render | size | k | PSNR against the truth (dB) | cells per ray, mean | p99 | flicker (steps) |")
     print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |")
     for t in a.traces:
-        for row in study(t, lods, a.ss, a.frames, a.step, a.scale, a.pair):
+        for row in study(t, lods, a.ss, a.frames, a.step, a.scale, a.pair, a.orbit):
             rows.append(row)
             for lv in row["levels"]:
                 fl = f"{lv['flicker']:.3f}" if lv["flicker"] is not None else ""
@@ -160,7 +185,7 @@ def main(argv=None) -> int:
                 )
     if a.json:
         with open(a.json, "w", encoding="utf-8") as f:
-            json.dump({"ss": a.ss, "frames": a.frames, "step_deg": a.step, "scale": a.scale, "rows": rows}, f, indent=1)
+            json.dump({"ss": a.ss, "frames": a.frames, "step_deg": a.step, "scale": a.scale, "orbit": a.orbit, "rows": rows}, f, indent=1)
     return 0
 
 

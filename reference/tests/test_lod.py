@@ -191,3 +191,32 @@ def test_the_study_scales_cameras_and_writes_the_pair(tmp_path):
         w, h = r["size"]
         zoom = max(1, 320 // w)
         assert img.shape == (h * zoom, 3 * w * zoom + 4, 3)
+
+
+def test_the_orbit_keeps_the_pivot_in_view_and_its_distance():
+    """--orbit: the camera is carried about the vertical axis through the
+    pivot, turning with it, so the pivot stays on the view axis at the same
+    distance (a turntable)."""
+    from conftest import TRACES
+    from octopaint_ref import lod_study
+    from octopaint_ref.lod import view_axis
+    from octopaint_ref.replay import replay
+    from octopaint_ref.trace import read_trace
+
+    trace = read_trace(os.path.join(TRACES, "single_stamp.jsonl"))
+    seen = {}
+
+    def after(ev, painting):
+        if ev.kind == "camera":
+            seen["camera"] = ev.value
+            seen["painting"] = painting
+
+    replay(trace, None, renders=False, after_event=after)
+    cam = seen["camera"]
+    pivot = lod_study.orbit_pivot(seen["painting"], cam)
+    for deg in (0.0, 3.0, 40.0, -90.0):
+        moved = lod_study._orbited(cam, deg, pivot)
+        to = pivot - np.asarray(moved.eye)
+        assert abs(np.linalg.norm(to) - np.linalg.norm(pivot - np.asarray(cam.eye))) < 1e-12
+        assert np.allclose(view_axis(moved), to / np.linalg.norm(to), atol=1e-12)
+        assert abs(moved.eye[1] - cam.eye[1]) < 1e-12
