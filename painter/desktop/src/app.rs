@@ -11,12 +11,13 @@ use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
+use octopaint_doc::presets::Presets;
 use octopaint_gpu::{Blit, Gpu, Renderer};
 use octopaint_pipeline::{Aim, Engine, Frames, Job, Pace, Settings, Status, View};
 use octopaint_tree::Tree;
 use octopaint_tree::lattice::Lattice;
 use octopaint_tree::layers::Document;
-use octopaint_tree::trace::{EventKind, Mode, Shape};
+use octopaint_tree::trace::{Brush, EventKind, Mode, Shape};
 use octopaint_tree::view::{OrbitCamera, frame_painting, frame_trees, pick};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -48,6 +49,8 @@ pub(crate) struct Running {
     pub egui_renderer: egui_wgpu::Renderer,
     pub camera: OrbitCamera,
     pub brush: BrushUi,
+    /// The artist's brush presets (docs/desktop.md "Brush presets").
+    pub presets: Presets,
     /// The status line's last message.
     pub message: String,
     pub modifiers: ModifiersState,
@@ -268,6 +271,31 @@ impl App {
             }
             Action::MakeLayers => self.submit(Job::UseLayers),
             Action::Layer(op) => self.submit(Job::Event(EventKind::Layer(op))),
+            Action::ApplyPreset(name) => {
+                if let Some(r) = self.running.as_mut()
+                    && let Some(p) = r.presets.list.iter().find(|p| p.name == name)
+                {
+                    r.brush.apply(&p.brush);
+                    r.brush.preset = name;
+                }
+            }
+            Action::SavePreset(name) => {
+                if let Some(r) = self.running.as_mut() {
+                    let brush = r.brush.brush();
+                    r.message = match r.presets.put(&name, brush) {
+                        Ok(()) => format!("preset {name:?} saved"),
+                        Err(e) => format!("preset not saved: {e}"),
+                    };
+                }
+            }
+            Action::DeletePreset(name) => {
+                if let Some(r) = self.running.as_mut() {
+                    r.message = match r.presets.delete(&name) {
+                        Ok(()) => format!("preset {name:?} deleted"),
+                        Err(e) => format!("preset not deleted: {e}"),
+                    };
+                }
+            }
         }
     }
 
@@ -345,7 +373,10 @@ impl App {
             // where it trims nothing (docs/benchmarks.md), so there the
             // window starts at full depth and the panel turns it on.
             lod: self.opts.lod.unwrap_or(if cpu { 0.0 } else { octopaint_tree::raycast::DEFAULT_LOD }),
+            rest: Brush::new(Shape::Sphere, Mode::Paint, 1.0, [0.0; 3], 1.0, 0.5),
+            preset: String::new(),
         };
+        let presets = Presets::open(octopaint_doc::presets::default_path());
         let frames = Frames::new(self.engine.as_ref().expect("the engine runs until the window closes"), &self.settings);
         Ok(Running {
             window,
@@ -359,7 +390,9 @@ impl App {
             egui_renderer,
             camera,
             brush,
-            message: String::new(),
+            // A presets file that cannot be read is said at once.
+            message: presets.blocked.as_ref().map(|e| e.to_string()).unwrap_or_default(),
+            presets,
             modifiers: ModifiersState::empty(),
             cursor: (f64::from(w) / 2.0, f64::from(h) / 2.0),
             painting: false,

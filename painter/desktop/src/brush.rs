@@ -28,6 +28,11 @@ pub(crate) struct BrushUi {
     /// The level of detail of the view (docs/spec.md 7): rays stop at
     /// cells no wider than this many pixels' footprints; 0: at the leaves.
     pub(crate) lod: f64,
+    /// The brush fields the panel has no control for (spacing, mix ratio,
+    /// pickup rate, aspect, noise), as the last preset chosen set them.
+    pub(crate) rest: Brush,
+    /// The preset name field (docs/desktop.md "Brush presets").
+    pub(crate) preset: String,
 }
 
 impl BrushUi {
@@ -76,6 +81,21 @@ impl LightUi {
 
 impl BrushUi {
     pub(crate) fn brush(&self) -> Brush {
-        Brush::new(self.shape, self.mode, self.radius, self.colour.map(f64::from), self.opacity, self.hardness)
+        Brush {
+            shape: self.shape,
+            mode: self.mode,
+            radius: self.radius,
+            color: self.colour.map(f64::from),
+            opacity: self.opacity,
+            hardness: self.hardness,
+            ..self.rest
+        }
+    }
+
+    /// Take every field of `b` (a preset's brush).
+    pub(crate) fn apply(&mut self, b: &Brush) {
+        (self.shape, self.mode, self.radius, self.opacity, self.hardness) = (b.shape, b.mode, b.radius, b.opacity, b.hardness);
+        self.colour = b.color.map(|c| c as f32);
+        self.rest = *b;
     }
 }

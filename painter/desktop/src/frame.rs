@@ -90,6 +90,7 @@ impl App {
                 .map(|l| LayerInfo { name: l.name.clone(), visible: l.visible, opacity: l.opacity, locked: l.locked, cells: l.cells, bytes: l.bytes })
                 .collect(),
             selected: s.selected,
+            presets: r.presets.list.iter().map(|p| p.name.clone()).collect(),
         };
         let mut view = None;
         let out = r.egui_ctx.run_ui(raw, |ui| view = Some(panel(ui, &mut r.brush, &mut r.layers, &info, &overlay, &mut actions)));

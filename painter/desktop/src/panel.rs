@@ -52,6 +52,8 @@ pub(crate) struct StatusInfo {
     pub(crate) layered: bool,
     pub(crate) layers: Vec<LayerInfo>,
     pub(crate) selected: usize,
+    /// The brush presets' names, in their file's order.
+    pub(crate) presets: Vec<String>,
 }
 
 pub(crate) enum Action {
@@ -64,6 +66,11 @@ pub(crate) enum Action {
     /// Make this one-tree document a document of layers.
     MakeLayers,
     Layer(LayerOp),
+    /// Brush presets (docs/desktop.md "Brush presets"): take the named
+    /// one's brush; keep the current brush under a name; delete one.
+    ApplyPreset(String),
+    SavePreset(String),
+    DeletePreset(String),
 }
 
 /// The smallest `Layer N` not taken.
@@ -73,6 +80,31 @@ pub(crate) fn free_name(layers: &[LayerInfo], stem: &str) -> String {
 
 pub(crate) fn layer_op(kind: LayerOpKind, layer: Option<&str>, name: Option<String>) -> LayerOp {
     LayerOp { layer: layer.map(String::from), name, ..LayerOp::new(kind) }
+}
+
+/// The brush presets (docs/desktop.md "Brush presets"): a list to choose
+/// one from (its whole brush is taken), a name field (the chosen name, or
+/// a new one) with Save (the current brush under that name, replacing a
+/// preset of that name) and Delete.
+pub(crate) fn presets_row(ui: &mut egui::Ui, b: &mut BrushUi, s: &StatusInfo, actions: &mut Vec<Action>) {
+    let shown = if s.presets.contains(&b.preset) { b.preset.as_str() } else { "choose…" };
+    egui::ComboBox::from_label("preset").selected_text(shown).show_ui(ui, |ui| {
+        for name in &s.presets {
+            if ui.selectable_label(*name == b.preset, name).clicked() {
+                actions.push(Action::ApplyPreset(name.clone()));
+            }
+        }
+    });
+    ui.horizontal(|ui| {
+        ui.add(egui::TextEdit::singleline(&mut b.preset).hint_text("preset name").desired_width(110.0));
+        let name = b.preset.trim().to_string();
+        if ui.add_enabled(!name.is_empty(), egui::Button::new("Save")).on_hover_text("keep the current brush under this name").clicked() {
+            actions.push(Action::SavePreset(name.clone()));
+        }
+        if ui.add_enabled(s.presets.contains(&name), egui::Button::new("Delete")).on_hover_text("delete the preset of this name").clicked() {
+            actions.push(Action::DeletePreset(name));
+        }
+    });
 }
 
 /// The layer panel (docs/desktop.md "Layers"): the layers top first, each
@@ -179,6 +211,7 @@ pub(crate) fn panel(root: &mut egui::Ui, b: &mut BrushUi, l: &mut LayersUi, s: &
     status_line(root, s);
     egui::Panel::left("brush").resizable(false).show(root, |ui| egui::ScrollArea::vertical().show(ui, |ui| {
         ui.heading("Brush");
+        presets_row(ui, b, s, actions);
         egui::ComboBox::from_label("shape").selected_text(b.shape.name()).show_ui(ui, |ui| {
             for (v, name) in Shape::ALL.into_iter().zip(SHAPES) {
                 ui.selectable_value(&mut b.shape, v, name);
@@ -333,6 +366,7 @@ mod tests {
                 .map(|(k, n)| LayerInfo { name: n.to_string(), visible: true, opacity: 1.0, locked: false, cells: 8 + 8 * k as u32, bytes: 4096 })
                 .collect(),
             selected: 0,
+            presets: vec!["fine liner".into(), "haze".into()],
         }
     }
 
@@ -404,5 +438,108 @@ mod tests {
         let mut actions = frame(&ctx, &mut l, &s, pointer(handle.center(), Some(true)));
         actions.extend(frame(&ctx, &mut l, &s, pointer(handle.center(), Some(false))));
         assert!(!actions.iter().any(|a| matches!(a, Action::Layer(op) if op.op == LayerOpKind::Move)));
+    }
+}
+
+#[cfg(test)]
+mod preset_tests {
+    use super::*;
+    use crate::brush::LightUi;
+    use glam::DVec3;
+    use octopaint_tree::trace::Brush;
+
+    fn brush_ui() -> BrushUi {
+        BrushUi {
+            shape: Shape::Sphere,
+            mode: Mode::Paint,
+            radius: 0.1,
+            opacity: 0.8,
+            hardness: 0.6,
+            colour: [0.9, 0.45, 0.15],
+            on_surface: true,
+            plane_depth: 1.0,
+            grid: true,
+            light: LightUi::default(),
+            mirror_axes: [false; 3],
+            mirror_centre: DVec3::ZERO,
+            lod: 0.0,
+            rest: Brush::new(Shape::Sphere, Mode::Paint, 1.0, [0.0; 3], 1.0, 0.5),
+            preset: String::new(),
+        }
+    }
+
+    #[test]
+    fn a_preset_gives_the_panel_its_whole_brush() {
+        let mut b = brush_ui();
+        for p in octopaint_doc::presets::starting_set() {
+            b.apply(&p.brush);
+            let got = b.brush();
+            // The panel keeps the colour as f32: the preset's, rounded once.
+            assert_eq!(Brush { color: p.brush.color.map(|c| f64::from(c as f32)), ..p.brush }, got, "{}", p.name);
+        }
+    }
+
+    /// The centre of the first text `want` the frame drew.
+    fn text_at(shapes: &[egui::epaint::ClippedShape], want: &str) -> Option<egui::Pos2> {
+        shapes.iter().find_map(|c| match &c.shape {
+            egui::Shape::Text(t) if t.galley.text() == want => Some(t.pos + t.galley.rect.center().to_vec2()),
+            _ => None,
+        })
+    }
+
+    #[test]
+    fn save_and_delete_name_the_field_s_preset() {
+        let ctx = egui::Context::default();
+        let s = StatusInfo { presets: vec!["fine liner".into(), "haze".into()], ..tests_info() };
+        let mut b = brush_ui();
+        b.preset = "haze".into();
+        let run = |b: &mut BrushUi, events: Vec<egui::Event>| {
+            let raw = egui::RawInput { screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 300.0))), events, ..Default::default() };
+            let mut actions = Vec::new();
+            let out = ctx.run_ui(raw, |ui| {
+                egui::CentralPanel::default().show(ui, |ui| presets_row(ui, b, &s, &mut actions));
+            });
+            (out.shapes, actions)
+        };
+        let (shapes, _) = run(&mut b, vec![]);
+        assert!(text_at(&shapes, "haze").is_some(), "the chosen preset is shown");
+        for (button, want) in [("Save", "save"), ("Delete", "delete")] {
+            let at = text_at(&shapes, button).expect("the button");
+            let click = |pressed| egui::Event::PointerButton { pos: at, button: egui::PointerButton::Primary, pressed, modifiers: Default::default() };
+            let (_, mut actions) = run(&mut b, vec![egui::Event::PointerMoved(at), click(true)]);
+            actions.extend(run(&mut b, vec![click(false)]).1);
+            let got: Vec<String> = actions
+                .iter()
+                .filter_map(|a| match a {
+                    Action::SavePreset(n) => Some(format!("save {n}")),
+                    Action::DeletePreset(n) => Some(format!("delete {n}")),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(got, vec![format!("{want} haze")]);
+        }
+        // A name no preset has: Save, but no Delete.
+        b.preset = "new one".into();
+        let (shapes, _) = run(&mut b, vec![]);
+        assert!(text_at(&shapes, "choose…").is_some());
+    }
+
+    fn tests_info() -> StatusInfo {
+        StatusInfo {
+            fps: 0.0,
+            resolution: 1.0,
+            latency_ms: None,
+            busy: None,
+            cells: 8,
+            capacity: 1 << 20,
+            bytes: 0,
+            undo: 0,
+            redo: 0,
+            message: String::new(),
+            layered: false,
+            layers: Vec::new(),
+            selected: 0,
+            presets: Vec::new(),
+        }
     }
 }

@@ -11,10 +11,12 @@
 //! | [`journal`] | the journal's lines: header, appends, what a crash leaves |
 //! | [`trace_log`] | a writing session's trace: saved events deflated, the rest as text |
 //! | [`fuzz_harness`] | the document and journal fuzz targets' bodies |
+//! | [`presets`] | the artist's brush presets file (beside documents: a user's settings, not a document's) |
 
 pub mod format;
 pub mod fuzz_harness;
 pub mod journal;
+pub mod presets;
 pub mod session;
 pub mod trace_log;
 

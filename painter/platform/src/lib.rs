@@ -6,7 +6,7 @@
 //! | --- | --- | --- | --- |
 //! | [`durable`] | replacing a file atomically and durably | temporary file, `fsync`, `rename`, `fsync` of the folder; mode 0644 | temporary file, `FlushFileBuffers`, `MoveFileExW(REPLACE_EXISTING \| WRITE_THROUGH)`, `FlushFileBuffers`; the folder's ACL |
 //! | [`memory`] | the process's peak resident memory; pages mapped in ahead of their first write | `VmHWM` in /proc, `madvise(MADV_POPULATE_WRITE)` (Linux; neither on macOS) | `GetProcessMemoryInfo` (`PeakWorkingSetSize`); no mapping ahead |
-//! | [`folders`] | where documents go by default | `$HOME/Documents/Octopaint` (`$HOME/Octopaint` without a Documents folder) | the Documents known folder + `Octopaint` |
+//! | [`folders`] | where documents go by default; where settings go | `$HOME/Documents/Octopaint` (`$HOME/Octopaint` without a Documents folder); `$XDG_CONFIG_HOME/octopaint` (`~/.config/octopaint`; macOS `~/Library/Application Support/Octopaint`) | the Documents known folder + `Octopaint`; roaming AppData + `Octopaint` |
 //! | [`lock`] | one writer per document | `flock(LOCK_EX \| LOCK_NB)` on `<document>.lock` | `LockFileEx(EXCLUSIVE \| FAIL_IMMEDIATELY)` on `<document>.lock` |
 //! | [`stdio`] | a reader that closes standard output early | the default SIGPIPE: the process ends quietly | a panic message (no such signal) |
 //!

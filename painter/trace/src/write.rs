@@ -33,7 +33,8 @@ pub fn header_line_version(canvas: &Canvas, meta: &Meta, version: u32) -> String
     }))
 }
 
-fn brush_fields(b: &Brush) -> Value {
+/// A brush event's fields (spec 12) as a JSON object: what `parse_brush` reads back.
+pub fn brush_fields(b: &Brush) -> Value {
     json!({
         "shape": b.shape.name(),
         "mode": b.mode.name(),
