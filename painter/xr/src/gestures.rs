@@ -6,8 +6,9 @@
 //! left hand holds the palette, whose pages the left trigger steps through:
 //! the brush (thumbstick left/right: colour, up/down: mode, primary
 //! button: shape), the layers (up/down: select, left/right: opacity, X:
-//! show or hide, Y: a new layer) and the mirror planes (X, Y, stick up:
-//! the x, y, z planes through the painting's centre; stick down: none).
+//! show or hide, Y: a new layer), the mirror planes (X, Y, stick up:
+//! the x, y, z planes through the painting's centre; stick down: none) and
+//! the brush presets (up/down: choose, X: take its brush).
 //! Every change of the painting is a job for the engine's stroke thread,
 //! which owns the document and journals each stroke and layer operation as
 //! it happens (`octopaint_pipeline::OpenDocument`), so the session records
@@ -15,6 +16,7 @@
 //! status the stroke thread publishes.
 
 use glam::{DQuat, DVec3};
+use octopaint_doc::presets::Preset;
 use octopaint_pipeline::{Engine, Job, Status};
 use octopaint_tree::trace::{Brush, EventKind, LayerOp, LayerOpKind, Mirror, Mode, Sample, Shape};
 
@@ -37,6 +39,16 @@ pub struct Gestures {
     /// Brush radius in the room, metres (the canvas radius follows the zoom).
     pub room_radius: f64,
     pub colour: usize,
+    /// A preset's colour, in place of the palette's until the stick
+    /// chooses one of those again.
+    pub preset_colour: Option<[f64; 3]>,
+    /// The brush fields the palette has no control for (spacing, mix
+    /// ratio, pickup rate, aspect, noise), as the last preset taken set them.
+    pub rest: Brush,
+    /// The artist's brush presets (docs/vr.md; read when the session
+    /// starts, kept by the window) and the one the presets page points at.
+    pub presets: Vec<Preset>,
+    pub preset: usize,
     pub shape: usize,
     pub mode: usize,
     pub opacity: f64,
@@ -69,9 +81,13 @@ pub enum Page {
     Brush,
     Layers,
     Mirror,
+    Presets,
 }
 
-pub const PAGES: [Page; 3] = [Page::Brush, Page::Layers, Page::Mirror];
+pub const PAGES: [Page; 4] = [Page::Brush, Page::Layers, Page::Mirror, Page::Presets];
+
+/// The brush's radius in the room, metres: what the right stick allows.
+pub const ROOM_RADII: (f64, f64) = (0.001, 0.5);
 
 /// The headset's views, in the order Y steps through them: (lit, grid).
 pub const VIEWS: [(bool, bool); 4] = [(true, false), (true, true), (false, true), (false, false)];
@@ -99,6 +115,10 @@ impl Default for Gestures {
         Gestures {
             room_radius: 0.01,
             colour: 0,
+            preset_colour: None,
+            rest: Brush::new(Shape::Sphere, Mode::Paint, 1.0, [0.0; 3], 1.0, 0.5),
+            presets: Vec::new(),
+            preset: 0,
             shape: 0,
             mode: 0,
             opacity: 0.8,
@@ -129,7 +149,40 @@ impl Gestures {
 
     /// The brush as the canvas sees it at `placement`'s zoom.
     pub fn brush(&self, placement: &Placement) -> Brush {
-        Brush::new(Shape::ALL[self.shape], Mode::ALL[self.mode], self.room_radius / placement.scale, PALETTE[self.colour], self.opacity, self.hardness)
+        Brush {
+            shape: Shape::ALL[self.shape],
+            mode: Mode::ALL[self.mode],
+            radius: self.room_radius / placement.scale,
+            color: self.preset_colour.unwrap_or(PALETTE[self.colour]),
+            opacity: self.opacity,
+            hardness: self.hardness,
+            ..self.rest
+        }
+    }
+
+    /// The presets page: stick up/down points at the preset above/below
+    /// (round the list), X takes its whole brush for the next strokes, its
+    /// radius kept in canvas units at `placement`'s zoom (within the room
+    /// radii the stick allows). Nothing of the document changes.
+    pub fn presets_page(&mut self, placement: &Placement, up: bool, down: bool, x: bool) {
+        let n = self.presets.len();
+        if n == 0 {
+            return;
+        }
+        if up {
+            self.preset = (self.preset + n - 1) % n;
+        }
+        if down {
+            self.preset = (self.preset + 1) % n;
+        }
+        self.preset %= n;
+        if x {
+            let b = self.presets[self.preset].brush;
+            self.shape = Shape::ALL.iter().position(|&s| s == b.shape).unwrap_or(0);
+            self.mode = Mode::ALL.iter().position(|&m| m == b.mode).unwrap_or(0);
+            self.room_radius = (b.radius * placement.scale).clamp(ROOM_RADII.0, ROOM_RADII.1);
+            (self.opacity, self.hardness, self.preset_colour, self.rest) = (b.opacity, b.hardness, Some(b.color), b);
+        }
     }
 
     fn apply(&mut self, doc: &Live, job: Job) {
@@ -173,7 +226,7 @@ impl Gestures {
         };
         // Brush size on the right stick (doubling per second at full tilt).
         if r.stick[1].abs() > 0.2 && !self.in_stroke {
-            self.room_radius = (self.room_radius * 2f64.powf(f64::from(r.stick[1]) * dt)).clamp(0.001, 0.5);
+            self.room_radius = (self.room_radius * 2f64.powf(f64::from(r.stick[1]) * dt)).clamp(ROOM_RADII.0, ROOM_RADII.1);
         }
         // The palette on the left hand: the trigger turns its page, the
         // stick and buttons act on the page shown.
@@ -199,9 +252,11 @@ impl Gestures {
                 Page::Brush => {
                     if right {
                         self.colour = (self.colour + 1) % PALETTE.len();
+                        self.preset_colour = None;
                     }
                     if left {
                         self.colour = (self.colour + PALETTE.len() - 1) % PALETTE.len();
+                        self.preset_colour = None;
                     }
                     if up {
                         self.mode = (self.mode + 1) % Mode::ALL.len();
@@ -240,7 +295,8 @@ impl Gestures {
                         self.mirror = m.active().unwrap_or(Mirror { axes: [false; 3], centre });
                     }
                 }
-                Page::Layers | Page::Mirror => {}
+                Page::Presets if !self.in_stroke => self.presets_page(placement, up, down, x),
+                Page::Layers | Page::Mirror | Page::Presets => {}
             }
         }
         // Undo and redo on the right hand, between strokes.
@@ -347,5 +403,43 @@ impl Gestures {
             self.in_stroke = false;
             self.strokes += 1;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_presets_page_chooses_round_the_list_and_takes_a_whole_brush() {
+        let mut g = Gestures { presets: octopaint_doc::presets::starting_set(), ..Gestures::default() };
+        let n = g.presets.len();
+        let placement = Placement { centre: DVec3::ZERO, scale: 0.25, rotation: DQuat::IDENTITY, origin: DVec3::ZERO };
+        let before = g.brush(&placement);
+        g.presets_page(&placement, true, false, false);
+        assert_eq!(g.preset, n - 1, "up from the first is the last");
+        assert_eq!(g.brush(&placement), before, "pointing changes no brush");
+        g.presets_page(&placement, false, true, false);
+        g.presets_page(&placement, false, true, false);
+        assert_eq!(g.preset, 1);
+        g.presets_page(&placement, false, false, true);
+        let want = g.presets[1].brush;
+        let got = g.brush(&placement);
+        assert!((got.radius - want.radius).abs() <= 1e-12 * want.radius, "{} against {}", got.radius, want.radius);
+        assert_eq!(Brush { radius: want.radius, ..got }, want);
+        // The palette's stick takes its own colours back.
+        g.page = Page::Brush;
+        g.preset_colour = None;
+        assert_eq!(g.brush(&placement).color, PALETTE[g.colour]);
+        // A radius the room cannot hold is kept within the stick's range.
+        let mut huge = g.presets[0].clone();
+        huge.brush.radius = 1e6;
+        g.presets = vec![huge];
+        g.preset = 0;
+        g.presets_page(&placement, false, false, true);
+        assert_eq!(g.room_radius, ROOM_RADII.1);
+        // No presets: the page does nothing.
+        g.presets.clear();
+        g.presets_page(&placement, true, true, true);
     }
 }

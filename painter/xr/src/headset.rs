@@ -123,7 +123,14 @@ pub fn run(doc: octopaint_doc::Session, opts: &Options) -> Result<Report, XrErro
     let configs = xr_call("reading the views", xr_instance.enumerate_view_configuration_views(system, VIEW_TYPE))?;
     let size = [configs[0].recommended_image_rect_width, configs[0].recommended_image_rect_height];
     let eyes = crate::setup::Eyes::create(&session, &renderer.gpu, size)?;
+    // The artist's presets, as the window keeps them (read only here); a
+    // file that cannot be read leaves the starting set, and says so.
+    let presets = octopaint_doc::presets::Presets::open(octopaint_doc::presets::default_path());
+    if let Some(e) = &presets.blocked {
+        eprintln!("octopaint: {e}");
+    }
     let mut painter = crate::gestures::Gestures::default();
+    painter.presets = presets.list;
     if let Some(m) = doc.mirror() {
         painter.mirror = m;
     }

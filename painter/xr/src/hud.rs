@@ -75,7 +75,7 @@ pub fn prepare(
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
                     // The pages, the one shown strong (the left trigger turns them).
                     ui.horizontal(|ui| {
-                        for (page, name) in [(Page::Brush, "brush"), (Page::Layers, "layers"), (Page::Mirror, "mirror")] {
+                        for (page, name) in [(Page::Brush, "brush"), (Page::Layers, "layers"), (Page::Mirror, "mirror"), (Page::Presets, "presets")] {
                             if page == p.page {
                                 ui.strong(name);
                             } else {
@@ -90,7 +90,7 @@ pub fn prepare(
                                     let c = c.map(|v| (v * 255.0) as u8);
                                     let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
                                     ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
-                                    if k == p.colour {
+                                    if k == p.colour && p.preset_colour.is_none() {
                                         ui.painter().rect_stroke(
                                             rect.expand(2.0),
                                             2.0,
@@ -100,7 +100,33 @@ pub fn prepare(
                                     }
                                 }
                             });
+                            if let Some(c) = p.preset_colour {
+                                // A preset's colour, framed as the chosen one.
+                                let c = c.map(|v| (v * 255.0).round() as u8);
+                                ui.horizontal(|ui| {
+                                    let (rect, _) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::hover());
+                                    ui.painter().rect_filled(rect, 2.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
+                                    ui.painter().rect_stroke(rect.expand(2.0), 2.0, egui::Stroke::new(2.0, egui::Color32::WHITE), egui::StrokeKind::Outside);
+                                    ui.weak("the preset's colour");
+                                });
+                            }
                             ui.label(format!("{} · {}", Mode::ALL[p.mode].name(), Shape::ALL[p.shape].name()));
+                        }
+                        Page::Presets if p.presets.is_empty() => {
+                            ui.label("no presets");
+                        }
+                        Page::Presets => {
+                            // Up to 7 names about the one pointed at.
+                            let n = p.presets.len();
+                            let first = p.preset.saturating_sub(3).min(n.saturating_sub(7));
+                            for (k, preset) in p.presets.iter().enumerate().skip(first).take(7) {
+                                if k == p.preset {
+                                    ui.label(egui::RichText::new(&preset.name).strong().background_color(egui::Color32::from_rgb(40, 70, 120)));
+                                } else {
+                                    ui.label(&preset.name);
+                                }
+                            }
+                            ui.weak("stick ↕ choose · X take its brush");
                         }
                         Page::Layers => match &s.layers {
                             // Top first, as the window lists them.
