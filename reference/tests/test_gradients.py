@@ -52,6 +52,22 @@ def _rays(canvas, eye, q, size, fov=0.35):
     return raycast.Ray(np.broadcast_to(e, (n, 3)).copy(), np.broadcast_to(f, (n, 3)).copy(), d)
 
 
+def _check_cells(cells, g_rgb, g_sigma, tree, loss_traced):
+    """Each cell's d loss / d sigma and d loss / d green against central
+    finite differences of loss_traced(rgb, sigma) (numpy pools)."""
+    rgb0, sigma0 = np.asarray(tree.rgb), np.asarray(tree.sigma)
+    h = H["value"]
+    for c in cells:
+        up, dn = sigma0.copy(), sigma0.copy()
+        up[c] += h
+        dn[c] -= h
+        _close(g_sigma[c], (loss_traced(rgb0, up) - loss_traced(rgb0, dn)) / (2 * h))
+        up, dn = rgb0.copy(), rgb0.copy()
+        up[c, 1] += h
+        dn[c, 1] -= h
+        _close(g_rgb[c, 1], (loss_traced(up, sigma0) - loss_traced(dn, sigma0)) / (2 * h))
+
+
 OUTSIDE = ((0.5, 0.45, 2.2), (0.0, 0.0, 0.0, 1.0))
 TARGET = 0.3
 
@@ -86,17 +102,7 @@ def test_gradient_of_cell_values(scene):
         return float(np.sum((s.colour - TARGET) ** 2))
 
     cells = np.argsort(-np.abs(g_sigma))[:4].tolist() + np.argsort(-np.abs(g_rgb[:, 1]))[:3].tolist()
-    rgb0, sigma0 = np.asarray(tree.rgb), np.asarray(tree.sigma)
-    for c in cells:
-        h = H["value"]
-        up, dn = sigma0.copy(), sigma0.copy()
-        up[c] += h
-        dn[c] -= h
-        _close(g_sigma[c], (loss_traced(rgb0, up) - loss_traced(rgb0, dn)) / (2 * h))
-        up, dn = rgb0.copy(), rgb0.copy()
-        up[c, 1] += h
-        dn[c, 1] -= h
-        _close(g_rgb[c, 1], (loss_traced(up, sigma0) - loss_traced(dn, sigma0)) / (2 * h))
+    _check_cells(cells, g_rgb, g_sigma, tree, loss_traced)
     assert np.abs(g_sigma[cells]).min() > 1e-6
 
 
@@ -222,15 +228,4 @@ def test_gradients_reach_the_leaves_under_a_cut_cell(scene):
     leaf = fc == 0xFFFF_FFFF  # the device tree pads its pools past the dump's cells
     hidden = np.nonzero(leaf & ~visited & (np.abs(g_sigma[: len(fc)]) > 1e-6))[0]
     assert len(hidden) > 0, "no gradient reaches a leaf under a cut cell"
-    cells = hidden[np.argsort(-np.abs(g_sigma[hidden]))[:3]].tolist()
-    rgb0, sigma0 = np.asarray(tree.rgb), np.asarray(tree.sigma)
-    h = H["value"]
-    for c in cells:
-        up, dn = sigma0.copy(), sigma0.copy()
-        up[c] += h
-        dn[c] -= h
-        _close(g_sigma[c], (loss_traced(rgb0, up) - loss_traced(rgb0, dn)) / (2 * h))
-        up, dn = rgb0.copy(), rgb0.copy()
-        up[c, 1] += h
-        dn[c, 1] -= h
-        _close(g_rgb[c, 1], (loss_traced(up, sigma0) - loss_traced(dn, sigma0)) / (2 * h))
+    _check_cells(hidden[np.argsort(-np.abs(g_sigma[hidden]))[:3]].tolist(), g_rgb, g_sigma, tree, loss_traced)

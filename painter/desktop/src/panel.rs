@@ -347,7 +347,7 @@ fn grip(ui: &mut egui::Ui) {
 mod tests {
     use super::*;
 
-    fn info(names: &[&str]) -> StatusInfo {
+    pub(super) fn info(names: &[&str]) -> StatusInfo {
         StatusInfo {
             fps: 0.0,
             resolution: 1.0,
@@ -490,7 +490,7 @@ mod preset_tests {
     #[test]
     fn save_and_delete_name_the_field_s_preset() {
         let ctx = egui::Context::default();
-        let s = StatusInfo { presets: vec!["fine liner".into(), "haze".into()], ..tests_info() };
+        let s = super::tests::info(&[]);
         let mut b = brush_ui();
         b.preset = "haze".into();
         let run = |b: &mut BrushUi, events: Vec<egui::Event>| {
@@ -522,24 +522,5 @@ mod preset_tests {
         b.preset = "new one".into();
         let (shapes, _) = run(&mut b, vec![]);
         assert!(text_at(&shapes, "choose…").is_some());
-    }
-
-    fn tests_info() -> StatusInfo {
-        StatusInfo {
-            fps: 0.0,
-            resolution: 1.0,
-            latency_ms: None,
-            busy: None,
-            cells: 8,
-            capacity: 1 << 20,
-            bytes: 0,
-            undo: 0,
-            redo: 0,
-            message: String::new(),
-            layered: false,
-            layers: Vec::new(),
-            selected: 0,
-            presets: Vec::new(),
-        }
     }
 }
