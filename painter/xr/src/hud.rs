@@ -166,7 +166,8 @@ pub fn prepare(
         let panel = egui::Area::new(egui::Id::unique("hud")).fixed_pos(egui::pos2(12.0, 12.0)).show(ui.ctx(), |ui| {
             egui::Frame::popup(ui.style()).show(ui, |ui| {
                 ui.horizontal(|ui| {
-                    let c = PALETTE[p.colour].map(|v| (v * 255.0) as u8);
+                    // The colour strokes paint with: a preset's, else the palette's.
+                    let c = p.preset_colour.unwrap_or(PALETTE[p.colour]).map(|v| (v * 255.0) as u8);
                     let (rect, _) = ui.allocate_exact_size(egui::vec2(18.0, 18.0), egui::Sense::hover());
                     ui.painter().rect_filled(rect, 3.0, egui::Color32::from_rgb(c[0], c[1], c[2]));
                     let (lit, grid) = p.lit_and_grid();
