@@ -116,9 +116,6 @@ pub fn from_json(text: &str) -> Result<Vec<Preset>, String> {
         if out.iter().any(|p| p.name == name) {
             return Err(at(format!("the name {name:?} is taken by an earlier brush")));
         }
-        if !o.is_object() {
-            return Err(at("not an object".into()));
-        }
         let brush = parse_brush(0, o).map_err(|e| at(format!("{name:?}: {}", e.text())))?;
         out.push(Preset { name: name.to_string(), brush });
     }
@@ -175,10 +172,6 @@ impl Presets {
             Some(Ok(list)) => Presets { list, path, blocked: None },
             Some(Err(e)) => Presets { list: starting_set(), path, blocked: Some(e) },
         }
-    }
-
-    pub fn path(&self) -> Option<&Path> {
-        self.path.as_deref()
     }
 
     /// Keep `brush` under `name`, replacing a preset of that name (in its
@@ -257,6 +250,7 @@ mod tests {
         let cases = [
             ("{", "not JSON"),
             ("[]", "not a presets file"),
+            ("{\"format\": \"octopaint-brushes\", \"version\": 1, \"brushes\": [3]}", "brush 1: no \"name\" string"),
             (&*ok.replace("\"version\": 1", "\"version\": 2"), "version 2"),
             (&*ok.replace("\"fine liner\"", "\"soft round\""), "taken by an earlier brush"),
             (&*ok.replace("\"fine liner\"", "\"\""), "is empty"),
