@@ -32,8 +32,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
-from .g3 import FREE, NONE
 from .jax_setup import require_x64
+from .prefilter import inner_units, pair_sum
 from .raycast import LEFT, OVERFLOW, T_MIN, Canvas, DeviceTree, Ray, cast, start_points
 
 
@@ -85,19 +85,18 @@ def prefiltered(first_child, depth, rgb, sigma):
     relaxation of the stored rule: no rounding to f32 or to bytes, as rgb
     is a float in [0, 1] here. first_child, depth: numpy (the topology)."""
     rgb, sigma = jnp.asarray(rgb), jnp.asarray(sigma)
-    first_child, depth = np.asarray(first_child), np.asarray(depth)
-    inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
+    depth = np.asarray(depth)
+    inner, units = inner_units(np.asarray(first_child), depth)
     if not len(inner):
         return rgb, sigma
-    for d in range(int(depth[inner].max()), -1, -1):
-        at = inner[depth[inner] == d]
+    d_inner = depth[inner]
+    for d in range(int(d_inner.max()), -1, -1):
+        at, kids = inner[d_inner == d], units[d_inner == d]
         if not len(at):
             continue
-        kids = first_child[at].astype(np.int64)[:, None] + np.arange(8)
         s = sigma[kids]
-        w = ((s[:, 0] + s[:, 1]) + (s[:, 2] + s[:, 3])) + ((s[:, 4] + s[:, 5]) + (s[:, 6] + s[:, 7]))
-        m = s[:, :, None] * rgb[kids]
-        num = ((m[:, 0] + m[:, 1]) + (m[:, 2] + m[:, 3])) + ((m[:, 4] + m[:, 5]) + (m[:, 6] + m[:, 7]))
+        w = pair_sum(s)
+        num = pair_sum(s[:, :, None] * rgb[kids])
         pos = w > 0
         mean = num / jnp.where(pos, w, 1.0)[:, None]
         rgb = rgb.at[at].set(jnp.where(pos[:, None], mean, rgb[kids[:, 0]]))

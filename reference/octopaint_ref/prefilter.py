@@ -18,8 +18,9 @@ import numpy as np
 from .g3 import FREE, NONE
 
 
-def _pair_sum(x: np.ndarray) -> np.ndarray:
-    """The sum over axis 1 (8 octants) in the spec's order: pairs, then pairs of pairs."""
+def pair_sum(x):
+    """The sum over axis 1 (8 octants) in the spec's order: pairs, then pairs
+    of pairs (numpy or JAX arrays)."""
     return ((x[:, 0] + x[:, 1]) + (x[:, 2] + x[:, 3])) + ((x[:, 4] + x[:, 5]) + (x[:, 6] + x[:, 7]))
 
 
@@ -27,17 +28,17 @@ def unit_value(rgb: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarr
     """The prefiltered (rgb u8 [m, 3], sigma f32 [m]) of m units of children
     (rgb u8 [m, 8, 3], sigma f32 [m, 8], in octant order)."""
     s = sigma.astype(np.float64)
-    w = _pair_sum(s)
+    w = pair_sum(s)
     out_sigma = (w * 0.125).astype(np.float32)  # round to nearest, ties to even
     out_rgb = rgb[:, 0, :].copy()
     pos = w > 0
     if pos.any():
-        num = _pair_sum(s[pos][:, :, None] * rgb[pos].astype(np.float64))
+        num = pair_sum(s[pos][:, :, None] * rgb[pos].astype(np.float64))
         out_rgb[pos] = np.clip(np.floor(num / w[pos, None] + 0.5), 0, 255).astype(np.uint8)
     return out_rgb, out_sigma
 
 
-def _inner(first_child: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def inner_units(first_child: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The live cells with children [m] and their children [m, 8]."""
     inner = np.nonzero((first_child != NONE) & (depth != FREE))[0]
     return inner, first_child[inner].astype(np.int64)[:, None] + np.arange(8)
@@ -48,7 +49,7 @@ def prefiltered(first_child: np.ndarray, depth: np.ndarray, rgb: np.ndarray, sig
     that has children given its prefiltered value, deepest cells first (a
     parent reads its children's values after they were computed)."""
     rgb, sigma = rgb.copy(), sigma.copy()
-    inner, kids = _inner(first_child, depth)
+    inner, kids = inner_units(first_child, depth)
     if not len(inner):
         return rgb, sigma
     d_inner = depth[inner]
@@ -62,7 +63,7 @@ def prefiltered(first_child: np.ndarray, depth: np.ndarray, rgb: np.ndarray, sig
 def stale_cells(first_child: np.ndarray, depth: np.ndarray, rgb: np.ndarray, sigma: np.ndarray) -> np.ndarray:
     """Mask [N] of the cells with children whose stored value is not the
     prefilter of their children's stored values (sigma by its bits)."""
-    inner, kids = _inner(first_child, depth)
+    inner, kids = inner_units(first_child, depth)
     bad = np.zeros(len(depth), bool)
     if len(inner):
         want_rgb, want_sigma = unit_value(rgb[kids], sigma[kids])
