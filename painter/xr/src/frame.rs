@@ -131,8 +131,7 @@ impl Drawer {
             depth,
             edge: self.lattice.size_canvas[depth as usize],
             axes,
-            layers: (st.version == 2)
-                .then(|| (st.layers.iter().map(|l| (l.name.clone(), l.visible, l.opacity, l.locked, l.cells, l.bytes)).collect(), st.selected)),
+            layers: (st.version == 2).then_some((st.layers.as_slice(), st.selected)),
         };
         let mut hud_free = Vec::new();
         let mut captures = Vec::new();

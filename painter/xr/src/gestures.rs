@@ -86,6 +86,18 @@ pub enum Page {
 
 pub const PAGES: [Page; 4] = [Page::Brush, Page::Layers, Page::Mirror, Page::Presets];
 
+impl Page {
+    /// The page's name on the palette.
+    pub fn name(self) -> &'static str {
+        match self {
+            Page::Brush => "brush",
+            Page::Layers => "layers",
+            Page::Mirror => "mirror",
+            Page::Presets => "presets",
+        }
+    }
+}
+
 /// The brush's radius in the room, metres: what the right stick allows.
 pub const ROOM_RADII: (f64, f64) = (0.001, 0.5);
 

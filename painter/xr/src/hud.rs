@@ -4,13 +4,10 @@
 //! palette drawn where each eye sees the left controller (so it sits at
 //! the controller's depth).
 
+use octopaint_pipeline::LayerRow;
 use octopaint_tree::trace::{Mode, Shape};
 
-use crate::gestures::{Gestures, PALETTE, Page};
-
-/// One layer as the HUD lists it: name, visible, opacity, locked, cells in
-/// use, pool bytes.
-pub type HudLayer = (String, bool, f32, bool, u32, usize);
+use crate::gestures::{Gestures, PAGES, PALETTE, Page};
 
 pub struct Status<'a> {
     /// The heavy-operation indicator, when the stroke thread has been busy
@@ -29,10 +26,9 @@ pub struct Status<'a> {
     /// The canvas axes x, y, z as the head sees them: direction on the
     /// panel (y down) and whether the axis points away.
     pub axes: [([f32; 2], bool); 3],
-    /// The document's layers bottom first (name, visible, opacity, locked,
-    /// cells in use, pool bytes) and the selected one; None for a one-tree
-    /// document.
-    pub layers: Option<(Vec<HudLayer>, usize)>,
+    /// The document's layers bottom first, as the stroke thread published
+    /// them, and the selected one; None for a one-tree document.
+    pub layers: Option<(&'a [LayerRow], usize)>,
 }
 
 /// Lay the panel out for a `size` eye image and upload its textures;
@@ -75,11 +71,11 @@ pub fn prepare(
                 egui::Frame::popup(ui.style()).show(ui, |ui| {
                     // The pages, the one shown strong (the left trigger turns them).
                     ui.horizontal(|ui| {
-                        for (page, name) in [(Page::Brush, "brush"), (Page::Layers, "layers"), (Page::Mirror, "mirror"), (Page::Presets, "presets")] {
+                        for page in PAGES {
                             if page == p.page {
-                                ui.strong(name);
+                                ui.strong(page.name());
                             } else {
-                                ui.weak(name);
+                                ui.weak(page.name());
                             }
                         }
                     });
@@ -131,12 +127,12 @@ pub fn prepare(
                         Page::Layers => match &s.layers {
                             // Top first, as the window lists them.
                             Some((rows, selected)) => {
-                                for (k, (name, visible, opacity, locked, cells, bytes)) in rows.iter().enumerate().rev() {
-                                    let mut text = format!("{} {name}", if *visible { "●" } else { "○" });
-                                    if *opacity < 1.0 {
-                                        text += &format!(" {:.0}%", opacity * 100.0);
+                                for (k, l) in rows.iter().enumerate().rev() {
+                                    let mut text = format!("{} {}", if l.visible { "●" } else { "○" }, l.name);
+                                    if l.opacity < 1.0 {
+                                        text += &format!(" {:.0}%", l.opacity * 100.0);
                                     }
-                                    if *locked {
+                                    if l.locked {
                                         text += " (locked)";
                                     }
                                     if k == *selected {
@@ -144,7 +140,7 @@ pub fn prepare(
                                     } else {
                                         ui.label(text);
                                     }
-                                    ui.weak(egui::RichText::new(octopaint_ui::layer_figures(*cells, *bytes, s.capacity)).small());
+                                    ui.weak(egui::RichText::new(octopaint_ui::layer_figures(l.cells, l.bytes, s.capacity)).small());
                                 }
                                 ui.weak("stick ↕ select · ↔ opacity · X show · Y new");
                             }
@@ -181,7 +177,7 @@ pub fn prepare(
                 });
                 if let Some((rows, selected)) = &s.layers {
                     // The status line's layer, as in the window.
-                    ui.label(format!("layer {} of {}: {}", selected + 1, rows.len(), rows[*selected].0));
+                    ui.label(format!("layer {} of {}: {}", selected + 1, rows.len(), rows[*selected].name));
                 }
                 if p.mirror.axes.iter().any(|&a| a) {
                     let a = p.mirror.axes;
