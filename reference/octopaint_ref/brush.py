@@ -176,16 +176,21 @@ def capsule_coverage(xp, x, p0, p1, r0, r1, f0, f1, hardness, open_start=None):
     return cov
 
 
+def capsule_slacks(xp, p0, p1, r0, r1):
+    """capsule_slack of k capsules at once [k] (p0, p1 [k, 3]; r0, r1 [k])."""
+    d = p1 - p0
+    dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
+    long = dd >= TINY
+    return xp.where(long, 1.0 + xp.abs(r1 - r0) / xp.sqrt(xp.where(long, dd, 1.0)), 1.0)
+
+
 def capsule_coverage_bounds(xp, x, h, p0, p1, r0, r1, f0, f1, hardness):
     """Bounds [lo, hi] of coverage * flow [n, k] of k tapered capsules over
     the balls of radius h [n] about x [n, 3] (spec 8.7, settled leaves):
     within a ball dist moves at most h and r(u) at most h * (K - 1), the
     profile falls as dist / r grows, and the flow lies between f0 and f1."""
     dist, _, r = capsule_geometry(xp, x, p0, p1, r0, r1)
-    d = p1 - p0
-    dd = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]
-    long = dd >= TINY
-    slack = xp.where(long, 1.0 + xp.abs(r1 - r0) / xp.sqrt(xp.where(long, dd, 1.0)), 1.0)
+    slack = capsule_slacks(xp, p0, p1, r0, r1)
     hk = h[:, None]
     hr = hk * (slack[None, :] - 1.0)
     rho_lo = xp.maximum(dist - hk, 0.0) / (r + hr)

@@ -322,8 +322,7 @@ class Painting:
         x = tree.centres(cells)
         h = float(tree.reach_radius[tree.depth[cells]].max())
         arr = hist.arrays
-        slack = np.array([B.capsule_slack(arr["p0"][k], arr["p1"][k], arr["r0"][k], arr["r1"][k]) for k in range(len(hist))])
-        grow = (2.0 * h * slack)[:, None]
+        grow = (2.0 * h * B.capsule_slacks(np, arr["p0"], arr["p1"], arr["r0"], arr["r1"]))[:, None]
         near = np.nonzero(np.all(hist.hi + grow >= x.min(axis=0), axis=1) & np.all(hist.lo - grow <= x.max(axis=0), axis=1))[0]
         if len(near):
             leaf = tree.first_child[cells] == NONE
