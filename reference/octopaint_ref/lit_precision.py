@@ -27,6 +27,7 @@ import numpy as np
 
 from .dump import tree_arrays
 from .jax_setup import configure
+from .lod import check_k
 from .lod_study import scaled
 from .precision import psnr
 from .raycast import device_tree, render
@@ -103,9 +104,10 @@ def add_arguments(ap: argparse.ArgumentParser) -> None:
 
 
 def command(a) -> int:
-    lods = tuple(float(v) for v in a.lod.split(","))
-    if not all(np.isfinite(k) and k >= 0.0 for k in lods):
-        raise SystemExit(f"--lod: every k must be finite and at least 0, got {a.lod}")
+    try:
+        lods = tuple(check_k(v) for v in a.lod.split(","))
+    except ValueError as e:
+        raise SystemExit(f"--lod: {e}") from None
     divs = tuple(int(v) for v in a.scale.split(","))
     if not all(d >= 1 for d in divs):
         raise SystemExit(f"--scale: every divisor must be at least 1, got {a.scale}")
