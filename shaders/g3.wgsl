@@ -1,9 +1,13 @@
-// The g3 pass (docs/spec.md 3.3-3.5): recompute g3 for every cell of the
-// regions the neighbour mask marks, from parent, first_child and depth
-// alone. A document's layer lives in its own range of the pages (spec 6.2):
+// The g3 pass (docs/spec.md 3.3-3.5, 6.1): recompute g3 and the stored
+// shading vector of every cell of the regions the neighbour mask marks. g3
+// comes from parent, first_child and depth alone; the vector from the
+// cell's new g3 row and the pools (sigma included), so one invocation
+// computes both. Rows are four words: g3 x, y, z and the vector's word
+// (docs/buffer-layouts.md). A document's layer lives in its own range of the pages (spec 6.2):
 // its cells are read and its g3 written at `base` plus the tree's own
 // index, and g3 holds the tree's own indices (one tree: base 0). CPU port: painter/octree/src/g3.rs (g3_cell, g3_row), kept line for
-// line; reference: reference/octopaint_ref/g3.py. Host side:
+// line, and painter/octree/src/normals.rs (normal_word); reference:
+// reference/octopaint_ref/g3.py and shading.py (vectors). Host side:
 // painter/gpu/src/g3.rs. Prepended with shared/pools.wgsl.
 
 struct G3Params {
@@ -24,10 +28,10 @@ struct G3Params {
     layer_cells: u32,
 }
 
-@group(1) @binding(0) var<storage, read_write> g3_0: array<u32>;
-@group(1) @binding(1) var<storage, read_write> g3_1: array<u32>;
-@group(1) @binding(2) var<storage, read_write> g3_2: array<u32>;
-@group(1) @binding(3) var<storage, read_write> g3_3: array<u32>;
+@group(1) @binding(0) var<storage, read_write> g3_0: array<Row>;
+@group(1) @binding(1) var<storage, read_write> g3_1: array<Row>;
+@group(1) @binding(2) var<storage, read_write> g3_2: array<Row>;
+@group(1) @binding(3) var<storage, read_write> g3_3: array<Row>;
 
 @group(2) @binding(0) var<uniform> params: G3Params;
 // The dirty regions (indices < 2048), compacted from the mask on the host.
@@ -41,14 +45,15 @@ fn layer_cell(i: u32) -> Cell {
     return cell_at(params.base + i);
 }
 
-fn store_g3(i: u32, a: u32, v: u32) {
+// Cell i's row (the layer's own index).
+fn store_row(i: u32, row: Row) {
     let c = params.base + i;
-    let j = (c & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
+    let j = c & ((1u << PAGE_SHIFT) - 1u);
     switch (c >> PAGE_SHIFT) {
-        case 0u: { g3_0[j] = v; }
-        case 1u: { g3_1[j] = v; }
-        case 2u: { g3_2[j] = v; }
-        default: { g3_3[j] = v; }
+        case 0u: { g3_0[j] = row; }
+        case 1u: { g3_1[j] = row; }
+        case 2u: { g3_2[j] = row; }
+        default: { g3_3[j] = row; }
     }
 }
 
@@ -106,6 +111,84 @@ fn g3_cell(c: u32, a: u32) -> u32 {
     return y;
 }
 
+// Spec 6.1: the relative gradient below which a cell is unlit, and above
+// which it is fully lit; the word of the zero vector.
+const R_UNLIT: f32 = 0.004;
+const R_LIT: f32 = 0.02;
+const ZERO_WORD: u32 = 537395712u; // 512 | 512 << 10 | 512 << 20
+
+// The cell across c's face on side `side` of axis a: root array arithmetic
+// for a root, the sibling across an inward face, g3 (c's row) across an
+// outward one; NONE outside the canvas.
+fn across(c: u32, row: vec3<u32>, a: u32, side: i32) -> u32 {
+    let rx = params.roots.x;
+    let ry = params.roots.y;
+    if (c < rx * ry * params.roots.z) {
+        var r = vec3<i32>(vec3<u32>(c % rx, (c / rx) % ry, c / (rx * ry)));
+        r[a] = r[a] + side;
+        if (r[a] < 0 || u32(r[a]) >= params.roots[a]) {
+            return NONE;
+        }
+        return u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+    }
+    if ((((c >> a) & 1u) == 1u) == (side > 0)) {
+        return row[a];
+    }
+    return c ^ (1u << a);
+}
+
+// What c (of depth `depth`) sees across a face (spec 6.1): x the sigma
+// there, y the distance between centres in edges of c.
+fn face(c: u32, depth: u32, row: vec3<u32>, a: u32, side: i32) -> vec2<f32> {
+    let nb = across(c, row, a, side);
+    if (nb == NONE) {
+        return vec2<f32>(0.0, 1.0);
+    }
+    let n = layer_cell(nb);
+    let dn = depth_of(n);
+    if (dn == depth) {
+        if (n.first_child == NONE) {
+            return vec2<f32>(n.sigma, 1.0);
+        }
+        // The children whose bit a is on the face, by increasing index.
+        let want = select(1u, 0u, side > 0);
+        var kid = vec4<f32>(0.0);
+        for (var j = 0u; j < 4u; j = j + 1u) {
+            let lo = j & ((1u << a) - 1u);
+            let k = ((j >> a) << (a + 1u)) | (want << a) | lo;
+            kid[j] = layer_cell(n.first_child + k).sigma;
+        }
+        return vec2<f32>(((kid.x + kid.y) + (kid.z + kid.w)) * 0.25, 0.75);
+    }
+    if (dn + 1u == depth) {
+        return vec2<f32>(n.sigma, 1.5);
+    }
+    return vec2<f32>(0.0, 1.0);
+}
+
+// One component quantised: floor(v 511 + 0.5) clamped to +-511, plus 512.
+fn quantise(v: f32) -> u32 {
+    return u32(clamp(floor(v * 511.0 + 0.5), -511.0, 511.0) + 512.0);
+}
+
+// The stored word of live cell c (spec 6.1): w n, quantised.
+fn normal_word(c: u32, depth: u32, sigma: f32, row: vec3<u32>) -> u32 {
+    var delta = vec3<f32>(0.0);
+    var top = sigma;
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        let hi = face(c, depth, row, a, 1);
+        let lo = face(c, depth, row, a, -1);
+        delta[a] = (hi.x - lo.x) / (hi.y + lo.y);
+        top = max(top, max(hi.x, lo.x));
+    }
+    let g = sqrt(delta.x * delta.x + delta.y * delta.y + delta.z * delta.z);
+    let r = select(0.0, g / top, top > 0.0);
+    let w = clamp((r - R_UNLIT) / (R_LIT - R_UNLIT), 0.0, 1.0);
+    // n = -delta / g points out of the paint; v = w n.
+    let scale = select(0.0, -w / g, g > 0.0);
+    return quantise(delta.x * scale) | (quantise(delta.y * scale) << 10u) | (quantise(delta.z * scale) << 20u);
+}
+
 @compute @workgroup_size(64)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     cells_held = params.n_cells;
@@ -123,14 +206,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
     if (c >= params.layer_cells || params.base + c >= params.n_cells) {
         return;
     }
-    let d = depth_of(layer_cell(c));
-    if (d == 0u || d == FREE) {
-        store_g3(c, 0u, NONE);
-        store_g3(c, 1u, NONE);
-        store_g3(c, 2u, NONE);
+    let cell = layer_cell(c);
+    let d = depth_of(cell);
+    if (d == FREE) {
+        store_row(c, Row(vec3<u32>(NONE), ZERO_WORD));
         return;
     }
-    store_g3(c, 0u, g3_cell(c, 0u));
-    store_g3(c, 1u, g3_cell(c, 1u));
-    store_g3(c, 2u, g3_cell(c, 2u));
+    var row = vec3<u32>(NONE);
+    if (d != 0u) {
+        row = vec3<u32>(g3_cell(c, 0u), g3_cell(c, 1u), g3_cell(c, 2u));
+    }
+    store_row(c, Row(row, normal_word(c, d, cell.sigma, row)));
 }

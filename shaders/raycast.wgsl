@@ -74,10 +74,10 @@ struct RayParams {
     lod: vec4<f32>,
 }
 
-@group(1) @binding(0) var<storage, read> g3_0: array<u32>;
-@group(1) @binding(1) var<storage, read> g3_1: array<u32>;
-@group(1) @binding(2) var<storage, read> g3_2: array<u32>;
-@group(1) @binding(3) var<storage, read> g3_3: array<u32>;
+@group(1) @binding(0) var<storage, read> g3_0: array<Row>;
+@group(1) @binding(1) var<storage, read> g3_1: array<Row>;
+@group(1) @binding(2) var<storage, read> g3_2: array<Row>;
+@group(1) @binding(3) var<storage, read> g3_3: array<Row>;
 
 @group(2) @binding(0) var<uniform> params: RayParams;
 // One pixel per u32: r | g << 8 | b << 16 | 255 << 24, row 0 at the top.
@@ -115,18 +115,27 @@ fn tcell(c: u32) -> Cell {
     return cell_at(layer_base + c);
 }
 
-fn g3_at(c: u32, a: u32) -> u32 {
+// The word of the zero vector (spec 6.1): 512 | 512 << 10 | 512 << 20.
+const ZERO_WORD: u32 = 537395712u;
+
+// Cell c's row (g3 and the shading vector's word); past the pages, a free
+// cell's.
+fn row_at(c: u32) -> Row {
     if (c >= cells_held - min(layer_base, cells_held)) {
-        return NONE;
+        return Row(vec3<u32>(NONE), ZERO_WORD);
     }
     let i = layer_base + c;
-    let j = (i & ((1u << PAGE_SHIFT) - 1u)) * 3u + a;
+    let j = i & ((1u << PAGE_SHIFT) - 1u);
     switch (i >> PAGE_SHIFT) {
         case 0u: { return g3_0[j]; }
         case 1u: { return g3_1[j]; }
         case 2u: { return g3_2[j]; }
         default: { return g3_3[j]; }
     }
+}
+
+fn g3_at(c: u32, a: u32) -> u32 {
+    return row_at(c).g3[a];
 }
 
 // Links agree: a root, or a child whose parent's first_child is its unit
@@ -190,73 +199,66 @@ fn inv_edge(depth: u32) -> f32 {
     return ldexp(1.0, -i32(params.roots.w - depth));
 }
 
-// What a cell sees across its face on side `side` (+1/-1) of axis `a`
-// (spec 6.1): x the sigma there, y the distance between centres in edges
-// of the cell. A same-depth leaf: its sigma at 1; a same-depth cell with
-// children: the mean of its four children on the face at 3/4; a coarser
-// leaf: its sigma at 3/2; nothing (outside the canvas, another depth): an
-// empty cell at 1. Kept line for line with painter/tree/src/raycast/
-// `face` and reference/octopaint_ref/raycast.py `_face`.
-fn face(cell: u32, depth: u32, origin: vec3<u32>, a: u32, side: i32) -> vec2<f32> {
-    var nb = NONE;
-    if (cell < params.misc.z) {
-        var r = vec3<i32>(origin >> vec3<u32>(params.roots.w));
-        r[a] = r[a] + side;
-        if (all(r >= vec3<i32>(0)) && all(vec3<u32>(r) < params.roots.xyz)) {
-            nb = u32(r.x) + params.roots.x * (u32(r.y) + params.roots.y * u32(r.z));
-        }
-    } else if ((((cell >> a) & 1u) == 1u) == (side > 0)) {
-        nb = g3_at(cell, a);
-    } else {
-        nb = cell ^ (1u << a);
-    }
-    if (nb == NONE) {
-        return vec2<f32>(0.0, 1.0);
-    }
-    let n = tcell(nb);
-    let dn = depth_of(n);
-    if (dn == depth) {
-        if (n.first_child == NONE) {
-            return vec2<f32>(n.sigma, 1.0);
-        }
-        // The children whose bit a is on the face, by increasing index.
-        let want = select(1u, 0u, side > 0);
-        var kid = vec4<f32>(0.0);
-        for (var j = 0u; j < 4u; j = j + 1u) {
-            let lo = j & ((1u << a) - 1u);
-            let k = ((j >> a) << (a + 1u)) | (want << a) | lo;
-            kid[j] = tcell(n.first_child + k).sigma;
-        }
-        return vec2<f32>(((kid.x + kid.y) + (kid.z + kid.w)) * 0.25, 0.75);
-    }
-    if (dn + 1u == depth) {
-        return vec2<f32>(n.sigma, 1.5);
-    }
-    return vec2<f32>(0.0, 1.0);
+// A stored shading vector's word decoded (spec 6.1).
+fn decode(word: u32) -> vec3<f32> {
+    let q = vec3<u32>(word & 1023u, (word >> 10u) & 1023u, (word >> 20u) & 1023u);
+    return (vec3<f32>(q) - 512.0) / 511.0;
 }
 
-// Spec 6.1: the relative gradient below which a cell is unlit, and above
-// which it is fully lit.
-const R_UNLIT: f32 = 0.004;
-const R_LIT: f32 = 0.02;
-
 // The factors of a lit cell's emitted colour (spec 6.1): x the part that
-// needs no light, y the direct part (before the shadow ray).
-fn shade(cell: u32, depth: u32, origin: vec3<u32>, sigma: f32) -> vec2<f32> {
-    var delta = vec3<f32>(0.0);
-    var top = sigma;
-    for (var a = 0u; a < 3u; a = a + 1u) {
-        let hi = face(cell, depth, origin, a, 1);
-        let lo = face(cell, depth, origin, a, -1);
-        delta[a] = (hi.x - lo.x) / (hi.y + lo.y);
-        top = max(top, max(hi.x, lo.x));
+// needs no light, y the direct part (before the shadow ray), from the
+// stored vectors interpolated at mu, the segment's midpoint in the cell's
+// frame. A cell whose own vector is zero is unlit, without reading its
+// neighbours. Across an inward face (the sibling) and from a root (root
+// array arithmetic) the neighbour has the cell's depth; across an outward
+// face g3 gives one of the same depth or coarser. Kept line for line with
+// painter/tree/src/raycast/ `shade` and reference/octopaint_ref/shading.py
+// `factors`.
+fn shade(cell: u32, depth: u32, mu: vec3<f32>) -> vec2<f32> {
+    let row = row_at(cell);
+    if (row.shade == ZERO_WORD) {
+        return vec2<f32>(1.0, 0.0);
     }
-    let g = sqrt(delta.x * delta.x + delta.y * delta.y + delta.z * delta.z);
-    let r = select(0.0, g / top, top > 0.0);
-    let w = clamp((r - R_UNLIT) / (R_LIT - R_UNLIT), 0.0, 1.0);
+    let own = decode(row.shade);
+    var v = own;
+    let rx = params.roots.x;
+    let ry = params.roots.y;
+    for (var a = 0u; a < 3u; a = a + 1u) {
+        if (mu[a] == 0.0) {
+            continue;
+        }
+        let up = mu[a] > 0.0;
+        var nb = NONE;
+        var h = 1.0;
+        if (cell < params.misc.z) {
+            var r = vec3<i32>(vec3<u32>(cell % rx, (cell / rx) % ry, cell / (rx * ry)));
+            r[a] = r[a] + select(-1, 1, up);
+            if (r[a] >= 0 && u32(r[a]) < params.roots[a]) {
+                nb = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+            }
+        } else if ((((cell >> a) & 1u) == 1u) == up) {
+            nb = row.g3[a];
+            if (nb != NONE) {
+                let dn = depth_of(tcell(nb));
+                if (dn + 1u == depth) {
+                    h = 1.5;
+                } else if (dn != depth) {
+                    nb = NONE;
+                }
+            }
+        } else {
+            nb = cell ^ (1u << a);
+        }
+        if (nb == NONE) {
+            continue;
+        }
+        let om = abs(mu[a]) / h;
+        v = v + om * (decode(row_at(nb).shade) - own);
+    }
+    let nu = sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
     let l = params.light.xyz;
-    let n_dot_l = -(delta.x * l.x + delta.y * l.y + delta.z * l.z) / select(1.0, g, g > 0.0);
-    return vec2<f32>((1.0 - w) + w * params.shade.x, w * (params.light.w * max(n_dot_l, 0.0)));
+    let v_dot_l = v.x * l.x + v.y * l.y + v.z * l.z;
+    return vec2<f32>(1.0 - min(nu, 1.0) * (1.0 - params.shade.x), params.light.w * max(v_dot_l, 0.0) / max(nu, 1.0));
 }
 
 // One walk through the cells: a pixel's ray, or a shadow ray.
@@ -530,7 +532,8 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
                 } else {
                     let emitted = w.trans * (1.0 - ext) * rgb;
                     if (here.sigma > 0.0) {
-                        let f = shade(cell, depth, origin, here.sigma);
+                        let mu = vec3<f32>(clamp(p + (t * real(0.5)) * d, vec3<real>(real(-0.5)), vec3<real>(real(0.5))));
+                        let f = shade(cell, depth, mu);
                         w.colour = w.colour + emitted * f.x;
                         w.direct = w.direct + emitted * f.y;
                     }
@@ -822,7 +825,10 @@ fn march(cur0: array<Cur, 16>, d: vec3<real>, shadow: bool) -> March {
                 if (LIT == 0u) {
                     out.colour = out.colour + w * share * rgb;
                 } else {
-                    let f = shade(c.cell, c.depth, c.origin, here.sigma);
+                    // Shaded at the interval's midpoint in the cursor's frame.
+                    let t_mid = real(u * ldexp(1.0, i32(c.depth)) * 0.5);
+                    let mu = vec3<f32>(clamp(c.p + t_mid * d, vec3<real>(real(-0.5)), vec3<real>(real(0.5))));
+                    let f = shade(c.cell, c.depth, mu);
                     out.colour = out.colour + w * share * f.x * rgb;
                     out.direct = out.direct + w * share * f.y * rgb;
                 }

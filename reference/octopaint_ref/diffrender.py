@@ -35,6 +35,7 @@ from jax import lax
 from .jax_setup import require_x64
 from .prefilter import inner_units, pair_sum
 from .raycast import LEFT, OVERFLOW, T_MIN, Canvas, DeviceTree, Ray, cast, start_points
+from .shading import factors
 
 
 class Paths(NamedTuple):
@@ -113,13 +114,13 @@ def start_from_eye(paths: Paths, eye_canvas, canvas: Canvas):
     return rel / size - 0.5
 
 
-def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, shade=None):
+def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, lighting=None):
     """Colours [R, 3] (background added, not rounded) of the recorded paths
     with cell values rgb f64 [N, 3] (in [0, 1]) and sigma f64 [N], start
-    positions p0 [R, 3] and unit directions dirs [R, 3]. shade f64 [N]:
-    lit without shadows (spec 6.1), each cell's a0 + a1 from
-    shading.shading (computed from the same sigma to differentiate through
-    the normals); None: unlit."""
+    positions p0 [R, 3] and unit directions dirs [R, 3]. lighting: lit
+    without shadows (spec 6.1), a shading.Lighting (computed from the same
+    sigma to differentiate through the normals), each segment shaded a0 + a1
+    at its midpoint; None: unlit."""
     lu = canvas.root_size * 2.0**-canvas.max_depth
     K = paths.cell.shape[1]
     steps = jnp.asarray(paths.steps)
@@ -139,7 +140,12 @@ def composite(rgb, sigma, paths: Paths, p0, dirs, canvas: Canvas, background, sh
         length = t * jnp.exp2((canvas.max_depth - depth).astype(jnp.float64)) * lu
         e = jnp.exp(-sigma[cell] * length)
         live = (k < steps) & jnp.asarray(paths.visible)[:, k] & (trans >= T_MIN)
-        emitted = rgb[cell] if shade is None else rgb[cell] * shade[cell][:, None]
+        if lighting is None:
+            emitted = rgb[cell]
+        else:
+            mu = jnp.clip(p + (t * 0.5)[:, None] * d, -0.5, 0.5)
+            a0, a1 = factors(lighting, cell, mu)
+            emitted = rgb[cell] * (a0 + a1)[:, None]
         colour = colour + jnp.where(live, trans * (1.0 - e), 0.0)[:, None] * emitted
         trans = jnp.where(live, trans * e, trans)
         p_exit = jnp.where(on_axis, bound[:, None], p + t[:, None] * d)

@@ -38,7 +38,7 @@ from .raycast import (
     camera_rays,
     to_pixels,
 )
-from .shading import shading
+from .shading import factors_of, mix, shading, sides
 
 
 # A document of several layers (spec 6.2): one cursor per contributing
@@ -102,8 +102,15 @@ def _march_step(trees: DeviceTree, walk: DeviceTree, setup: Setup, m: Arith, d, 
         share = jnp.where(sig > 0, sig_k / jnp.where(sig > 0, sig, 1.0), 0.0)  # [L]
         rgb = trees.rgb[rows, cells]  # [L, 3]
         if setup.lit:
-            a0 = lighting.a0[rows, cells]
-            a1 = lighting.a1[rows, cells]
+            # Each cursor's leaf shaded at the interval's midpoint in its
+            # own frame (spec 6.1, 6.2).
+            mu = jnp.clip(m.add(s.cur.p, m.mul(m.rnd(u / inv * 0.5)[:, None], d[None, :])), -0.5, 0.5)
+            f = sides(mu)
+            nb = jnp.take_along_axis(lighting.nb[rows, cells], f, axis=-1)
+            inv_h = jnp.take_along_axis(lighting.inv_h[rows, cells], f, axis=-1)
+            a0, a1 = factors_of(lighting, mix(lighting.v[rows, cells], lighting.v[rows[:, None], nb], inv_h, mu))
+            z = lighting.zero[rows, cells]
+            a0, a1 = jnp.where(z, 1.0, a0), jnp.where(z, 0.0, a1)
             colour = colour + w * jnp.sum((share * a0)[:, None] * rgb, axis=0)
             direct = direct + w * jnp.sum((share * a1)[:, None] * rgb, axis=0)
             cross = ~s.found & (s.trans >= 0.5) & (trans < 0.5)
@@ -194,7 +201,7 @@ def render_layers(layers: list, camera, precision="f64", max_steps=MAX_STEPS, ti
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = jax.vmap(lambda t: shading(t, canvas, light))(trees) if lit else None
     if lighting is not None:
-        lighting = lighting._replace(to_light=lighting.to_light[0])
+        lighting = lighting._replace(to_light=lighting.to_light[0], intensity=lighting.intensity[0], ambient=lighting.ambient[0])
     cut = camera_cut(camera, lod)
     setup = Setup(canvas, format_of(precision), "local", int(max_steps), 0, lit, cut is not None)
     cut = (jnp.float64(cut[0]), jnp.asarray(cut[1])) if cut is not None else None

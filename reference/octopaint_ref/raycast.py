@@ -35,7 +35,7 @@ from .arith import Arith, Format, format_of
 from .camera import pixel_directions, split_eye
 from .device import NONE, Canvas, DeviceTree, _bucket, device_tree
 from .lod import Cut, lam_of, small, view_axis
-from .shading import shading
+from .shading import factors, shading
 
 # Why a ray stopped.
 RUNNING, LEFT, OPAQUE, LOST, OVERFLOW = 0, 1, 2, 3, 4
@@ -248,9 +248,13 @@ def _step(tree: DeviceTree, setup: Setup, m: Arith, d, s: State, lighting=None, 
     if shadow:
         colour = s.colour
     elif setup.lit:
+        # Shaded at the segment's midpoint, in the cell's local frame (spec 6.1).
+        mid = m.add(s.p, m.mul(m.rnd(t * 0.5), d))
+        mu = jnp.clip(mid, -0.5, 0.5) if local else (mid - (lo + hi) * 0.5) / (hi - lo)
+        a0, a1 = factors(lighting, s.cell, mu)
         emitted = w * tree.rgb[s.cell]
-        colour = s.colour + emitted * lighting.a0[s.cell]
-        direct = s.direct + emitted * lighting.a1[s.cell]
+        colour = s.colour + emitted * a0
+        direct = s.direct + emitted * a1
         # The shadow ray starts where T = 1/2: ln(2 T_before) / sigma canvas
         # units into this cell, at most its exit distance.
         cross = s.visible & ~s.found & (s.trans >= 0.5) & (trans < 0.5)
@@ -522,14 +526,18 @@ def camera_rays(camera, canvas: Canvas) -> Ray:
 
 
 def cast(
-    tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS, light=None, lod=None
+    tree: DeviceTree, canvas: Canvas, rays: Ray, precision="f64", frame="local", background=(0.0, 0.0, 0.0), max_steps=MAX_STEPS, record=0, tile=TILE_RAYS, light=None, lod=None, flat=False
 ):
     """Trace numpy rays in tiles of `tile` (the last one padded with rays
     that miss). Returns (State, Record or None) as numpy arrays [R, ...].
     light: a trace.Light (spec 6.1); None or off: unlit. lod: (lam, f) of a
-    level of detail's cut (lod.py; camera_cut), None or lam 0: full depth."""
+    level of detail's cut (lod.py; camera_cut), None or lam 0: full depth.
+    flat: every lit leaf shaded by its own stored vector alone, not
+    interpolated across it (not the spec: a comparison for facets.py)."""
     lit = 0 if light is None or not light.on else (2 if light.shadows else 1)
     lighting = shading(tree, canvas, light) if lit else None
+    if flat and lighting is not None:
+        lighting = lighting._replace(inv_h=jnp.zeros_like(lighting.inv_h))
     on = lod is not None and float(lod[0]) > 0.0
     if on and frame != "local":
         raise ValueError("a level of detail walks the local frame")
@@ -573,13 +581,14 @@ def camera_cut(camera, k: float):
     return (lam, view_axis(camera)) if lam > 0 else None
 
 
-def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None, lod=0.0) -> Rendered:
+def render(arrays: dict, camera, precision="f64", frame="local", max_steps=MAX_STEPS, tile=TILE_RAYS, device=None, light=None, lod=0.0, flat=False) -> Rendered:
     """The image of the tree `arrays` (dump arrays) seen by `camera`, lit
     by `light` (a trace.Light; None or off: unlit, spec 6), at level of
-    detail `lod` (k of spec 7; 0: every ray walks to the leaves)."""
+    detail `lod` (k of spec 7; 0: every ray walks to the leaves). flat: as
+    for cast."""
     tree, canvas = device if device is not None else device_tree(arrays)
     rays = camera_rays(camera, canvas)
-    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile, light, camera_cut(camera, lod))
+    s, _ = cast(tree, canvas, rays, precision, frame, camera.background, max_steps, 0, tile, light, camera_cut(camera, lod), flat)
     w, h = camera.size
     colour = s.colour.reshape(h, w, 3)
     return Rendered(to_pixels(colour), colour, s.steps.reshape(h, w), s.status.reshape(h, w), int(s.skipped.sum()))

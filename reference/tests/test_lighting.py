@@ -22,6 +22,14 @@ def _device(t: Tree):
     return raycast.device_tree(tree_arrays(t))
 
 
+class _Centre:
+    """Every cell's factors at its centre from its exact (unquantised)
+    vector: the formulas of spec 6.1 "Gradient, weight, normal"."""
+
+    def __init__(self, tree, canvas, light):
+        self.a0, self.a1 = shading.centre_factors(shading.shading(tree, canvas, light, exact=True))
+
+
 def test_faces_across_depth_changes():
     """Roots (2, 1, 1), root 0 refined: root 1 sees root 0's four children
     on the shared face at 3/4; a child on that face sees root 1 (coarser)
@@ -57,8 +65,8 @@ def _cube(sigma=1.0):
 
 def test_even_paint_is_unlit_and_a_surface_faces_out():
     tree, canvas = _cube()
-    towards = shading.shading(tree, canvas, Light(dir=(1.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
-    away = shading.shading(tree, canvas, Light(dir=(-2.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
+    towards = _Centre(tree, canvas, Light(dir=(1.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
+    away = _Centre(tree, canvas, Light(dir=(-2.0, 0.0, 0.0), intensity=0.8, ambient=0.3))
     centre, side = 13, 2 + 3 * (1 + 3 * 1)
     assert float(towards.a0[centre]) == 1.0 and float(towards.a1[centre]) == 0.0
     # The +x side: delta_x = (0 - 1)/2, the normal +x: fully lit (r = 1/2).
@@ -74,7 +82,7 @@ def test_the_weight_ramps_with_the_relative_gradient():
         t = Tree((3, 1, 1), 2, 1.0, 4096)
         t.sigma[:3] = (1.0 - step, 1.0, 1.0 + step)
         tree, canvas = _device(t)
-        f = shading.shading(tree, canvas, Light(dir=(0.0, 1.0, 0.0), intensity=1.0, ambient=0.0))
+        f = _Centre(tree, canvas, Light(dir=(0.0, 1.0, 0.0), intensity=1.0, ambient=0.0))
         # cell 1: delta_x = 2 step / 2, m = 1 + step
         r = step / (1.0 + step)
         w = min(max((r - shading.R_UNLIT) / (shading.R_LIT - shading.R_UNLIT), 0.0), 1.0)
@@ -142,7 +150,7 @@ def test_lit_pixels_are_differentiable_in_sigma_and_the_light():
 
     def colours(sigma, intensity):
         f = shading.shading(tree._replace(sigma=sigma), canvas, Light(dir=light.dir, intensity=intensity, ambient=light.ambient))
-        return diffrender.composite(tree.rgb, sigma, paths, jnp.asarray(paths.p0), rays.dir_canvas, canvas, jnp.zeros(3), f.a0 + f.a1)
+        return diffrender.composite(tree.rgb, sigma, paths, jnp.asarray(paths.p0), rays.dir_canvas, canvas, jnp.zeros(3), f)
 
     assert np.allclose(np.asarray(colours(tree.sigma, 0.8)), s.colour, atol=1e-12)
     g_sigma, g_int = jax.grad(lambda a, b: colours(a, b).sum(), argnums=(0, 1))(tree.sigma, 0.8)
@@ -151,3 +159,52 @@ def test_lit_pixels_are_differentiable_in_sigma_and_the_light():
     # Through the normals: sigma of cells the rays never composite (the
     # back row) still moves the lit front through the gradient.
     assert np.abs(np.asarray(g_sigma)[18:27]).max() > 0
+
+
+def test_stored_vectors_are_quantised_to_511ths_and_packed_in_one_word():
+    """Spec 6.1: floor(v 511 + 1/2) clamped to +-511, offset by 512, ten
+    bits a component; decoding gives the quantised vector back."""
+    v = np.array([[0.0, 0.0, 0.0], [0.5, -0.5, 1.0], [-1.0, 2.0, 1.0 / 1022.0], [0.25, -0.001, -0.999]])
+    words = shading.pack(v)
+    assert int(words[0]) == 512 | 512 << 10 | 512 << 20
+    # 0.5 * 511 = 255.5 rounds up, -255.5 rounds up too; 2 clamps at 511.
+    assert [((int(words[1]) >> (10 * a)) & 1023) - 512 for a in range(3)] == [256, -255, 511]
+    assert [((int(words[2]) >> (10 * a)) & 1023) - 512 for a in range(3)] == [-511, 511, 1]
+    assert all(int(w) >> 30 == 0 for w in words)
+    back = shading.unpack(words)
+    assert np.array_equal(back, np.asarray(shading.quantise(jnp.asarray(v))) / 511.0)
+    assert np.abs(back - np.clip(v, -1, 1)).max() <= 0.5 / 511 + 1e-15
+
+
+def test_the_vector_is_interpolated_across_the_leaf():
+    """Spec 6.1: a leaf's own vector at its centre; at the centre of the
+    face two same-depth leaves share, the mean of both, from either side;
+    towards a coarser neighbour at 3/2; nothing beyond the canvas."""
+    t = Tree((4, 1, 1), 2, 1.0, 4096)
+    t.sigma[:4] = (1.0, 1.0, 1.006, 1.02)  # cell 1 unlit, cell 2 partly lit
+    t.refine_round(np.array([3]))
+    tree, canvas = _device(t)
+    li = shading.shading(tree, canvas, Light(dir=(-1.0, 0.2, 0.1), intensity=0.9, ambient=0.25))
+    v = np.asarray(li.v)
+    assert np.abs(v[1]).max() == 0.0 and 0.2 < -v[2][0] < 0.8
+
+    def at(cell, mu):
+        mu = jnp.asarray(mu, jnp.float64)
+        f = shading.sides(mu)
+        nb = jnp.take_along_axis(li.nb[cell], f, axis=-1)
+        return np.asarray(shading.mix(li.v[cell], li.v[nb], jnp.take_along_axis(li.inv_h[cell], f, axis=-1), mu))
+
+    assert np.array_equal(at(1, [0.0, 0.0, 0.0]), v[1])
+    assert np.allclose(at(1, [0.5, 0.0, 0.0]), (v[1] + v[2]) / 2, atol=1e-15)
+    assert np.allclose(at(2, [-0.5, 0.0, 0.0]), (v[1] + v[2]) / 2, atol=1e-15)
+    # Root 2 to the refined root 3: a same-depth cell with children, its own vector at 1.
+    assert np.allclose(at(2, [0.25, 0.0, 0.0]), v[2] + 0.25 * (v[3] - v[2]), atol=1e-15)
+    # A child of root 3 on its -x face sees root 2, one coarser, at 3/2.
+    fc = int(t.first_child[3])
+    assert np.allclose(at(fc, [-0.5, 0.0, 0.0]), v[fc] + (0.5 / 1.5) * (v[2] - v[fc]), atol=1e-15)
+    # Beyond the canvas (-y of root 1): no term.
+    assert np.array_equal(at(1, [0.0, -0.4, 0.0]), v[1])
+    # The factors at the centre are the spec's centre formulas of the stored vector.
+    a0, a1 = shading.factors(li, jnp.asarray(1), jnp.zeros(3))
+    c0, c1 = shading.centre_factors(li)
+    assert float(a0) == float(c0[1]) and float(a1) == float(c1[1])

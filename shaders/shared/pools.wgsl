@@ -43,6 +43,21 @@ var<private> cells_held: u32;
 
 const FREE_CELL: Cell = Cell(NONE, NONE, 0xFF000000u, 0.0);
 
+// Beside every cell, in pages of the same size (bindings of group 1), its
+// row, 16 bytes (painter/gpu/src/pools.rs `GpuRow`): g3 (spec 3.3, NONE
+// for roots and free cells) and the stored shading vector's word (spec 6.1:
+// three 10-bit components, q + 512 at bits 0, 10 and 20). The g3 pass
+// (g3.wgsl) writes both; the ray cast (raycast.wgsl) reads them.
+//
+//   byte 0          4          8          12         16
+//        +----------+----------+----------+----------+
+//        |  g3[x]   |  g3[y]   |  g3[z]   |  shade   |
+//        +----------+----------+----------+----------+
+struct Row {
+    g3: vec3<u32>,
+    shade: u32,
+}
+
 fn cell_at(i: u32) -> Cell {
     if (i >= cells_held) {
         return FREE_CELL;

@@ -276,7 +276,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                "max_storage_binding": r.gpu.limits.max_storage_buffer_binding_size, "max_buffer": r.gpu.limits.max_buffer_size}),
     );
     let n = u64::from(painting.tree.n_used());
-    println!("tree: {n} cells, {:.1} MB in the GPU layout (16 B/cell, plus 12 B/cell of g3)", n as f64 * 16.0 / 1e6);
+    println!("tree: {n} cells, {:.1} MB in the GPU layout (16 B/cell, plus a 16 B/cell row of g3 and shading vector)", n as f64 * 16.0 / 1e6);
     let t = Instant::now();
     let first = r.sync(&mut painting.tree)?;
     let first_ms = t.elapsed().as_secs_f64() * 1e3;
@@ -289,11 +289,11 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
     );
     let allocated = r.pools.allocated_bytes();
     println!(
-        "GPU memory: {:.1} MB of pages for {n} cells ({:.1} B a cell; 28 B a cell of layout, the rest is the last page's free cells)",
+        "GPU memory: {:.1} MB of pages for {n} cells ({:.1} B a cell; 32 B a cell of layout, the rest is the last page's free cells)",
         allocated as f64 / 1e6,
         allocated as f64 / n as f64
     );
-    report.insert("tree".into(), json!({"cells": n, "capacity": painting.tree.capacity, "layout_bytes": n * 28, "allocated_bytes": allocated, "bytes_per_cell": allocated as f64 / n as f64}));
+    report.insert("tree".into(), json!({"cells": n, "capacity": painting.tree.capacity, "layout_bytes": n * 32, "allocated_bytes": allocated, "bytes_per_cell": allocated as f64 / n as f64}));
     report.insert(
         "first_sync".into(),
         json!({"blocks": first.blocks, "stage_ms": first.stage_seconds * 1e3, "gpu_ms": first.gpu_seconds * 1e3, "regions": first.regions, "total_ms": first_ms}),

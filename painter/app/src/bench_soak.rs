@@ -385,7 +385,7 @@ pub fn run(a: &Args) -> anyhow::Result<()> {
                 journal_kib: journal_len() as f64 / 1024.0,
                 trace_kib: h.trace_bytes as f64 / 1024.0,
                 records: p.engine().records_held(),
-                gpu_mib: mib((p.engine().gpu_cells_held() * 28) as f64),
+                gpu_mib: mib((p.engine().gpu_cells_held() * 32) as f64),
                 heap_in_use_mib: heap.map_or(f64::NAN, |h| mib(h.in_use as f64)),
                 heap_free_mib: heap.map_or(f64::NAN, |h| mib(h.free as f64)),
             });

@@ -182,8 +182,8 @@ fn plan(a: &Args, trees: &[&Tree]) -> Result<Plan, String> {
 
 enum Draw {
     Gpu(Box<Renderer>, Precision),
-    /// The CPU port, with each layer's g3 table.
-    Cpu(Vec<Vec<[u32; 3]>>),
+    /// The CPU port, with each layer's rows of g3 and shading vectors.
+    Cpu(Vec<Vec<[u32; 4]>>),
 }
 
 impl Draw {
@@ -205,7 +205,7 @@ impl Draw {
                 // every later frame (they have the same size).
                 Err(e @ (octopaint_gpu::GpuError::TooBig(_) | octopaint_gpu::GpuError::Capacity { .. })) => {
                     eprintln!("octopaint: render: {e}; drawn by the CPU port instead");
-                    *self = Draw::Cpu(layers.iter().map(|(t, _)| octopaint_tree::g3::g3_table(t)).collect());
+                    *self = Draw::Cpu(layers.iter().map(|(t, _)| octopaint_tree::normals::table(t)).collect());
                     self.image(layers, camera, grid, light, lod)
                 }
                 Err(e) => Err(e.to_string()),
@@ -220,7 +220,7 @@ impl Draw {
 
 fn drawer(a: &Args, layers: &mut [&mut Tree]) -> Result<Draw, String> {
     match a.renderer {
-        crate::RendererChoice::Cpu => Ok(Draw::Cpu(layers.iter().map(|t| octopaint_tree::g3::g3_table(t)).collect())),
+        crate::RendererChoice::Cpu => Ok(Draw::Cpu(layers.iter().map(|t| octopaint_tree::normals::table(t)).collect())),
         crate::RendererChoice::None => Err("--renderer none draws nothing: use gpu or cpu".into()),
         crate::RendererChoice::Gpu => {
             let precision = Precision::from(a.precision);

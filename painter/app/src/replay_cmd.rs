@@ -55,7 +55,7 @@ impl Reporter<'_> {
             // the CPU port.
             let contributing: Vec<&octopaint_tree::layers::Layer> = doc.layers().filter(|l| l.contributes()).collect();
             let cpu_layers = || {
-                let g3: Vec<Vec<[u32; 3]>> = contributing.iter().map(|l| octopaint_tree::g3::g3_table(l.tree())).collect();
+                let g3: Vec<Vec<[u32; 4]>> = contributing.iter().map(|l| octopaint_tree::normals::table(l.tree())).collect();
                 let layers: Vec<LayerInput> =
                     contributing.iter().zip(&g3).map(|(l, g3)| LayerInput { inp: RayInput::of(l.tree(), g3), opacity: l.opacity }).collect();
                 octopaint_tree::raycast::render_layers(&layers, params)
@@ -80,8 +80,8 @@ impl Reporter<'_> {
         }
         let painting = &mut doc.current_mut().painting;
         let cpu = |tree: &octopaint_tree::Tree| {
-            let g3 = octopaint_tree::g3::g3_table(tree);
-            let inp = RayInput::of(tree, &g3);
+            let rows = octopaint_tree::normals::table(tree);
+            let inp = RayInput::of(tree, &rows);
             octopaint_tree::raycast::render(&inp, params)
         };
         let rgb = match &mut self.draw {

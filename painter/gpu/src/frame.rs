@@ -183,7 +183,7 @@ impl Renderer {
     }
 
     /// Write `layers` (each tree with its opacity) into the pages one after
-    /// the other, with the CPU port's g3 tables, and return the table the
+    /// the other, with the CPU port's rows (g3 and shading vectors), and return the table the
     /// ray caster's `main_layers` reads (spec 6.2). The pages then no
     /// longer hold the tree this renderer follows: its next sync uploads
     /// that tree whole again.
@@ -196,7 +196,7 @@ impl Renderer {
             bases.push(u32::try_from(cells.len()).map_err(|_| GpuError::TooBig("a document of more than 2^32 cells".into()))?);
             stage_into(tree, 0, tree.n_used() as usize, &mut staged);
             cells.extend_from_slice(&staged);
-            g3.extend(octopaint_tree::g3::g3_table(tree));
+            g3.extend(octopaint_tree::normals::table(tree));
         }
         self.pools.ensure(&self.gpu, cells.len() as u64)?;
         self.pools.upload_cells(&self.gpu, 0, &cells);
@@ -206,6 +206,13 @@ impl Renderer {
         self.pending_mask = NeighbourMask::default();
         let opacity: Vec<f32> = layers.iter().map(|(_, o)| *o).collect();
         Ok(LayerTableGpu::new(&bases, &opacity))
+    }
+
+    /// The rows (g3 and the shading vector's word, spec 6.1) of every used
+    /// cell, as the GPU holds them (after a sync).
+    pub fn read_rows(&mut self, tree: &mut Tree) -> Result<Vec<[u32; 4]>, GpuError> {
+        self.sync(tree)?;
+        self.pools.read_rows(&self.gpu, u64::from(tree.n_used()))
     }
 
     /// g3 of every used cell, as the GPU holds it (after a sync).

@@ -1,5 +1,6 @@
 //! The pools on the GPU (docs/spec.md 2.2, docs/buffer-layouts.md): one
-//! 16-byte [`GpuCell`] per cell and 12 bytes of g3, in pages of `2^k`
+//! 16-byte [`GpuCell`] per cell and a 16-byte row of g3 and the shading
+//! vector (spec 6.1) per cell, in pages of `2^k`
 //! cells, one storage binding per page, so that capacity is not capped by
 //! the largest binding (128 MiB on lavapipe: 2^23 cells). The WGSL twin is
 //! shaders/shared/pools.wgsl.
@@ -18,8 +19,34 @@ use crate::context::{Gpu, GpuError};
 /// Pages per pool: one binding each (shared/pools.wgsl PAGES).
 pub const PAGES: usize = 4;
 
-/// The fewest cells a page is allocated with (16 blocks, 28 MiB with g3).
+/// The fewest cells a page is allocated with (16 blocks, 32 MiB with its
+/// rows).
 pub const FIRST_PAGE_CELLS: u64 = 1 << 20;
+
+/// One cell's row beside the cells, 16 bytes (shared/pools.wgsl `Row`): g3
+/// and the stored shading vector's word (spec 3.3, 6.1). The g3 pass
+/// writes it; the API hands rows over as `[u32; 4]`, the same bytes.
+///
+/// ```text
+///  byte 0          4          8          12         16
+///       +----------+----------+----------+----------+
+///       |  g3[x]   |  g3[y]   |  g3[z]   |  shade   |
+///       +----------+----------+----------+----------+
+/// ```
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuRow {
+    pub g3: [u32; 3],
+    pub shade: u32,
+}
+
+/// Bytes of one [`GpuRow`].
+pub const ROW_BYTES: u64 = std::mem::size_of::<GpuRow>() as u64;
+
+/// The row of a cell no pass has written: g3 NONE, the zero vector.
+fn fresh_row() -> [u8; 16] {
+    bytemuck::cast(GpuRow { g3: [NONE; 3], shade: octopaint_tree::normals::ZERO })
+}
 
 /// One cell as the GPU holds it, 16 bytes (shared/pools.wgsl `Cell`):
 ///
@@ -156,7 +183,7 @@ impl GpuPools {
         let page_shift = 63 - cells_fit.leading_zeros();
         let page_shift = page_shift.min(28);
         let dummy_cells = filled_buffer(gpu, "unallocated cells page", 16, bytemuck::bytes_of(&GpuCell::FREE), 0);
-        let dummy_g3: Vec<wgpu::Buffer> = (0..PAGES).map(|_| filled_buffer(gpu, "unallocated g3 page", 16, &[0xFF; 16], 0)).collect();
+        let dummy_g3: Vec<wgpu::Buffer> = (0..PAGES).map(|_| filled_buffer(gpu, "unallocated g3 page", ROW_BYTES, &fresh_row(), 0)).collect();
         let layout_cells = storage_layout(gpu, "cells pages", true);
         let layout_g3_rw = storage_layout(gpu, "g3 pages (write)", false);
         let layout_g3_ro = storage_layout(gpu, "g3 pages (read)", true);
@@ -209,9 +236,9 @@ impl GpuPools {
     }
 
     /// Bytes of GPU memory the allocated pages take (16 bytes of cell and
-    /// 12 of g3 per cell they hold).
+    /// 16 of row per cell they hold).
     pub fn allocated_bytes(&self) -> u64 {
-        self.cells_held() * (16 + 12)
+        self.cells_held() * (16 + ROW_BYTES)
     }
 
     /// Make sure the pages hold `n` cells: pages are added (every cell
@@ -239,7 +266,7 @@ impl GpuPools {
             let size = want.next_power_of_two().clamp(FIRST_PAGE_CELLS.min(page), page);
             // The first `have` cells come from the GPU's copy of the old page.
             let cells = filled_buffer(gpu, &format!("cells page {i}"), size * 16, bytemuck::bytes_of(&GpuCell::FREE), have * 16);
-            let g3 = filled_buffer(gpu, &format!("g3 page {i}"), size * 12, &[0xFF; 12], have * 12);
+            let g3 = filled_buffer(gpu, &format!("g3 page {i}"), size * ROW_BYTES, &fresh_row(), have * ROW_BYTES);
             if i < self.cells.len() {
                 let old_cells = std::mem::replace(&mut self.cells[i], cells);
                 let old_g3 = std::mem::replace(&mut self.g3[i], g3);
@@ -255,7 +282,7 @@ impl GpuPools {
             let mut enc = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("grow a page") });
             for (i, have, old_cells, old_g3) in &copies {
                 enc.copy_buffer_to_buffer(old_cells, 0, &self.cells[*i], 0, have * 16);
-                enc.copy_buffer_to_buffer(old_g3, 0, &self.g3[*i], 0, have * 12);
+                enc.copy_buffer_to_buffer(old_g3, 0, &self.g3[*i], 0, have * ROW_BYTES);
             }
             gpu.queue.submit([enc.finish()]);
         }
@@ -293,11 +320,12 @@ impl GpuPools {
         }
     }
 
-    /// Write g3 rows from cell `first` on, split at page boundaries (a
-    /// document's layers, whose g3 the CPU port computes: spec 6.2).
-    pub fn upload_g3(&self, gpu: &Gpu, first: u64, rows: &[[u32; 3]]) {
+    /// Write rows of g3 and shading vectors from cell `first` on, split at
+    /// page boundaries (a document's layers, whose rows the CPU port
+    /// computes: spec 6.2).
+    pub fn upload_g3(&self, gpu: &Gpu, first: u64, rows: &[[u32; 4]]) {
         self.per_page(first, rows.len(), |page, offset, range| {
-            gpu.queue.write_buffer(&self.g3[page], offset * 12, bytemuck::cast_slice(&rows[range]));
+            gpu.queue.write_buffer(&self.g3[page], offset * ROW_BYTES, bytemuck::cast_slice(&rows[range]));
         });
     }
 
@@ -323,17 +351,17 @@ impl GpuPools {
                 mapped_at_creation: false,
             })
         };
-        let temps: Vec<(wgpu::Buffer, wgpu::Buffer)> = moves.iter().map(|&(_, _, n)| (temp("moved cells", n * 16), temp("moved g3", n * 12))).collect();
+        let temps: Vec<(wgpu::Buffer, wgpu::Buffer)> = moves.iter().map(|&(_, _, n)| (temp("moved cells", n * 16), temp("moved g3", n * ROW_BYTES))).collect();
         for (&(from, _, n), (tc, tg)) in moves.iter().zip(&temps) {
             self.per_page(from, n as usize, |page, offset, range| {
                 enc.copy_buffer_to_buffer(&self.cells[page], offset * 16, tc, range.start as u64 * 16, range.len() as u64 * 16);
-                enc.copy_buffer_to_buffer(&self.g3[page], offset * 12, tg, range.start as u64 * 12, range.len() as u64 * 12);
+                enc.copy_buffer_to_buffer(&self.g3[page], offset * ROW_BYTES, tg, range.start as u64 * ROW_BYTES, range.len() as u64 * ROW_BYTES);
             });
         }
         for (&(_, to, n), (tc, tg)) in moves.iter().zip(&temps) {
             self.per_page(to, n as usize, |page, offset, range| {
                 enc.copy_buffer_to_buffer(tc, range.start as u64 * 16, &self.cells[page], offset * 16, range.len() as u64 * 16);
-                enc.copy_buffer_to_buffer(tg, range.start as u64 * 12, &self.g3[page], offset * 12, range.len() as u64 * 12);
+                enc.copy_buffer_to_buffer(tg, range.start as u64 * ROW_BYTES, &self.g3[page], offset * ROW_BYTES, range.len() as u64 * ROW_BYTES);
             });
         }
         gpu.queue.submit([enc.finish()]);
@@ -356,6 +384,12 @@ impl GpuPools {
 
     /// g3 of cells `0..n`, read back from the GPU.
     pub fn read_g3(&self, gpu: &Gpu, n: u64) -> Result<Vec<[u32; 3]>, GpuError> {
+        Ok(self.read_rows(gpu, n)?.into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+    }
+
+    /// The rows (g3 and the shading vector's word) of cells `0..n`, read
+    /// back from the GPU.
+    pub fn read_rows(&self, gpu: &Gpu, n: u64) -> Result<Vec<[u32; 4]>, GpuError> {
         let mut out = Vec::with_capacity(n as usize);
         let page = self.page_cells();
         for (i, buf) in self.g3.iter().enumerate() {
@@ -364,8 +398,8 @@ impl GpuPools {
                 break;
             }
             let count = (n - start).min(self.held[i]);
-            let bytes = read_buffer(gpu, buf, count * 12)?;
-            out.extend(bytemuck::cast_slice::<u8, [u32; 3]>(&bytes).iter().copied());
+            let bytes = read_buffer(gpu, buf, count * ROW_BYTES)?;
+            out.extend(bytemuck::cast_slice::<u8, [u32; 4]>(&bytes).iter().copied());
         }
         Ok(out)
     }

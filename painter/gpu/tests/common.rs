@@ -86,19 +86,19 @@ pub fn lit_light(shadows: bool) -> octopaint_tree::trace::Light {
 }
 
 /// The lit trace (traces/lit.jsonl) painted and synced to a Vulkan
-/// renderer, with its camera and g3 table (`RayInput::of(&tree, &g3)` is
+/// renderer, with its camera and rows of g3 and shading vectors (`RayInput::of(&tree, &g3)` is
 /// the CPU port's input).
 pub struct LitScene {
     pub r: Renderer,
     pub painting: Painting,
     pub camera: Camera,
-    pub g3: Vec<[u32; 3]>,
+    pub g3: Vec<[u32; 4]>,
 }
 
 pub fn lit_scene() -> LitScene {
     let mut r = renderer(Backend::Vulkan);
     let (mut painting, camera) = painted("lit");
     r.sync(&mut painting.tree).unwrap();
-    let g3 = octopaint_tree::g3::g3_table(&painting.tree);
+    let g3 = octopaint_tree::normals::table(&painting.tree);
     LitScene { r, painting, camera, g3 }
 }

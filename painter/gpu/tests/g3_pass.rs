@@ -1,15 +1,37 @@
-//! The g3 pass on a real adapter equals the CPU port (painter/octree/src/g3.rs)
-//! for every cell, after a whole trace and after every level of painting,
-//! where only the dirty blocks are uploaded and only the regions the
-//! neighbour mask marks are recomputed.
+//! The g3 pass on a real adapter equals the CPU ports (painter/octree/src/
+//! g3.rs and normals.rs: g3 and the stored shading vectors) for every cell,
+//! after a whole trace and after every level of painting, where only the
+//! dirty blocks are uploaded and only the regions the neighbour mask marks
+//! are recomputed (spec 3.4 rules 1 to 3).
 
 mod common;
 
 use common::*;
 use octopaint_gpu::Backend;
-use octopaint_tree::g3::g3_table;
+use octopaint_tree::normals::table;
 use octopaint_tree::paint::Painting;
 use octopaint_tree::trace::{Brush, Canvas, Mode, Sample, Shape};
+
+/// The GPU's rows are the CPU port's: g3 exactly; the shading vector's
+/// components within one step (1/511), and all of them in all but a few
+/// cells. The same f32 operations in the same order, but the device may
+/// fuse `v·511 + 0.5` or round a division otherwise, which moves a
+/// component sitting on a rounding boundary by a step (spec 6.1; lavapipe
+/// does this in 2 of 40,000 cells of shapes_modes). A stale vector, a cell
+/// the mask missed, is off by far more, or in many cells.
+fn assert_rows(gpu: &[[u32; 4]], cpu: &[[u32; 4]], what: &str) {
+    assert_eq!(gpu.len(), cpu.len(), "{what}");
+    let g3 = gpu.iter().zip(cpu).filter(|(g, c)| g[..3] != c[..3]).count();
+    assert!(g3 == 0, "{what}: GPU g3 differs from the CPU port in {g3} cells");
+    let field = |w: u32, a: u32| ((w >> (10 * a)) & 1023) as i32;
+    let apart = |c: usize| (0..3).map(|a| (field(gpu[c][3], a) - field(cpu[c][3], a)).abs()).max().unwrap_or(0);
+    let bad: Vec<usize> = (0..gpu.len()).filter(|&c| gpu[c][3] != cpu[c][3]).collect();
+    if let Some(&c) = bad.iter().max_by_key(|&&c| apart(c)) {
+        assert!(apart(c) <= 1, "{what}: cell {c}'s shading vector is {} steps from the CPU port's: GPU {:#x}, CPU {:#x}", apart(c), gpu[c][3], cpu[c][3]);
+    }
+    assert!(bad.len() * 1000 <= gpu.len().max(1000), "{what}: the shading vectors of {} of {} cells differ by a step", bad.len(), gpu.len());
+    assert!(cpu.iter().any(|r| r[3] != octopaint_tree::normals::ZERO) || cpu.len() < 64, "{what}: no cell is lit at all");
+}
 
 #[test]
 fn g3_of_whole_traces_equals_the_cpu_port() {
@@ -17,8 +39,8 @@ fn g3_of_whole_traces_equals_the_cpu_port() {
         let (mut painting, _) = painted_maybe_camera(name);
         // A renderer follows one tree: a fresh one uploads everything.
         let mut r = renderer(Backend::Auto);
-        let gpu = r.read_g3(&mut painting.tree).unwrap();
-        assert!(gpu == g3_table(&painting.tree), "{name}: GPU g3 differs from the CPU port");
+        let gpu = r.read_rows(&mut painting.tree).unwrap();
+        assert_rows(&gpu, &table(&painting.tree), name);
     }
 }
 
@@ -42,22 +64,22 @@ fn g3_after_every_level_equals_the_cpu_port() {
             painting.begin_sample(&Sample::at(p), 0);
             loop {
                 let done = painting.advance_level();
-                let gpu = r.read_g3(&mut painting.tree).unwrap();
+                let gpu = r.read_rows(&mut painting.tree).unwrap();
                 levels += 1;
-                assert!(gpu == g3_table(&painting.tree), "stroke {s}, sample {i}: GPU g3 differs after a level");
+                assert_rows(&gpu, &table(&painting.tree), &format!("stroke {s}, sample {i}, after a level"));
                 if done {
                     break;
                 }
             }
         }
         painting.end_stroke();
-        let gpu = r.read_g3(&mut painting.tree).unwrap();
-        assert!(gpu == g3_table(&painting.tree), "stroke {s}: GPU g3 differs after cleaning");
+        let gpu = r.read_rows(&mut painting.tree).unwrap();
+        assert_rows(&gpu, &table(&painting.tree), &format!("stroke {s}, after cleaning"));
     }
     assert!(painting.undo() && painting.undo());
-    assert!(r.read_g3(&mut painting.tree).unwrap() == g3_table(&painting.tree), "after undo");
+    assert_rows(&r.read_rows(&mut painting.tree).unwrap(), &table(&painting.tree), "after undo");
     assert!(painting.redo());
-    assert!(r.read_g3(&mut painting.tree).unwrap() == g3_table(&painting.tree), "after redo");
+    assert_rows(&r.read_rows(&mut painting.tree).unwrap(), &table(&painting.tree), "after redo");
     assert!(levels > 40, "only {levels} levels were checked");
 }
 
@@ -80,8 +102,8 @@ fn frames_of_one_block_each_converge_to_the_tree() {
         }
     }
     assert!(frames >= 5, "{frames} frames");
-    let gpu = r.read_g3(&mut painting.tree).unwrap();
-    assert!(gpu == g3_table(&painting.tree));
+    let gpu = r.read_rows(&mut painting.tree).unwrap();
+    assert_rows(&gpu, &table(&painting.tree), "frames of one block");
     let last = r.cast(&painting.tree, &camera, octopaint_gpu::Precision::F32).unwrap();
     let mut fresh = renderer(Backend::Auto);
     assert!(last == fresh.render(&mut painting.tree.clone(), &camera, octopaint_gpu::Precision::F32).unwrap());

@@ -2,7 +2,7 @@
 //! sizes and member offsets must agree (naga computes the WGSL layout).
 
 use octopaint_gpu::g3::G3Params;
-use octopaint_gpu::pools::GpuCell;
+use octopaint_gpu::pools::{GpuCell, GpuRow};
 use octopaint_gpu::raycast::RayParamsGpu;
 use octopaint_gpu::shaders::{Precision, g3_source, raycast_source};
 
@@ -34,6 +34,18 @@ fn cell_layout_agrees() {
     let (size, offsets) = wgsl_layout(&g3_source(), "Cell");
     assert_eq!(size as usize, std::mem::size_of::<GpuCell>());
     assert_eq!(offsets, offsets!(GpuCell, parent, first_child, rgbd, sigma));
+}
+
+#[test]
+fn row_layout_agrees() {
+    // g3 and the shading vector's word beside every cell: the array stride
+    // of the row pages, in the g3 pass that writes them and the ray cast
+    // that reads them.
+    for source in [g3_source(), raycast_source(Precision::F32), raycast_source(Precision::F16)] {
+        let (size, offsets) = wgsl_layout(&source, "Row");
+        assert_eq!(size as usize, std::mem::size_of::<GpuRow>());
+        assert_eq!(offsets, offsets!(GpuRow, g3, shade));
+    }
 }
 
 #[test]

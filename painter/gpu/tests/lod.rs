@@ -7,7 +7,7 @@ mod common;
 
 use common::*;
 use octopaint_gpu::{Backend, Precision};
-use octopaint_tree::g3::g3_table;
+use octopaint_tree::normals::table;
 use octopaint_tree::raycast::{LayerInput, RayInput, RayParams, render, render_layers};
 use octopaint_tree::trace::EventKind;
 
@@ -47,7 +47,7 @@ fn a_documents_cut_on_the_gpu_matches_the_cpu_port() {
     let camera = t.events.iter().rev().find_map(|e| if let EventKind::Camera(c) = &e.kind { Some(*c) } else { None }).unwrap();
     let (_, doc) = octopaint_tree::replay::replay_document(&t, None, &mut ()).unwrap();
     let layers: Vec<_> = doc.layers().filter(|l| l.contributes()).collect();
-    let g3: Vec<_> = layers.iter().map(|l| g3_table(l.tree())).collect();
+    let g3: Vec<_> = layers.iter().map(|l| table(l.tree())).collect();
     let inputs: Vec<LayerInput> = layers.iter().zip(&g3).map(|(l, g)| LayerInput { inp: RayInput::of(l.tree(), g), opacity: l.opacity }).collect();
     let trees: Vec<_> = layers.iter().map(|l| (l.tree(), l.opacity)).collect();
     let mut r = renderer(Backend::Vulkan);

@@ -28,7 +28,7 @@ fn the_last_page_grows_and_keeps_what_it_held() {
 
     assert!(pools.ensure(gpu, 1000).unwrap());
     assert_eq!(pools.cells_held(), FIRST_PAGE_CELLS);
-    assert_eq!(pools.allocated_bytes(), FIRST_PAGE_CELLS * 28);
+    assert_eq!(pools.allocated_bytes(), FIRST_PAGE_CELLS * 32);
     assert!(!pools.ensure(gpu, FIRST_PAGE_CELLS).unwrap(), "it holds that many already");
 
     // Marked cells at the start and at the end of what the page holds, and
@@ -38,7 +38,7 @@ fn the_last_page_grows_and_keeps_what_it_held() {
     let tail: Vec<GpuCell> = (tail_at..FIRST_PAGE_CELLS).map(marked).collect();
     pools.upload_cells(gpu, 0, &head);
     pools.upload_cells(gpu, tail_at, &tail);
-    let rows: Vec<[u32; 3]> = (0..500u32).map(|i| [i, i * 3, !i]).collect();
+    let rows: Vec<[u32; 4]> = (0..500u32).map(|i| [i, i * 3, !i, i ^ 0x2AAA_AAAA]).collect();
     pools.upload_g3(gpu, 10, &rows);
 
     // Grow within the first page (queued uploads land before the copy),
@@ -52,9 +52,10 @@ fn the_last_page_grows_and_keeps_what_it_held() {
         assert!(cells[..1000].iter().zip(&head).all(|(a, b)| a == b), "the head was lost");
         assert!(cells[tail_at as usize..FIRST_PAGE_CELLS as usize].iter().zip(&tail).all(|(a, b)| a == b), "the tail was lost");
         assert!(cells[1000..tail_at as usize].iter().chain(&cells[FIRST_PAGE_CELLS as usize..]).all(|c| *c == GpuCell::FREE));
-        let g3 = pools.read_g3(gpu, n).unwrap();
-        assert!(g3[10..510].iter().zip(&rows).all(|(a, b)| a == b), "g3 was lost");
-        assert!(g3[..10].iter().chain(&g3[510..]).all(|r| *r == [u32::MAX; 3]));
+        let g3 = pools.read_rows(gpu, n).unwrap();
+        assert!(g3[10..510].iter().zip(&rows).all(|(a, b)| a == b), "the rows were lost");
+        let fresh = [u32::MAX, u32::MAX, u32::MAX, octopaint_tree::normals::ZERO];
+        assert!(g3[..10].iter().chain(&g3[510..]).all(|r| *r == fresh));
     };
     check(&pools, n);
     let n = page + 5;

@@ -7,14 +7,14 @@ mod common;
 
 use common::*;
 use octopaint_gpu::{Backend, Precision};
-use octopaint_tree::g3::g3_table;
+use octopaint_tree::normals::table;
 use octopaint_tree::pool::NONE;
 use octopaint_tree::raycast::{RayInput, RayParams, render};
 use octopaint_tree::trace::Light;
 
 fn cpu_image(painting: &octopaint_tree::paint::Painting, camera: &octopaint_tree::trace::Camera) -> Vec<u8> {
     let t = &painting.tree;
-    let g3 = g3_table(t);
+    let g3 = table(t);
     let inp = RayInput::of(t, &g3);
     render(&inp, &RayParams::new(&t.lat, camera))
 }
@@ -105,7 +105,7 @@ fn a_documents_layers_on_the_gpu_match_the_cpu_port() {
     let (_, doc) = octopaint_tree::replay::replay_document(&t, None, &mut ()).unwrap();
     let layers: Vec<_> = doc.layers().filter(|l| l.contributes()).collect();
     assert!(layers.len() >= 2);
-    let g3: Vec<_> = layers.iter().map(|l| g3_table(l.tree())).collect();
+    let g3: Vec<_> = layers.iter().map(|l| table(l.tree())).collect();
     let inputs: Vec<LayerInput> = layers.iter().zip(&g3).map(|(l, g)| LayerInput { inp: RayInput::of(l.tree(), g), opacity: l.opacity }).collect();
     let trees: Vec<_> = layers.iter().map(|l| (l.tree(), l.opacity)).collect();
     let mut r = renderer(Backend::Vulkan);

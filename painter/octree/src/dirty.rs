@@ -1,7 +1,9 @@
 //! What changed since the last publication, in the two forms the GPU side
 //! consumes (spec 3.4, 3.5): dirty blocks (65,536-cell ranges whose pool
 //! bytes changed, to be staged and uploaded) and dirty cells (cells whose g3
-//! must be recomputed), folded into the 64×32 neighbour mask.
+//! must be recomputed), folded into the 64×32 neighbour mask with the cells
+//! whose shading vector may change (rule 3: the GPU's g3 pass recomputes
+//! both over the regions the mask marks).
 //!
 //! Writes mark blocks as they happen (pool/changes.rs). Topology changes are
 //! recorded as "cell X gained or lost children" plus "unit U was created or
@@ -105,6 +107,7 @@ impl Tree {
             ch.direct = Vec::new();
             ch.topo_cells = Vec::new();
             ch.topo_units = Vec::new();
+            ch.values = Vec::new();
             let n = self.n_used();
             let used_blocks = n.div_ceil(BLOCK_CELLS);
             let beyond: Vec<u32> = blocks.into_iter().filter(|&b| b >= used_blocks).collect();
@@ -123,10 +126,13 @@ impl Tree {
             return Publication { blocks, dirty_cells: (0..n).collect(), mask };
         }
         let mut cells = std::mem::take(&mut ch.direct);
+        let mut groups = std::mem::take(&mut ch.values);
         for u in std::mem::take(&mut ch.topo_units) {
             cells.extend(u..u + UNIT);
+            groups.push(u);
         }
         let topo = std::mem::take(&mut ch.topo_cells);
+        groups.extend(topo.iter().map(|&x| x & !7));
         for x in topo {
             if (x as usize) >= self.depth.len() || self.depth[x as usize] == FREE {
                 continue;
@@ -143,7 +149,62 @@ impl Tree {
         for &c in &cells {
             mask.set((c / size) as usize);
         }
+        groups.sort_unstable();
+        groups.dedup();
+        for g in groups {
+            self.shading_readers(g, |c| mask.set((c / size) as usize));
+        }
         Publication { blocks, dirty_cells: cells, mask }
+    }
+
+    /// Every cell whose stored shading vector may read a value of group `g`
+    /// (spec 3.4 rule 3): a unit and its parent, or up to eight roots
+    /// each standing for itself. Free cells are skipped.
+    fn shading_readers(&self, g: u32, mut mark: impl FnMut(u32)) {
+        let n = self.depth.len() as u32;
+        let live = |c: u32| c < n && self.depth[c as usize] != FREE;
+        let children = |c: u32, mark: &mut dyn FnMut(u32)| {
+            let fc = self.first_child[c as usize];
+            if fc != NONE {
+                (fc..fc + UNIT).for_each(&mut *mark);
+            }
+        };
+        // One family: `x` (a unit's parent, or a root) whose cells `own`
+        // are the group's.
+        let family = |x: u32, own: std::ops::Range<u32>, mark: &mut dyn FnMut(u32)| {
+            for c in own {
+                if live(c) {
+                    mark(c);
+                    children(c, mark);
+                }
+            }
+            for f in 0..FACES.len() {
+                let nb = self.neighbour(x, f);
+                if nb == NONE {
+                    continue;
+                }
+                mark(nb);
+                if self.depth[nb as usize] != self.depth[x as usize] || self.first_child[nb as usize] == NONE {
+                    continue;
+                }
+                for k in self.facing_children(nb, f) {
+                    mark(k);
+                    if self.first_child[k as usize] != NONE {
+                        self.facing_children(k, f).into_iter().for_each(&mut *mark);
+                    }
+                }
+            }
+        };
+        if g < self.lat.n_roots {
+            for r in g..(g + UNIT).min(self.lat.n_roots) {
+                family(r, r..r + 1, &mut mark);
+            }
+        } else if live(g) {
+            let p = self.parent[g as usize];
+            if p != NONE {
+                family(p, g..g + UNIT, &mut mark);
+            }
+        }
     }
 }
 

@@ -31,6 +31,7 @@ pub mod dump;
 pub mod g3;
 pub mod history;
 pub mod lattice;
+pub mod normals;
 pub mod pager;
 pub mod par;
 pub mod pool;

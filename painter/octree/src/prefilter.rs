@@ -114,6 +114,7 @@ impl Tree {
         levels.resize_with(self.lat.max_depth as usize + 1, Vec::new);
         let n = self.parent.len();
         for &c in &due {
+            self.changes.value(c);
             let i = c as usize;
             if i >= n || self.depth[i] == FREE {
                 continue;
@@ -136,6 +137,7 @@ impl Tree {
                 }
                 let Some((rgb, sigma)) = self.fresh_value(p) else { continue };
                 self.write_interior_value(p, rgb, sigma);
+                self.changes.value(p);
                 rewritten += 1;
                 if d > 0 {
                     levels[d - 1].push(self.parent[p as usize]);
@@ -168,6 +170,7 @@ impl Tree {
             for &p in cells {
                 if let Some((rgb, sigma)) = self.fresh_value(p) {
                     self.write_interior_value(p, rgb, sigma);
+                    self.changes.value(p);
                     rewritten += 1;
                 }
             }

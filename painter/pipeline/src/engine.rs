@@ -315,7 +315,7 @@ impl Engine {
     }
 
     /// The cells the GPU's pages hold, as the last frame left them (16
-    /// bytes of cell and 12 of g3 each).
+    /// bytes of cell and 16 of row, g3 and shading vector, each).
     pub fn gpu_cells_held(&self) -> u64 {
         self.shared.gpu_cells.load(Ordering::Acquire)
     }

@@ -31,7 +31,7 @@ pub mod trace;
 pub mod trace_write;
 pub mod view;
 
-pub use octopaint_octree::{balance, check, clean, dirty, dump, g3, history, lattice, pager, par, pool, team};
+pub use octopaint_octree::{balance, check, clean, dirty, dump, g3, history, lattice, normals, pager, par, pool, team};
 pub use octopaint_paint::{brush, lanes, noise, paint, slots, stroke, voxels};
 
 pub use octopaint_octree::pool::{FREE, NONE, Tree, UNIT};

@@ -4,8 +4,8 @@
 //! the CPU port's march through several layers gives the single-tree image
 //! where it must.
 
-use octopaint_tree::g3::g3_table;
 use octopaint_tree::layers::Document;
+use octopaint_tree::normals::table;
 use octopaint_tree::raycast::{LayerInput, RayInput, RayParams, render, render_layers};
 use octopaint_tree::trace::{Brush, Camera, Canvas, LayerOp, LayerOpKind, Light, Mode, Sample, Shape};
 
@@ -108,7 +108,7 @@ fn the_march_of_an_empty_layer_or_two_halves_is_the_single_image() {
     paint(&mut doc, [0.6, 0.55, 0.45], 0.08, [0.1, 0.5, 0.9]);
     let empty = Document::new(&CANVAS);
     let (t, e) = (doc.layer(0).tree(), empty.layer(0).tree());
-    let (g, ge) = (g3_table(t), g3_table(e));
+    let (g, ge) = (table(t), table(e));
     let inp = || RayInput::of(t, &g);
     let close = |a: &[u8], b: &[u8]| a.iter().zip(b).map(|(x, y)| (i32::from(*x) - i32::from(*y)).abs()).max().unwrap();
     for light in [None, Some(Light { dir: [0.3, 1.0, 0.4], shadows: true, ..Light::default() })] {

@@ -20,6 +20,10 @@ pub(crate) struct Changes {
     /// Cells whose own g3 changed (a new or freed unit's cells are in
     /// `topo_units`).
     pub(crate) direct: Vec<u32>,
+    /// Groups (a unit, or eight roots: the index with its low three bits
+    /// cleared) holding a cell whose value changed, for the shading
+    /// vectors (spec 3.4 rule 3); repeats allowed.
+    pub(crate) values: Vec<u32>,
 }
 
 impl Changes {
@@ -32,6 +36,7 @@ impl Changes {
             topo_cells: Vec::new(),
             topo_units: Vec::new(),
             direct: Vec::new(),
+            values: Vec::new(),
         }
     }
 
@@ -55,6 +60,14 @@ impl Changes {
     pub(crate) fn direct(&mut self, c: u32) {
         if self.recording() {
             self.direct.push(c);
+        }
+    }
+
+    /// A value of a cell of group `c & !7` changed (spec 3.4 rule 3).
+    #[inline]
+    pub(crate) fn value(&mut self, c: u32) {
+        if self.recording() && self.values.last() != Some(&(c & !7)) {
+            self.values.push(c & !7);
         }
     }
 

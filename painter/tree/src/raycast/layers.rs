@@ -62,7 +62,10 @@ fn march(layers: &[LayerInput], pr: &RayParams, mut cur: Vec<Cursor>, mut active
                         out.colour[i] += w * share * rgb[i];
                     }
                 } else {
-                    let f = shade(&layers[k].inp, pr, c.cell, c.depth, c.origin, layers[k].inp.sigma_of(c.cell));
+                    // Shaded at the interval's midpoint in the cursor's frame.
+                    let t_mid = u * ldexp(1.0, c.depth as i32) * 0.5;
+                    let mu = [0, 1, 2].map(|a| (c.p[a] + t_mid * d[a]).clamp(-0.5, 0.5));
+                    let f = shade(&layers[k].inp, pr, c.cell, c.depth, mu);
                     for i in 0..3 {
                         out.colour[i] += w * share * f[0] * rgb[i];
                         out.direct[i] += w * share * f[1] * rgb[i];

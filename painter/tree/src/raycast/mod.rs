@@ -12,6 +12,7 @@ mod params;
 pub use layers::{LayerInput, render_layers, trace_pixel_layers};
 pub use params::{DEFAULT_LOD, MAX_LOD, RayParams, check_lod, parse_lods};
 
+use crate::normals;
 use crate::pool::{FREE, NONE};
 
 /// Steps before a ray gives up (a broken tree caught mid-upload).
@@ -48,20 +49,22 @@ fn ground(pr: &RayParams, dir: [f32; 3]) -> [f32; 3] {
     bg.map(|c| c + (horizon + tint + fade * (0.12 * minor).max(0.3 * major)))
 }
 
-/// What the shader reads: the pools and g3.
+/// What the shader reads: the pools, and g3 with the stored shading
+/// vectors in rows of four words as the GPU holds them
+/// ([`normals::table`]).
 pub struct RayInput<'a> {
     pub parent: &'a [u32],
     pub first_child: &'a [u32],
     pub depth: &'a [u8],
     pub rgb: &'a [[u8; 3]],
     pub sigma: &'a [f32],
-    pub g3: &'a [[u32; 3]],
+    pub rows: &'a [[u32; 4]],
 }
 
 impl<'a> RayInput<'a> {
-    /// The pools of `tree` with its g3 table.
-    pub fn of(tree: &'a crate::pool::Tree, g3: &'a [[u32; 3]]) -> Self {
-        RayInput { parent: tree.parent(), first_child: tree.first_child(), depth: tree.depth(), rgb: tree.rgb(), sigma: tree.sigma(), g3 }
+    /// The pools of `tree` with its rows of g3 and shading vectors.
+    pub fn of(tree: &'a crate::pool::Tree, rows: &'a [[u32; 4]]) -> Self {
+        RayInput { parent: tree.parent(), first_child: tree.first_child(), depth: tree.depth(), rgb: tree.rgb(), sigma: tree.sigma(), rows }
     }
 }
 
@@ -72,7 +75,10 @@ impl RayInput<'_> {
         self.sigma.get(c as usize).copied().unwrap_or(0.0)
     }
     fn g3_of(&self, c: u32, a: usize) -> u32 {
-        self.g3.get(c as usize).map_or(NONE, |row| row[a])
+        self.rows.get(c as usize).map_or(NONE, |row| row[a])
+    }
+    fn vector_of(&self, c: u32) -> [f32; 3] {
+        normals::decode(self.rows.get(c as usize).map_or(normals::ZERO, |row| row[3]))
     }
     fn depth_of(&self, c: u32) -> u32 {
         self.depth.get(c as usize).map_or(u32::from(FREE), |&d| u32::from(d))
@@ -107,68 +113,47 @@ fn offset_lattice(base: u32, fl: f32, top: u32) -> u32 {
     }
 }
 
-/// The shader's `face`: what `cell` sees across its face on side `side` of
-/// axis `a` (spec 6.1): the sigma there and the distance between centres in
-/// edges of the cell.
-fn face(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u32; 3], a: usize, side: i32) -> [f32; 2] {
-    let mut nb = NONE;
-    if cell < pr.n_roots {
-        let mut r = origin.map(|v| (v >> pr.max_depth) as i32);
-        r[a] += side;
-        if r.iter().all(|&v| v >= 0) && (0..3).all(|k| (r[k] as u32) < pr.roots[k]) {
-            nb = r[0] as u32 + pr.roots[0] * (r[1] as u32 + pr.roots[1] * r[2] as u32);
-        }
-    } else if ((cell >> a) & 1 == 1) == (side > 0) {
-        nb = inp.g3_of(cell, a);
-    } else {
-        nb = cell ^ (1 << a);
-    }
-    if nb == NONE {
-        return [0.0, 1.0];
-    }
-    let dn = inp.depth_of(nb);
-    if dn == depth {
-        let fc = inp.first_child_of(nb);
-        if fc == NONE {
-            return [inp.sigma_of(nb), 1.0];
-        }
-        // The children whose bit a is on the face, by increasing index.
-        let want = if side > 0 { 0 } else { 1 };
-        let kid = [0u32, 1, 2, 3].map(|j| {
-            let lo = j & ((1 << a) - 1);
-            let k = ((j >> a) << (a + 1)) | (want << a) | lo;
-            inp.sigma_of(fc.wrapping_add(k))
-        });
-        return [((kid[0] + kid[1]) + (kid[2] + kid[3])) * 0.25, 0.75];
-    }
-    if dn + 1 == depth {
-        return [inp.sigma_of(nb), 1.5];
-    }
-    [0.0, 1.0]
-}
-
-/// Spec 6.1: the relative gradient below which a cell is unlit, and above
-/// which it is fully lit.
-const R_UNLIT: f32 = 0.004;
-const R_LIT: f32 = 0.02;
-
 /// The shader's `shade`: the factors of a lit cell's emitted colour, the
-/// part that needs no light and the direct part (spec 6.1).
-fn shade(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, origin: [u32; 3], sigma: f32) -> [f32; 2] {
-    let mut delta = [0f32; 3];
-    let mut top = sigma;
-    for a in 0..3 {
-        let hi = face(inp, pr, cell, depth, origin, a, 1);
-        let lo = face(inp, pr, cell, depth, origin, a, -1);
-        delta[a] = (hi[0] - lo[0]) / (hi[1] + lo[1]);
-        top = top.max(hi[0].max(lo[0]));
+/// part that needs no light and the direct part (spec 6.1), with the
+/// stored vectors interpolated at `mu`, the segment's midpoint in the
+/// cell's frame; a cell whose own vector is zero is unlit, its neighbours
+/// unread.
+fn shade(inp: &RayInput, pr: &RayParams, cell: u32, depth: u32, mu: [f32; 3]) -> [f32; 2] {
+    let row = inp.rows.get(cell as usize).copied().unwrap_or([NONE, NONE, NONE, normals::ZERO]);
+    if row[3] == normals::ZERO {
+        return [1.0, 0.0];
     }
-    let g = (delta[0] * delta[0] + delta[1] * delta[1] + delta[2] * delta[2]).sqrt();
-    let r = if top > 0.0 { g / top } else { 0.0 };
-    let w = ((r - R_UNLIT) / (R_LIT - R_UNLIT)).clamp(0.0, 1.0);
+    let own = normals::decode(row[3]);
+    let mut v = own;
+    for a in 0..3 {
+        if mu[a] == 0.0 {
+            continue;
+        }
+        let up = mu[a] > 0.0;
+        let mut nb = normals::across(pr.roots, cell, [row[0], row[1], row[2]], a, if up { 1 } else { -1 });
+        let mut h = 1.0;
+        // Only g3 (an outward face of a non-root) may give a coarser cell.
+        if nb != NONE && cell >= pr.n_roots && ((cell >> a) & 1 == 1) == up {
+            let dn = inp.depth_of(nb);
+            if dn + 1 == depth {
+                h = 1.5;
+            } else if dn != depth {
+                nb = NONE;
+            }
+        }
+        if nb == NONE {
+            continue;
+        }
+        let om = mu[a].abs() / h;
+        let vn = inp.vector_of(nb);
+        for b in 0..3 {
+            v[b] += om * (vn[b] - own[b]);
+        }
+    }
+    let nu = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let l = pr.light;
-    let n_dot_l = -(delta[0] * l[0] + delta[1] * l[1] + delta[2] * l[2]) / if g > 0.0 { g } else { 1.0 };
-    [(1.0 - w) + w * pr.ambient, w * (l[3] * n_dot_l.max(0.0))]
+    let v_dot_l = v[0] * l[0] + v[1] * l[1] + v[2] * l[2];
+    [1.0 - nu.min(1.0) * (1.0 - pr.ambient), l[3] * v_dot_l.max(0.0) / nu.max(1.0)]
 }
 
 /// The shader's `Walk`: one walk through the cells, a pixel's ray or a
@@ -357,7 +342,8 @@ fn walk(inp: &RayInput, pr: &RayParams, mut w: Walk, d: [f32; 3], shadow: bool) 
                 } else {
                     let emitted = rgb.map(|c| w.trans * (1.0 - ext) * c);
                     if sigma > 0.0 {
-                        let f = shade(inp, pr, cell, depth, origin, sigma);
+                        let mu = [0, 1, 2].map(|a| (p[a] + (t * 0.5) * d[a]).clamp(-0.5, 0.5));
+                        let f = shade(inp, pr, cell, depth, mu);
                         for i in 0..3 {
                             w.colour[i] += emitted[i] * f[0];
                             w.direct[i] += emitted[i] * f[1];
