@@ -537,8 +537,9 @@ fn walk(w0: Walk, d: vec3<real>, shadow: bool) -> Walk {
                         w.colour = w.colour + emitted * f.x;
                         w.direct = w.direct + emitted * f.y;
                     }
-                    // The shadow ray starts where T = 1/2 (spec 6.1).
-                    if (!w.found && w.trans >= 0.5 && w.trans * ext < 0.5) {
+                    // The shadow ray starts where T = 1/2 (spec 6.1); only
+                    // a pipeline with shadows casts one.
+                    if (LIT == 2u && !w.found && w.trans >= 0.5 && w.trans * ext < 0.5) {
                         let per_unit = here.sigma * edge;
                         let t_half = min(log(2.0 * w.trans) / select(1.0, per_unit, per_unit > 0.0), f32(t));
                         w.found = true;
@@ -833,7 +834,7 @@ fn march(cur0: array<Cur, 16>, d: vec3<real>, shadow: bool) -> March {
                     out.direct = out.direct + w * share * f.y * rgb;
                 }
             }
-            if (LIT != 0u && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5) {
+            if (LIT == 2u && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5) {
                 let per_unit = sig * root_size;
                 let t_half = min(log(2.0 * out.trans) / per_unit, u);
                 out.found = true;

@@ -72,7 +72,7 @@ fn march(layers: &[LayerInput], pr: &RayParams, mut cur: Vec<Cursor>, mut active
                     }
                 }
             }
-            if pr.lit != 0 && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5 {
+            if pr.lit == 2 && !out.found && out.trans >= 0.5 && out.trans * ext < 0.5 {
                 let per_unit = sig * root_size;
                 let t_half = ((2.0 * out.trans).ln() / per_unit).min(u);
                 out.found = true;

@@ -349,7 +349,8 @@ fn walk(inp: &RayInput, pr: &RayParams, mut w: Walk, d: [f32; 3], shadow: bool) 
                             w.direct[i] += emitted[i] * f[1];
                         }
                     }
-                    if !w.found && w.trans >= 0.5 && w.trans * ext < 0.5 {
+                    // Only a cast with shadows keeps the shadow ray's start.
+                    if pr.lit == 2 && !w.found && w.trans >= 0.5 && w.trans * ext < 0.5 {
                         let per_unit = sigma * edge;
                         let t_half = ((2.0 * w.trans).ln() / if per_unit > 0.0 { per_unit } else { 1.0 }).min(t);
                         w.found = true;
