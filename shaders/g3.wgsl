@@ -112,24 +112,16 @@ fn g3_cell(c: u32, a: u32) -> u32 {
 }
 
 // Spec 6.1: the relative gradient below which a cell is unlit, and above
-// which it is fully lit; the word of the zero vector.
+// which it is fully lit.
 const R_UNLIT: f32 = 0.004;
 const R_LIT: f32 = 0.02;
-const ZERO_WORD: u32 = 537395712u; // 512 | 512 << 10 | 512 << 20
 
 // The cell across c's face on side `side` of axis a: root array arithmetic
 // for a root, the sibling across an inward face, g3 (c's row) across an
 // outward one; NONE outside the canvas.
 fn across(c: u32, row: vec3<u32>, a: u32, side: i32) -> u32 {
-    let rx = params.roots.x;
-    let ry = params.roots.y;
-    if (c < rx * ry * params.roots.z) {
-        var r = vec3<i32>(vec3<u32>(c % rx, (c / rx) % ry, c / (rx * ry)));
-        r[a] = r[a] + side;
-        if (r[a] < 0 || u32(r[a]) >= params.roots[a]) {
-            return NONE;
-        }
-        return u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
+    if (c < params.roots.x * params.roots.y * params.roots.z) {
+        return root_across(c, params.roots, a, side);
     }
     if ((((c >> a) & 1u) == 1u) == (side > 0)) {
         return row[a];

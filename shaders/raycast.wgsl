@@ -115,9 +115,6 @@ fn tcell(c: u32) -> Cell {
     return cell_at(layer_base + c);
 }
 
-// The word of the zero vector (spec 6.1): 512 | 512 << 10 | 512 << 20.
-const ZERO_WORD: u32 = 537395712u;
-
 // Cell c's row (g3 and the shading vector's word); past the pages, a free
 // cell's.
 fn row_at(c: u32) -> Row {
@@ -221,8 +218,6 @@ fn shade(cell: u32, depth: u32, mu: vec3<f32>) -> vec2<f32> {
     }
     let own = decode(row.shade);
     var v = own;
-    let rx = params.roots.x;
-    let ry = params.roots.y;
     for (var a = 0u; a < 3u; a = a + 1u) {
         if (mu[a] == 0.0) {
             continue;
@@ -231,11 +226,7 @@ fn shade(cell: u32, depth: u32, mu: vec3<f32>) -> vec2<f32> {
         var nb = NONE;
         var h = 1.0;
         if (cell < params.misc.z) {
-            var r = vec3<i32>(vec3<u32>(cell % rx, (cell / rx) % ry, cell / (rx * ry)));
-            r[a] = r[a] + select(-1, 1, up);
-            if (r[a] >= 0 && u32(r[a]) < params.roots[a]) {
-                nb = u32(r.x) + rx * (u32(r.y) + ry * u32(r.z));
-            }
+            nb = root_across(cell, params.roots.xyz, a, select(-1, 1, up));
         } else if ((((cell >> a) & 1u) == 1u) == up) {
             nb = row.g3[a];
             if (nb != NONE) {

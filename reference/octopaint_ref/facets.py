@@ -22,11 +22,9 @@ import numpy as np
 
 from .dump import tree_arrays
 from .jax_setup import configure
-from .lod_study import pair_strip, scaled
+from .lod_study import each_render, pair_strip, scaled
 from .png import png_bytes
 from .raycast import render
-from .replay import replay
-from .trace import read_trace
 
 
 def neighbour_steps(image: np.ndarray, painted: np.ndarray) -> float:
@@ -45,19 +43,12 @@ def study(trace_path: str, div: int = 1, pair=None, grow: int = 1, crop=None) ->
     """One row per lit render event of a one-tree trace, cameras at
     grow/div of their size (the field of view kept). crop: (x0, y0, x1,
     y1), fractions of the image the pair shows."""
-    trace = read_trace(trace_path)
-    if trace.version != 1:
-        raise ValueError(f"{trace_path}: the study reads one-tree traces (version 1)")
     rows = []
-    view = {"camera": None, "light": None}
 
-    def after(ev, painting):
-        if ev.kind in ("camera", "light"):
-            view[ev.kind] = ev.value
-        light = view["light"]
-        if ev.kind != "render" or light is None or not light.on:
+    def after(name, painting, camera, light):
+        if light is None or not light.on:
             return
-        camera = scaled(view["camera"], div)
+        camera = scaled(camera, div)
         camera = replace(camera, size=(camera.size[0] * grow, camera.size[1] * grow))
         arrays = tree_arrays(painting.tree)
         flat = render(arrays, camera, light=light, flat=True)
@@ -66,7 +57,7 @@ def study(trace_path: str, div: int = 1, pair=None, grow: int = 1, crop=None) ->
         painted = np.any(smooth.colour.reshape(flat.image.shape) != np.asarray(camera.background), axis=-1)
         rows.append(
             {
-                "render": ev.value,
+                "render": name,
                 "size": list(camera.size),
                 "flat": neighbour_steps(flat.image, painted),
                 "interpolated": neighbour_steps(smooth.image, painted),
@@ -76,17 +67,17 @@ def study(trace_path: str, div: int = 1, pair=None, grow: int = 1, crop=None) ->
         if pair is not None:
             os.makedirs(pair, exist_ok=True)
             zoom = max(1, 320 // camera.size[0])
-            name = f"{ev.value}_facets.png" if grow == 1 else f"{ev.value}_facets_x{grow}.png"
+            out = f"{name}_facets.png" if grow == 1 else f"{name}_facets_x{grow}.png"
             shown = [flat.image, smooth.image]
             if crop is not None:
                 h, w = flat.image.shape[:2]
                 x0, y0, x1, y1 = int(crop[0] * w), int(crop[1] * h), int(crop[2] * w), int(crop[3] * h)
                 shown = [im[y0:y1, x0:x1] for im in shown]
                 zoom = max(1, 320 // max(1, x1 - x0))
-            with open(os.path.join(pair, name), "wb") as f:
+            with open(os.path.join(pair, out), "wb") as f:
                 f.write(png_bytes(pair_strip(shown, zoom)))
 
-    replay(trace, None, renders=False, after_event=after)
+    each_render(trace_path, after)
     return rows
 
 

@@ -28,11 +28,9 @@ import numpy as np
 from .dump import tree_arrays
 from .jax_setup import configure
 from .lod import check_k
-from .lod_study import scaled
+from .lod_study import each_render, scaled
 from .precision import psnr
 from .raycast import device_tree, render
-from .replay import replay
-from .trace import read_trace
 
 TRACES = os.path.join(os.path.dirname(__file__), "..", "..", "traces")
 
@@ -42,7 +40,7 @@ def _stats(img: np.ndarray, ref: np.ndarray) -> dict:
     return {"psnr_db": psnr(img, ref), "over_2_steps_pct": float((d > 2).mean() * 100), "max_steps": int(d.max())}
 
 
-def _view_rows(name, ev, arrays, dev, cam, light, lods, precisions) -> list[dict]:
+def _view_rows(name, render_name, arrays, dev, cam, light, lods, precisions) -> list[dict]:
     """The rows of one lit render event seen by `cam`: per k and precision,
     the lit and the unlit view against f64 at the same k."""
     rows = []
@@ -50,7 +48,7 @@ def _view_rows(name, ev, arrays, dev, cam, light, lods, precisions) -> list[dict
     for k in lods:
         ref = {kind: render(arrays, cam, "f64", device=dev, light=lt, lod=k).image for kind, lt in views}
         for prec in precisions:
-            row = {"trace": name, "render": ev.value, "size": list(cam.size), "shadows": light.shadows, "lod": k, "precision": prec}
+            row = {"trace": name, "render": render_name, "size": list(cam.size), "shadows": light.shadows, "lod": k, "precision": prec}
             for kind, lt in views:
                 row[kind] = _stats(render(arrays, cam, prec, device=dev, light=lt, lod=k).image, ref[kind])
             rows.append(row)
@@ -65,21 +63,16 @@ def study(traces=("lit.jsonl", "scene.jsonl"), precisions=("f16", "f32"), lods=(
     precision."""
     rows = []
     for name in traces:
-        trace = read_trace(os.path.join(TRACES, name))
-        state = {"camera": None, "light": None}
 
-        def after(ev, painting, name=name):
-            if ev.kind in ("camera", "light"):
-                state[ev.kind] = ev.value  # noqa: B023 (called in this iteration only)
-            if ev.kind != "render" or state["light"] is None or not state["light"].on:  # noqa: B023 (called in this iteration only)
+        def after(render_name, painting, cam, light, name=name):
+            if light is None or not light.on:
                 return
             arrays = tree_arrays(painting.tree)
             dev = device_tree(arrays)
-            cam, light = state["camera"], state["light"]  # noqa: B023 (called in this iteration only)
             for div in divs:
-                rows.extend(_view_rows(name, ev, arrays, dev, scaled(cam, div), light, lods, precisions))
+                rows.extend(_view_rows(name, render_name, arrays, dev, scaled(cam, div), light, lods, precisions))
 
-        replay(trace, None, renders=False, after_event=after)
+        each_render(os.path.join(TRACES, name), after)
     return rows
 
 

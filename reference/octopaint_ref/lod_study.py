@@ -109,25 +109,35 @@ def scaled(camera, div: int):
     return replace(camera, size=(max(1, w // div), max(1, h // div)))
 
 
-def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, div: int = 1, pair=None, orbit: bool = False) -> list:
-    """One row per render event of a one-tree trace (version 1); cameras at
-    1/div of their size. pair: a folder to write, per render, the images at
-    the first and last k and the truth side by side (`RENDER_lod.png`)."""
+def each_render(trace_path: str, on_render) -> None:
+    """Replay a one-tree trace (version 1), calling on_render(name,
+    painting, camera, light) at every render event with the view the trace
+    has set by then (light None before any light event)."""
     trace = read_trace(trace_path)
     if trace.version != 1:
         raise ValueError(f"{trace_path}: the study reads one-tree traces (version 1)")
-    rows = []
     view = {"camera": None, "light": None}
 
     def after(ev, painting):
         if ev.kind in ("camera", "light"):
             view[ev.kind] = ev.value
-        if ev.kind != "render":
-            return
-        camera, light = scaled(view["camera"], div), view["light"]
+        if ev.kind == "render":
+            on_render(ev.value, painting, view["camera"], view["light"])
+
+    replay(trace, None, renders=False, after_event=after)
+
+
+def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, div: int = 1, pair=None, orbit: bool = False) -> list:
+    """One row per render event of a one-tree trace (version 1); cameras at
+    1/div of their size. pair: a folder to write, per render, the images at
+    the first and last k and the truth side by side (`RENDER_lod.png`)."""
+    rows = []
+
+    def after(name, painting, camera, light):
+        camera = scaled(camera, div)
         t0 = time.perf_counter()
         ref = truth(painting, camera, light, ss)
-        row = {"trace": trace_path, "render": ev.value, "size": list(camera.size), "samples_per_pixel": ss * ss, "levels": []}
+        row = {"trace": trace_path, "render": name, "size": list(camera.size), "samples_per_pixel": ss * ss, "levels": []}
         images = []
         for k in lods:
             r = _render(painting, camera, light, k)
@@ -147,10 +157,10 @@ def study(trace_path: str, lods: list, ss: int, frames: int, step_deg: float, di
         if pair is not None:
             os.makedirs(pair, exist_ok=True)
             zoom = max(1, 320 // camera.size[0])
-            with open(os.path.join(pair, f"{ev.value}_lod.png"), "wb") as f:
+            with open(os.path.join(pair, f"{name}_lod.png"), "wb") as f:
                 f.write(png_bytes(pair_strip([images[0], images[-1], ref], zoom)))
 
-    replay(trace, None, renders=False, after_event=after)
+    each_render(trace_path, after)
     return rows
 
 

@@ -38,7 +38,7 @@ from .raycast import (
     camera_rays,
     to_pixels,
 )
-from .shading import factors_of, mix, shading, sides
+from .shading import Lighting, factors, shading
 
 
 # A document of several layers (spec 6.2): one cursor per contributing
@@ -78,6 +78,11 @@ def stack_trees(arrays_list: list) -> tuple[DeviceTree, Canvas]:
     return jax.tree_util.tree_map(lambda *x: jnp.stack(x), *trees), canvas
 
 
+# The axes of a document's Lighting (shading.py) that run over its layers:
+# the cells' arrays; the light is one for all.
+PER_LAYER = Lighting(0, 0, 0, 0, None, None, None)
+
+
 def _march_step(trees: DeviceTree, walk: DeviceTree, setup: Setup, m: Arith, d, opacity, s: March, lighting=None, shadow: bool = False, cut=None) -> March:
     """One step of the march of spec 6.2."""
     n_layers = opacity.shape[0]
@@ -105,12 +110,7 @@ def _march_step(trees: DeviceTree, walk: DeviceTree, setup: Setup, m: Arith, d, 
             # Each cursor's leaf shaded at the interval's midpoint in its
             # own frame (spec 6.1, 6.2).
             mu = jnp.clip(m.add(s.cur.p, m.mul(m.rnd(u / inv * 0.5)[:, None], d[None, :])), -0.5, 0.5)
-            f = sides(mu)
-            nb = jnp.take_along_axis(lighting.nb[rows, cells], f, axis=-1)
-            inv_h = jnp.take_along_axis(lighting.inv_h[rows, cells], f, axis=-1)
-            a0, a1 = factors_of(lighting, mix(lighting.v[rows, cells], lighting.v[rows[:, None], nb], inv_h, mu))
-            z = lighting.zero[rows, cells]
-            a0, a1 = jnp.where(z, 1.0, a0), jnp.where(z, 0.0, a1)
+            a0, a1 = jax.vmap(factors, in_axes=(PER_LAYER, 0, 0))(lighting, cells, mu)
             colour = colour + w * jnp.sum((share * a0)[:, None] * rgb, axis=0)
             direct = direct + w * jnp.sum((share * a1)[:, None] * rgb, axis=0)
             cross = ~s.found & (s.trans >= 0.5) & (trans < 0.5)

@@ -186,13 +186,7 @@ def factors(li: Lighting, cell, mu):
     f = sides(mu)
     nb = jnp.take_along_axis(li.nb[cell], f, axis=-1)
     inv_h = jnp.take_along_axis(li.inv_h[cell], f, axis=-1)
-    return unlit_where_zero(li, cell, factors_of(li, mix(li.v[cell], li.v[nb], inv_h, mu)))
-
-
-def unlit_where_zero(li: Lighting, cell, ab):
-    """(a0, a1) with the cells whose own stored vector is zero unlit: they
-    are not interpolated (spec 6.1)."""
-    a0, a1 = ab
+    a0, a1 = factors_of(li, mix(li.v[cell], li.v[nb], inv_h, mu))
     z = li.zero[cell]
     return jnp.where(z, 1.0, a0), jnp.where(z, 0.0, a1)
 

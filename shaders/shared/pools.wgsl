@@ -58,6 +58,21 @@ struct Row {
     shade: u32,
 }
 
+// The word of the zero vector (spec 6.1): 512 | 512 << 10 | 512 << 20.
+const ZERO_WORD: u32 = 537395712u;
+
+// The root next to root c on side `side` (+1/-1) of axis a, by root array
+// arithmetic (spec 1.1); NONE outside the canvas. painter/octree/src/
+// normals.rs `across` is the CPU twin.
+fn root_across(c: u32, roots: vec3<u32>, a: u32, side: i32) -> u32 {
+    var r = vec3<i32>(vec3<u32>(c % roots.x, (c / roots.x) % roots.y, c / (roots.x * roots.y)));
+    r[a] = r[a] + side;
+    if (r[a] < 0 || u32(r[a]) >= roots[a]) {
+        return NONE;
+    }
+    return u32(r.x) + roots.x * (u32(r.y) + roots.y * u32(r.z));
+}
+
 fn cell_at(i: u32) -> Cell {
     if (i >= cells_held) {
         return FREE_CELL;

@@ -127,15 +127,9 @@ pub fn decode(word: u32) -> [f32; 3] {
     [0, 1, 2].map(|a| (((word >> (10 * a)) & 1023) as f32 - 512.0) / 511.0)
 }
 
-/// Every cell's word, for a tree with its g3 table (CPU renders, layer
-/// uploads, tests).
-pub fn normal_table(tree: &Tree, g3: &[[u32; 3]]) -> Vec<u32> {
-    let inp = NormalInput::of(tree, g3);
-    (0..tree.parent().len() as u32).map(|c| normal_word(&inp, c)).collect()
-}
-
-/// g3 and the word side by side, one 16-byte row per cell: the GPU's
-/// layout (docs/buffer-layouts.md) and what the CPU ray caster reads.
+/// g3 and the word side by side, one 16-byte row per cell, for a tree
+/// with its g3 table: the GPU's layout (docs/buffer-layouts.md) and what
+/// the CPU ray caster reads.
 pub fn rows(tree: &Tree, g3: &[[u32; 3]]) -> Vec<[u32; 4]> {
     let inp = NormalInput::of(tree, g3);
     g3.iter().enumerate().map(|(c, r)| [r[0], r[1], r[2], normal_word(&inp, c as u32)]).collect()

@@ -11,7 +11,7 @@ use octopaint_tree::clean::collapsible_anywhere;
 use octopaint_tree::dirty::{BLOCK_CELLS, region_cells};
 use octopaint_tree::dump::dump_bytes;
 use octopaint_tree::g3::g3_table;
-use octopaint_tree::normals::{ZERO, normal_table};
+use octopaint_tree::normals::{ZERO, rows};
 use octopaint_tree::paint::Painting;
 use octopaint_tree::pool::{FREE, NONE, Tree};
 use octopaint_tree::stroke::{Geometry, Prim, StrokePath};
@@ -93,10 +93,10 @@ fn session() -> impl Strategy<Value = Session> {
 /// mask, vector changes by the mask (spec 3.4 rule 3), record changes by
 /// the dirty blocks.
 fn check_publication(before: &Tree, before_g3: &[[u32; 3]], after: &mut Tree) -> Result<(), TestCaseError> {
-    let before_normals = normal_table(before, before_g3);
+    let before_rows = rows(before, before_g3);
     let pubn = after.take_publication();
     let g3 = g3_table(after);
-    let normals = normal_table(after, &g3);
+    let after_rows = rows(after, &g3);
     let n = before.n_used().max(after.n_used());
     let size = region_cells(after.capacity);
     for c in 0..n {
@@ -106,7 +106,7 @@ fn check_publication(before: &Tree, before_g3: &[[u32; 3]], after: &mut Tree) ->
             prop_assert!(pubn.dirty_cells.binary_search(&c).is_ok(), "g3 of {c} changed {old:?} -> {new:?} but it is not dirty");
             prop_assert!(pubn.mask.get((c / size) as usize), "region of {c} not in the mask");
         }
-        let (was, now) = (before_normals.get(c as usize).copied().unwrap_or(ZERO), normals.get(c as usize).copied().unwrap_or(ZERO));
+        let (was, now) = (before_rows.get(c as usize).map_or(ZERO, |r| r[3]), after_rows.get(c as usize).map_or(ZERO, |r| r[3]));
         if was != now && after.depth().get(c as usize).is_some_and(|&d| d != FREE) {
             prop_assert!(pubn.mask.get((c / size) as usize), "the shading vector of {c} changed {was:#x} -> {now:#x} but its region is not in the mask");
         }
